@@ -1,0 +1,24 @@
+# The two commands a user needs (see README.md):
+#   make run    set everything up, then run the node on the default scene
+#   make test   set everything up, then run the whole test suite
+# Set-up is ros_env/bootstrap.py: cached, so a warm run takes seconds.
+SHELL := /bin/bash
+# DDS discovery stays on this machine unless you say otherwise.
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+
+.PHONY: setup run test bench clean
+
+setup:
+	@python3 ros_env/bootstrap.py
+
+run: setup
+	@. .build/env.sh && exec "$$SIM_PREFIX/lib/sim/node" $(ARGS)
+
+test: setup
+	@. .build/env.sh && "$$SIM_PYTHON" -m pytest $(PYTEST_ARGS)
+
+bench: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/run_all.py
+
+clean:
+	rm -rf .venv .build .pytest_cache

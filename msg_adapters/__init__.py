@@ -1,0 +1,1 @@
+"""Pure conversions between core values and ROS messages."""

@@ -1,0 +1,1 @@
+"""The ROS-free MuJoCo world: no rclpy or message imports here."""
