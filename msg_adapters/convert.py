@@ -1,0 +1,204 @@
+"""Pure conversions between core values and ROS messages.
+
+The one place where quaternion order changes: MuJoCo is (w, x, y, z), ROS is (x, y, z, w).
+Stamps always come from simulation time, never from the wall clock.
+"""
+
+import math
+from typing import Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, Pose, Quaternion, Transform, TransformStamped, Twist, \
+    Vector3
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Result, \
+    SimulationState
+from tf2_msgs.msg import TFMessage
+
+from sim_node.core import errors
+from sim_node.core.types import DYNAMIC, ROBOT, STATIC, EntityRecord, ModelInfo, Snapshot
+
+# Core exceptions -> simulation_interfaces Result codes, in one table. Service-specific codes
+# (SpawnEntity.Response.NAME_NOT_UNIQUE, ...) are looked up by name on the response type.
+RESULT_CODES = (
+    (errors.NotFoundError, Result.RESULT_NOT_FOUND, None),
+    (errors.NameNotUniqueError, Result.RESULT_OPERATION_FAILED, 'NAME_NOT_UNIQUE'),
+    (errors.NameInvalidError, Result.RESULT_OPERATION_FAILED, 'NAME_INVALID'),
+    (errors.NamespaceInvalidError, Result.RESULT_OPERATION_FAILED, 'NAMESPACE_INVALID'),
+    (errors.NoResourceError, Result.RESULT_OPERATION_FAILED, 'NO_RESOURCE'),
+    (errors.UnsupportedFormatError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_FORMAT'),
+    (errors.ResourceParseError, Result.RESULT_OPERATION_FAILED, 'RESOURCE_PARSE_ERROR'),
+    (errors.MissingAssetsError, Result.RESULT_OPERATION_FAILED, 'MISSING_ASSETS'),
+    (errors.UnsupportedAssetsError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_ASSETS'),
+    (errors.InvalidPoseError, Result.RESULT_OPERATION_FAILED, 'INVALID_POSE'),
+    (errors.IncorrectStateError, Result.RESULT_INCORRECT_STATE, None),
+    (errors.InvalidArgumentError, Result.RESULT_OPERATION_FAILED, None),
+    (errors.DivergenceError, Result.RESULT_OPERATION_FAILED, None),
+    (errors.SimError, Result.RESULT_OPERATION_FAILED, None),
+)
+
+CATEGORY_TO_MSG = {ROBOT: EntityCategory.CATEGORY_ROBOT,
+                   DYNAMIC: EntityCategory.CATEGORY_DYNAMIC_OBJECT,
+                   STATIC: EntityCategory.CATEGORY_STATIC_OBJECT}
+
+
+def result_for(exc: Exception, response_type: type = None) -> Result:
+    """The Result for a core exception: a service-specific code where the response has one."""
+    for kind, code, specific in RESULT_CODES:
+        if isinstance(exc, kind):
+            if specific and response_type is not None and hasattr(response_type, specific):
+                code = getattr(response_type, specific)
+            return Result(result=code, error_message=str(exc))
+    return Result(result=Result.RESULT_OPERATION_FAILED, error_message=str(exc))
+
+
+def ok() -> Result:
+    return Result(result=Result.RESULT_OK, error_message='')
+
+
+def stamp(sim_time: float) -> Time:
+    sec = int(math.floor(sim_time))
+    nanosec = int(round((sim_time - sec) * 1e9))
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def stamp_to_sec(t: Time) -> float:
+    return t.sec + t.nanosec * 1e-9
+
+
+def clock(sim_time: float) -> Clock:
+    return Clock(clock=stamp(sim_time))
+
+
+def quat_to_msg(q_wxyz: Sequence[float]) -> Quaternion:
+    return Quaternion(x=float(q_wxyz[1]), y=float(q_wxyz[2]), z=float(q_wxyz[3]),
+                      w=float(q_wxyz[0]))
+
+
+def quat_from_msg(q: Quaternion) -> np.ndarray:
+    return np.array([q.w, q.x, q.y, q.z], dtype=float)
+
+
+def vec(v: Sequence[float]) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def vec_from_msg(v) -> np.ndarray:
+    return np.array([v.x, v.y, v.z], dtype=float)
+
+
+def pose_to_msg(pos: Sequence[float], q_wxyz: Sequence[float]) -> Pose:
+    return Pose(position=Point(x=float(pos[0]), y=float(pos[1]), z=float(pos[2])),
+                orientation=quat_to_msg(q_wxyz))
+
+
+def pose_from_msg(pose: Pose) -> tuple:
+    """(position (3,), quat_wxyz (4,)) from a Pose; an all-zero quaternion means identity."""
+    q = quat_from_msg(pose.orientation)
+    if not np.any(q):
+        q = np.array([1.0, 0.0, 0.0, 0.0])
+    return vec_from_msg(pose.position), q
+
+
+def entity_state_to_msg(state, frame_id: str) -> EntityState:
+    msg = EntityState()
+    msg.header.stamp = stamp(state.time)
+    msg.header.frame_id = frame_id
+    msg.pose = pose_to_msg(state.position, state.quat_wxyz)
+    msg.twist = Twist(linear=vec(state.linear_velocity), angular=vec(state.angular_velocity))
+    return msg
+
+
+def bounds_box(lo: Sequence[float], hi: Sequence[float]) -> Bounds:
+    return Bounds(type=Bounds.TYPE_BOX, points=[vec(lo), vec(hi)])
+
+
+def category_to_msg(rec: EntityRecord) -> EntityCategory:
+    return EntityCategory(category=CATEGORY_TO_MSG[rec.category])
+
+
+def simulation_state(loop_state: str) -> SimulationState:
+    code = {'playing': SimulationState.STATE_PLAYING, 'paused': SimulationState.STATE_PAUSED,
+            'stopped': SimulationState.STATE_STOPPED,
+            'no_world': SimulationState.STATE_NO_WORLD}[loop_state]
+    return SimulationState(state=code)
+
+
+def joint_state(info: ModelInfo, snap: Snapshot) -> JointState:
+    msg = JointState()
+    msg.header.stamp = stamp(snap.time)
+    msg.name = list(info.joint_names)
+    msg.position = snap.joint_position.tolist()
+    msg.velocity = snap.joint_velocity.tolist()
+    msg.effort = snap.joint_effort.tolist()
+    return msg
+
+
+def _transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStamped:
+    ts = TransformStamped()
+    ts.header.stamp = t
+    ts.header.frame_id = parent
+    ts.child_frame_id = child
+    ts.transform = Transform(translation=vec(pos), rotation=quat_to_msg(q_wxyz))
+    return ts
+
+
+def _frame(info: ModelInfo, body: int, world_frame: str) -> str:
+    return world_frame if body == 0 else info.body_names[body]
+
+
+def static_transforms(info: ModelInfo, sim_time: float, world_frame: str) -> TFMessage:
+    """Welded bodies: their fixed pose in the parent body's frame, for /tf_static."""
+    t = stamp(sim_time)
+    return TFMessage(transforms=[
+        _transform(_frame(info, info.body_parent[b], world_frame), info.body_names[b],
+                   info.body_local_pos[b], info.body_local_quat_wxyz[b], t)
+        for b in range(1, len(info.body_names)) if not info.body_has_joint[b]])
+
+
+def moving_body_ids(info: ModelInfo) -> np.ndarray:
+    return np.array([b for b in range(1, len(info.body_names)) if info.body_has_joint[b]],
+                    dtype=int)
+
+
+def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> tuple:
+    """Pose of each body in its parent's frame: (pos (n, 3), quat_wxyz (n, 4))."""
+    pp, pq = snap.body_xpos[parents], snap.body_xquat_wxyz[parents]
+    cp, cq = snap.body_xpos[bodies], snap.body_xquat_wxyz[bodies]
+    inv = pq * np.array([1.0, -1.0, -1.0, -1.0])
+    rel_p = _rotate(inv, cp - pp)
+    return rel_p, _qmul(inv, cq)
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
+                     aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    u = q[:, 1:]
+    w = q[:, :1]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def moving_transforms(info: ModelInfo, snap: Snapshot, bodies: np.ndarray,
+                      world_frame: str) -> TFMessage:
+    """Bodies with joints: parent body -> body (free bodies from the world frame), all with
+    the snapshot's simulation time as the stamp."""
+    if not len(bodies):
+        return TFMessage()
+    parents = info.body_parent[bodies]
+    pos, quat = relative_poses(snap, bodies, parents)
+    t = stamp(snap.time)
+    return TFMessage(transforms=[
+        _transform(_frame(info, int(p), world_frame), info.body_names[b], pos[i], quat[i], t)
+        for i, (b, p) in enumerate(zip(bodies, parents))])

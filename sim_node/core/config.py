@@ -1,0 +1,37 @@
+"""The one source of truth for world and loop configuration."""
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Configuration of a :class:`~sim_node.core.world.World` and its stepping loop.
+
+    The node declares its ROS parameters from these fields (``sim_node.params``).
+    """
+
+    #: Wall-clock pacing: 1.0 is real time, 2.0 twice as fast, 0 as fast as possible.
+    real_time_factor: float = 1.0
+    #: Start paused.
+    paused: bool = False
+    #: Physics step in seconds; 0 keeps the scene's own.
+    timestep: float = 0.0
+    #: Stop the loop after this many steps since the last time reset; 0 is unbounded.
+    max_steps: int = 0
+    #: Stop the loop at this simulated time in seconds; 0 is unbounded.
+    max_sim_time: float = 0.0
+    #: How often the loop hands an immutable snapshot to consumers (wall-clock Hz).
+    snapshot_rate_hz: float = 100.0
+    #: PD gains for joints commanded without a matching actuator (N m/rad, N m s/rad).
+    kp: float = 100.0
+    kd: float = 10.0
+    #: Refuse spawns whose geometry would overlap existing geometry deeper than this (m).
+    interpenetration_tolerance: float = 1e-3
+    #: Allow spawning into overlapping geometry (off by default: deep overlap explodes).
+    allow_interpenetration: bool = False
+    #: Largest resource (MJCF/URDF text or mesh file) a spawn may read, in bytes.
+    max_resource_bytes: int = 20_000_000
+    #: Largest mesh, in faces, a spawn may load.
+    max_mesh_faces: int = 200_000
+    #: Wall seconds behind schedule after which pacing re-syncs instead of bursting.
+    resync_after_sec: float = 0.25

@@ -1,0 +1,65 @@
+"""Typed errors of the world core. Each maps to one simulation_interfaces Result code.
+
+The node maps them in one table (``msg_adapters.results``); messages say what to fix.
+"""
+
+
+class SimError(Exception):
+    """Base of every error the core raises on bad input or impossible requests."""
+
+
+class NotFoundError(SimError):
+    """An entity, joint or resource that does not exist."""
+
+
+class NameNotUniqueError(SimError):
+    """An entity with this name exists and renaming was not allowed."""
+
+
+class NameInvalidError(SimError):
+    """A name that cannot be a MuJoCo or TF name."""
+
+
+class NamespaceInvalidError(SimError):
+    """A namespace that is not a valid ROS namespace."""
+
+
+class NoResourceError(SimError):
+    """A spawn or load request without any resource."""
+
+
+class UnsupportedFormatError(SimError):
+    """A resource in a format the simulator does not read."""
+
+
+class ResourceParseError(SimError):
+    """MJCF or URDF text that does not parse or compile."""
+
+
+class MissingAssetsError(SimError):
+    """A file the resource refers to does not exist or may not be read."""
+
+
+class UnsupportedAssetsError(SimError):
+    """An asset that exists but cannot be used (bad mesh, too large, not a regular file)."""
+
+
+class InvalidPoseError(SimError):
+    """A pose that is non-finite, has a non-unit quaternion, or would interpenetrate."""
+
+
+class InvalidArgumentError(SimError):
+    """A value that is out of range, non-finite or of the wrong length."""
+
+
+class IncorrectStateError(SimError):
+    """A request that the simulation's current state does not allow."""
+
+
+class DivergenceError(SimError):
+    """The physics produced warnings or non-finite state; the loop pauses on it."""
+
+    def __init__(self, message: str, step: int, report: dict):
+        super().__init__(message)
+        self.step = step
+        self.report = report

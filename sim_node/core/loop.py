@@ -1,0 +1,287 @@
+"""The stepping loop: one thread that advances a :class:`World` at a fixed step.
+
+* Real-time factor 1.0 paces simulated time to the wall clock (2.0: twice as fast; 0: as fast
+  as possible). Pacing sleeps to absolute deadlines outside the world lock and re-syncs after a
+  stall instead of bursting to catch up.
+* Pause and play; :meth:`SimLoop.step` runs N steps while paused and blocks until done.
+  A paused loop waits on a condition: no CPU.
+* Termination constraints (max steps, max simulated time) pause the loop with a reason.
+* Divergence pauses the loop with a report; the world is back at the last good state.
+* Every ``1/snapshot_rate_hz`` wall seconds (and after every change) the loop makes an
+  immutable :class:`~sim_node.core.types.Snapshot` that consumers read from any thread.
+"""
+
+import logging
+import threading
+import time
+from typing import Callable, Optional
+
+from .config import WorldConfig
+from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError
+from .types import LoopStatus, Snapshot
+from .world import World
+
+log = logging.getLogger(__name__)
+
+PLAYING = 'playing'
+PAUSED = 'paused'
+STOPPED = 'stopped'
+# Longest the loop holds the world lock per batch when running as fast as possible (s).
+MAX_BATCH_WALL_SEC = 0.002
+MAX_BATCH_STEPS = 1000
+
+ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
+ERR_NOT_RUNNING = 'the stepping loop is not running'
+
+
+class SimLoop:
+    """Steps a world on its own thread. Start with :meth:`start`, end with :meth:`stop`."""
+
+    def __init__(self, world: World, config: Optional[WorldConfig] = None):
+        cfg = config or world.config
+        self.world = world
+        self._rtf = float(cfg.real_time_factor)
+        self._max_steps = int(cfg.max_steps)
+        self._max_sim_time = float(cfg.max_sim_time)
+        self._snapshot_period = 1.0 / cfg.snapshot_rate_hz if cfg.snapshot_rate_hz > 0 else 0.0
+        self._resync = float(cfg.resync_after_sec)
+        self._cv = threading.Condition()
+        self._paused = bool(cfg.paused)
+        self._stopping = False
+        self._pending_steps = 0
+        self._steps_done_cv = threading.Condition(self._cv)
+        self._stop_reason = ''
+        self._divergence: Optional[dict] = None
+        self._thread: Optional[threading.Thread] = None
+        self._snapshot = world.snapshot()
+        self._snapshot_seq = 0
+        self._snapshot_cv = threading.Condition()
+        self._listeners: list = []
+        self._batch = 1
+        self._deadline = time.perf_counter()
+        self._last_snapshot = 0.0
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> None:
+        if self._thread is not None:
+            return
+        # Daemon, so an interpreter exit never hangs on it; stop() joins it properly.
+        self._thread = threading.Thread(target=self._run, name='sim-loop', daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        with self._cv:
+            self._stopping = True
+            self._cv.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    # ------------------------------------------------------------------ control
+
+    def pause(self) -> None:
+        with self._cv:
+            self._paused = True
+            self._cv.notify_all()
+
+    def play(self) -> None:
+        """Resume; clears a termination or divergence report (limits still apply)."""
+        with self._cv:
+            self._paused = False
+            self._stop_reason = ''
+            self._divergence = None
+            self._cv.notify_all()
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    def set_real_time_factor(self, rtf: float) -> None:
+        if not (rtf >= 0 and rtf < float('inf')):
+            raise InvalidArgumentError(f'real_time_factor must be >= 0 and finite, got {rtf}')
+        with self._cv:
+            self._rtf = float(rtf)
+            self._cv.notify_all()
+
+    @property
+    def real_time_factor(self) -> float:
+        return self._rtf
+
+    def set_limits(self, max_steps: int = 0, max_sim_time: float = 0.0) -> None:
+        """Termination constraints; 0 disables each."""
+        if max_steps < 0 or not max_sim_time >= 0:
+            raise InvalidArgumentError('max_steps and max_sim_time must be >= 0')
+        with self._cv:
+            self._max_steps, self._max_sim_time = int(max_steps), float(max_sim_time)
+
+    def step(self, n: int = 1, timeout: Optional[float] = None,
+             feedback: Optional[Callable[[int, int], None]] = None) -> int:
+        """Run `n` steps while paused; block until they are done. Returns steps completed.
+
+        :param feedback: called as ``feedback(completed, remaining)`` from this thread.
+        :raises IncorrectStateError: the loop is playing, or is not running.
+        :raises DivergenceError: the physics diverged during these steps.
+        """
+        if n < 1:
+            raise InvalidArgumentError(f'steps must be >= 1, got {n}')
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._cv:
+            if not self._paused:
+                raise IncorrectStateError(ERR_STEP_WHILE_PLAYING)
+            if not self.running:
+                raise IncorrectStateError(ERR_NOT_RUNNING)
+            if self._pending_steps:
+                raise IncorrectStateError('another step request is still running')
+            self._pending_steps = n
+            self._divergence = None
+            self._cv.notify_all()
+            last = n
+            while self._pending_steps and not self._stopping:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                self._steps_done_cv.wait(0.1 if left is None else min(left, 0.1))
+                if feedback is not None and self._pending_steps != last:
+                    last = self._pending_steps
+                    feedback(n - last, last)
+            remaining = self._pending_steps
+            self._pending_steps = 0
+            if self._divergence is not None:
+                div = self._divergence
+                raise DivergenceError(f'physics diverged at step {div["step"]}', div['step'],
+                                      div)
+        return n - remaining
+
+    # ------------------------------------------------------------------ status, snapshots
+
+    def status(self) -> LoopStatus:
+        snap = self._snapshot
+        with self._cv:
+            state = PAUSED if self._paused else PLAYING
+            if not self.running:
+                state = STOPPED
+            return LoopStatus(state=state, step=snap.step, time=snap.time,
+                              real_time_factor=self._rtf, stop_reason=self._stop_reason,
+                              divergence=self._divergence)
+
+    def latest_snapshot(self) -> Snapshot:
+        return self._snapshot
+
+    def wait_snapshot(self, after_seq: int, timeout: float) -> tuple:
+        """Block until a snapshot newer than `after_seq` exists; returns (seq, snapshot)."""
+        with self._snapshot_cv:
+            self._snapshot_cv.wait_for(lambda: self._snapshot_seq > after_seq, timeout)
+            return self._snapshot_seq, self._snapshot
+
+    def refresh_snapshot(self) -> None:
+        """Make a snapshot now (after a spawn, reset or set-state while paused)."""
+        self._publish(self.world.snapshot())
+
+    def _publish(self, snap: Snapshot) -> None:
+        with self._snapshot_cv:
+            self._snapshot = snap
+            self._snapshot_seq += 1
+            self._snapshot_cv.notify_all()
+
+    # ------------------------------------------------------------------ the loop
+
+    def _limit_reason(self) -> str:
+        w = self.world
+        if self._max_steps and w.step_count >= self._max_steps:
+            return f'max_steps reached ({self._max_steps} steps)'
+        if self._max_sim_time and w.time >= self._max_sim_time - 0.5 * w.timestep:
+            return f'max_sim_time reached ({self._max_sim_time} s)'
+        return ''
+
+    def _steps_to_limit(self) -> int:
+        w = self.world
+        n = MAX_BATCH_STEPS
+        if self._max_steps:
+            n = min(n, self._max_steps - w.step_count)
+        if self._max_sim_time:
+            n = min(n, int(round((self._max_sim_time - w.time) / w.timestep)))
+        return max(n, 1)
+
+    def _run(self) -> None:
+        while not self._stopping:
+            try:
+                self._iterate()
+            except Exception:  # the loop must never die silently: pause and say why
+                log.exception('the stepping loop failed')
+                with self._cv:
+                    self._paused = True
+                    self._stop_reason = 'internal error in the stepping loop (see the log)'
+                    self._pending_steps = 0
+                    self._steps_done_cv.notify_all()
+
+    def _iterate(self) -> None:
+        """Wait until stepping is due, run one batch of steps, hand out a snapshot."""
+        with self._cv:
+            while not self._stopping and self._paused and not self._pending_steps:
+                self._cv.wait()
+                self._deadline = time.perf_counter()
+            if self._stopping:
+                return
+            stepping_request = self._paused
+            rtf = self._rtf
+            reason = '' if stepping_request else self._limit_reason()
+            if reason:
+                self._paused = True
+                self._stop_reason = reason
+                log.info('loop paused: %s', reason)
+                return
+            if stepping_request:
+                n = min(self._pending_steps, MAX_BATCH_STEPS)
+            elif rtf > 0:
+                period = self.world.timestep / rtf
+                lag = time.perf_counter() - self._deadline
+                if lag < 0:
+                    # Sleep to the absolute deadline outside the world lock; a pause, stop
+                    # or new rate wakes us early.
+                    self._cv.wait(-lag)
+                    return
+                if lag > self._resync:
+                    self._deadline = time.perf_counter()  # stalled: re-sync, don't burst
+                    lag = 0.0
+                n = min(MAX_BATCH_STEPS, int(lag / period) + 1)
+            else:
+                n = self._batch
+            if not stepping_request:
+                n = min(n, self._steps_to_limit())
+        self.world.wait_for_callers()
+        t0 = time.perf_counter()
+        try:
+            self.world.step(n)
+        except DivergenceError as exc:
+            log.error('%s', exc)
+            with self._cv:
+                self._paused = True
+                self._divergence = exc.report
+                self._stop_reason = str(exc)
+                self._pending_steps = 0
+                self._steps_done_cv.notify_all()
+            self.refresh_snapshot()
+            return
+        now = time.perf_counter()
+        if stepping_request:
+            with self._cv:
+                self._pending_steps = max(0, self._pending_steps - n)
+                if not self._pending_steps:
+                    self.refresh_snapshot()
+                self._steps_done_cv.notify_all()
+        elif rtf > 0:
+            self._deadline += n * self.world.timestep / rtf
+        else:
+            # Batch so that one batch holds the lock for about MAX_BATCH_WALL_SEC.
+            per_step = (now - t0) / n
+            self._batch = max(1, min(MAX_BATCH_STEPS,
+                                     int(MAX_BATCH_WALL_SEC / max(per_step, 1e-7))))
+        if now - self._last_snapshot >= self._snapshot_period:
+            self._last_snapshot = now
+            self._publish(self.world.snapshot())
+

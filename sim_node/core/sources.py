@@ -1,0 +1,307 @@
+"""What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
+
+Each builder returns a :class:`SpawnSource`: a small, compiled-once MjSpec with exactly one
+top-level body, plus the in-memory assets it needs. Parsing, file checks and mesh loading all
+happen here, outside the world lock. Nothing here touches a live world.
+"""
+
+import math
+import os
+import stat
+import uuid
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+import mujoco
+import numpy as np
+
+from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError,
+                     ResourceParseError, UnsupportedAssetsError, UnsupportedFormatError)
+
+MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
+MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf')
+PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
+
+ERR_EMPTY = 'the resource is empty: give MJCF or URDF text, a file, a primitive or a mesh'
+ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
+ERR_NOT_XML = 'resource does not parse as XML: {err}'
+ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
+                '<robot> (URDF)')
+ERR_ONE_BODY = ('a spawned model must have exactly one top-level body (found {n}); wrap the '
+                'bodies in one, or spawn them separately')
+ERR_WORLD_ELEMENTS = ('a spawned model may not put {what} directly in <worldbody>; put them in '
+                      'its body')
+ERR_COMPILE = 'the model does not compile: {err}'
+ERR_FILE_MISSING = 'file not found: {path}'
+ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
+ERR_FILE_OUTSIDE = ('{path} is outside the allowed resource paths {roots}; put it there or add '
+                    'its directory to resource_paths')
+ERR_DOTDOT = "'..' is not allowed in resource paths: {path}"
+ERR_MESH_SUFFIX = 'unsupported mesh format {suffix!r}; supported: ' + ', '.join(MESH_SUFFIXES)
+ERR_MESH_LOAD = 'the mesh {path} could not be loaded: {err}'
+ERR_MESH_FACES = 'the mesh has {n} faces, over the limit of {limit}; simplify it'
+ERR_PRIMITIVE = 'unknown primitive {shape!r}; supported: ' + ', '.join(PRIMITIVES)
+ERR_SIZE = '{shape} needs {n} positive finite size values, got {size}'
+ERR_MASS = 'mass must be finite and >= 0, got {mass}'
+ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
+# XML attributes that name files MuJoCo would read.
+_FILE_ATTRIBUTES = ('file', 'filename', 'meshdir', 'texturedir', 'assetdir')
+
+
+@dataclass
+class SpawnSource:
+    """A parsed, compiled-once description of one entity, ready to attach to a world.
+
+    :param spec: MjSpec whose worldbody has exactly one body.
+    :param assets: file name -> bytes for meshes kept in memory.
+    :param kind: 'mjcf', 'urdf', 'primitive' or 'mesh'.
+    :param description: short text for entity info.
+    """
+
+    spec: mujoco.MjSpec
+    assets: dict = field(default_factory=dict)
+    kind: str = 'mjcf'
+    description: str = ''
+
+    @property
+    def root(self) -> mujoco.MjsBody:
+        return self.spec.worldbody.first_body()
+
+
+def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
+    """Check that `path` is a readable regular file inside `allowed_roots` (None: anywhere).
+
+    A FIFO or device would block MuJoCo forever, and '..' or paths outside the roots would let
+    a caller read any file; both are refused before anything opens the file.
+    """
+    if '..' in Path(path).parts:
+        raise MissingAssetsError(ERR_DOTDOT.format(path=path))
+    p = Path(path)
+    if allowed_roots is not None:
+        real = Path(os.path.realpath(p))
+        roots = [Path(os.path.realpath(r)) for r in allowed_roots]
+        if not any(real == r or r in real.parents for r in roots):
+            raise MissingAssetsError(ERR_FILE_OUTSIDE.format(path=path,
+                                                             roots=[str(r) for r in roots]))
+    try:
+        st = p.stat()
+    except OSError:
+        raise MissingAssetsError(ERR_FILE_MISSING.format(path=path)) from None
+    if not stat.S_ISREG(st.st_mode):
+        raise UnsupportedAssetsError(ERR_FILE_NOT_REGULAR.format(path=path))
+    return p
+
+
+def _check_size(n_bytes: int, limit: int) -> None:
+    if n_bytes > limit:
+        raise UnsupportedAssetsError(ERR_TOO_LARGE.format(size=n_bytes, limit=limit))
+
+
+def _check_file_references(root: ET.Element, base_dir: Optional[Path], is_urdf: bool,
+                           allowed_roots: Optional[Sequence[str]]) -> None:
+    """Check every file an MJCF/URDF document names before MuJoCo opens any of them."""
+    compiler = root.find('compiler')
+    dirs = {}
+    if compiler is not None:
+        for key in ('meshdir', 'texturedir', 'assetdir'):
+            if key in compiler.attrib:
+                dirs[key] = compiler.attrib[key]
+    for elem in root.iter():
+        for attr in _FILE_ATTRIBUTES:
+            value = elem.attrib.get(attr)
+            if value is None or elem is compiler:
+                continue
+            if is_urdf:
+                # MuJoCo's URDF import strips directories: meshes must sit beside the file.
+                value = Path(value.split('://', 1)[-1]).name
+            elif elem.tag in ('mesh', 'skin'):
+                value = os.path.join(dirs.get('meshdir', dirs.get('assetdir', '')), value)
+            elif elem.tag in ('texture', 'hfield'):
+                value = os.path.join(dirs.get('texturedir', dirs.get('assetdir', '')), value)
+            path = value if os.path.isabs(value) or base_dir is None else str(base_dir / value)
+            check_path(path, allowed_roots)
+
+
+def _compile_error(exc: Exception) -> Exception:
+    text = str(exc).strip()
+    low = text.lower()
+    if 'could not open' in low or 'error opening file' in low or 'resource not found' in low:
+        return MissingAssetsError(ERR_COMPILE.format(err=text))
+    return ResourceParseError(ERR_COMPILE.format(err=text))
+
+
+def _finish(spec: mujoco.MjSpec, kind: str, description: str,
+            assets: Optional[dict] = None) -> SpawnSource:
+    bodies = list(spec.worldbody.bodies)
+    if len(bodies) != 1:
+        raise ResourceParseError(ERR_ONE_BODY.format(n=len(bodies)))
+    loose = [what for what, items in (('geoms', spec.worldbody.geoms),
+                                      ('sites', spec.worldbody.sites),
+                                      ('joints', spec.worldbody.joints)) if len(items)]
+    if loose:
+        raise ResourceParseError(ERR_WORLD_ELEMENTS.format(what=' and '.join(loose)))
+    try:
+        spec.compile()
+    except ValueError as exc:
+        raise _compile_error(exc) from None
+    return SpawnSource(spec=spec, assets=dict(assets or {}), kind=kind, description=description)
+
+
+def check_model_text(text: str, base_dir: Optional[str] = None,
+                     allowed_roots: Optional[Sequence[str]] = None,
+                     max_bytes: int = 20_000_000) -> ET.Element:
+    """Check MJCF/URDF text before MuJoCo sees it: size, XML, root tag, and every file it
+    names (inside `allowed_roots`, regular, no '..'). Returns the parsed root element."""
+    if not text or not text.strip():
+        raise NoResourceError(ERR_EMPTY)
+    _check_size(len(text.encode()), max_bytes)
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise ResourceParseError(ERR_NOT_XML.format(err=exc)) from None
+    if root.tag not in ('mujoco', 'robot'):
+        raise UnsupportedFormatError(ERR_ROOT_TAG.format(tag=root.tag))
+    _check_file_references(root, Path(base_dir) if base_dir else None, root.tag == 'robot',
+                           allowed_roots)
+    return root
+
+
+def from_model_text(text: str, base_dir: Optional[str] = None,
+                    allowed_roots: Optional[Sequence[str]] = None,
+                    max_bytes: int = 20_000_000) -> SpawnSource:
+    """Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
+
+    :param base_dir: directory relative file names resolve against (None: only absolute).
+    :param allowed_roots: directories files may be read from (None: anywhere).
+    """
+    root = check_model_text(text, base_dir, allowed_roots, max_bytes)
+    is_urdf = root.tag == 'robot'
+    base = Path(base_dir) if base_dir else None
+    try:
+        spec = mujoco.MjSpec.from_string(text) if base is None else _from_string_in(text, base)
+    except ValueError as exc:
+        raise _compile_error(exc) from None
+    kind = 'urdf' if is_urdf else 'mjcf'
+    name = root.attrib.get('name') or root.attrib.get('model') or ''
+    return _finish(spec, kind, f'{kind.upper()} model {name}'.strip())
+
+
+def _from_string_in(text: str, base: Path) -> mujoco.MjSpec:
+    """Parse text as if it were a file in `base`, so relative asset paths resolve there."""
+    tmp = base / f'.sim_spawn_{uuid.uuid4().hex}.xml'
+    try:
+        tmp.write_text(text)
+        return mujoco.MjSpec.from_file(str(tmp))
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
+              max_bytes: int = 20_000_000, max_faces: int = 200_000,
+              **mesh_options) -> SpawnSource:
+    """Load an MJCF/URDF file or a mesh file (STL, OBJ, PLY, GLB, DAE) as one entity."""
+    p = check_path(path, allowed_roots)
+    suffix = p.suffix.lower()
+    _check_size(p.stat().st_size, max_bytes)
+    if suffix in MESH_SUFFIXES:
+        return from_mesh(str(p), allowed_roots=allowed_roots, max_bytes=max_bytes,
+                         max_faces=max_faces, **mesh_options)
+    if suffix not in MODEL_SUFFIXES:
+        raise UnsupportedFormatError(
+            f'unsupported file type {suffix!r}; supported: '
+            + ', '.join(MODEL_SUFFIXES + MESH_SUFFIXES))
+    try:
+        text = p.read_text()
+    except UnicodeDecodeError:
+        raise ResourceParseError(f'{path} is not UTF-8 text') from None
+    return from_model_text(text, base_dir=str(p.parent), allowed_roots=allowed_roots,
+                           max_bytes=max_bytes)
+
+
+def _check_rgba(rgba: Sequence[float]) -> list:
+    vals = [float(v) for v in rgba]
+    if len(vals) != 4 or not all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in vals):
+        raise InvalidArgumentError(ERR_RGBA.format(rgba=list(rgba)))
+    return vals
+
+
+def _check_mass(mass: Optional[float]) -> None:
+    if mass is not None and not (math.isfinite(mass) and mass >= 0):
+        raise InvalidArgumentError(ERR_MASS.format(mass=mass))
+
+
+def _new_body_spec(static: bool) -> tuple:
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name='body')
+    if not static:
+        body.add_freejoint(name='free')
+    return spec, body
+
+
+def primitive(shape: str, size: Sequence[float], mass: Optional[float] = 1.0,
+              rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), static: bool = False,
+              friction: Optional[Sequence[float]] = None) -> SpawnSource:
+    """A box (half-sizes x, y, z), sphere (radius), cylinder or capsule (radius, half-length).
+
+    :param mass: kg; a body without mass (0 or None) is welded to the world (static).
+    :param static: weld to the world regardless of mass.
+    """
+    n_size = {'box': 3, 'sphere': 1, 'cylinder': 2, 'capsule': 2}.get(shape)
+    if n_size is None:
+        raise UnsupportedFormatError(ERR_PRIMITIVE.format(shape=shape))
+    vals = [float(s) for s in size]
+    if len(vals) != n_size or not all(math.isfinite(s) and s > 0 for s in vals):
+        raise InvalidArgumentError(ERR_SIZE.format(shape=shape, n=n_size, size=list(size)))
+    _check_mass(mass)
+    static = static or not mass
+    spec, body = _new_body_spec(static)
+    geom = body.add_geom(name='geom', type=getattr(mujoco.mjtGeom, f'mjGEOM_{shape.upper()}'),
+                         size=vals + [0.0] * (3 - n_size), rgba=_check_rgba(rgba))
+    if mass:
+        geom.mass = float(mass)
+    if friction is not None:
+        geom.friction = [float(f) for f in friction]
+    return _finish(spec, 'primitive', f'{shape} {vals}')
+
+
+def from_mesh(path: str, mass: Optional[float] = 1.0,
+              rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), scale: float = 1.0,
+              static: bool = False, allowed_roots: Optional[Sequence[str]] = None,
+              max_bytes: int = 20_000_000, max_faces: int = 200_000) -> SpawnSource:
+    """A mesh file loaded with trimesh (scenes are merged into one mesh) as one body."""
+    import trimesh  # heavy import, only needed here
+
+    p = check_path(path, allowed_roots)
+    suffix = p.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise UnsupportedAssetsError(ERR_MESH_SUFFIX.format(suffix=suffix))
+    _check_size(p.stat().st_size, max_bytes)
+    _check_mass(mass)
+    if not (math.isfinite(scale) and scale > 0):
+        raise InvalidArgumentError(f'scale must be positive and finite, got {scale}')
+    try:
+        mesh = trimesh.load(str(p), force='mesh')
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err=exc)) from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='no triangles'))
+    if len(mesh.faces) > max_faces:
+        raise UnsupportedAssetsError(ERR_MESH_FACES.format(n=len(mesh.faces), limit=max_faces))
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='non-finite vertices'))
+    if scale != 1.0:
+        mesh.apply_scale(scale)
+    # An asset dict entry is cached across recompiles; raw vertex arrays would be reprocessed.
+    asset_name = f'mesh_{uuid.uuid4().hex}.stl'
+    data = mesh.export(file_type='stl')
+    static = static or not mass
+    spec, body = _new_body_spec(static)
+    spec.assets = {asset_name: data}
+    spec.add_mesh(name='mesh', file=asset_name)
+    geom = body.add_geom(name='geom', type=mujoco.mjtGeom.mjGEOM_MESH, meshname='mesh',
+                         rgba=_check_rgba(rgba))
+    if mass:
+        geom.mass = float(mass)
+    return _finish(spec, 'mesh', f'mesh {p.name}', assets={asset_name: data})

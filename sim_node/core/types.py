@@ -1,0 +1,130 @@
+"""Immutable values the world hands out: entity records, model info, snapshots, states."""
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+ROBOT = 'robot'
+DYNAMIC = 'dynamic'
+STATIC = 'static'
+CATEGORIES = (ROBOT, DYNAMIC, STATIC)
+
+# Joint command modes.
+POSITION = 'position'
+VELOCITY = 'velocity'
+EFFORT = 'effort'
+MODES = (POSITION, VELOCITY, EFFORT)
+
+# Reset scopes (bit flags, as in simulation_interfaces/ResetSimulation).
+RESET_TIME = 1
+RESET_STATE = 2
+RESET_SPAWNED = 4
+RESET_ALL = 255
+
+
+@dataclass(frozen=True)
+class EntityRecord:
+    """An entity: one body attached directly to the world body, with its subtree.
+
+    Ids index the model of the generation the record came from.
+    """
+
+    name: str
+    category: str
+    root_body: int
+    body_ids: tuple
+    joint_ids: tuple
+    geom_ids: tuple
+    actuator_ids: tuple
+    spawned: bool
+    description: str = ''
+    namespace: str = ''
+    has_free_joint: bool = False
+
+
+@dataclass(frozen=True)
+class GeomVisual:
+    """What a marker needs to draw one geom, in its body's frame."""
+
+    name: str
+    body: int
+    type: str  # 'box', 'sphere', 'cylinder', 'capsule', 'ellipsoid', 'plane', 'mesh'
+    size: tuple  # MuJoCo geom_size (3,)
+    pos: tuple  # (3,) in the body frame
+    quat_wxyz: tuple  # (4,) in the body frame
+    rgba: tuple
+    mesh_vertices: Optional[np.ndarray] = None  # (nvert, 3)
+    mesh_faces: Optional[np.ndarray] = None  # (nface, 3)
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """Names and structure of one compiled model; replaced on every recompile (generation)."""
+
+    generation: int
+    timestep: float
+    body_names: tuple  # (nbody,) body 0 is the world
+    body_parent: np.ndarray  # (nbody,)
+    body_has_joint: np.ndarray  # (nbody,) bool: moves relative to its parent
+    body_local_pos: np.ndarray  # (nbody, 3) pose in the parent frame for welded bodies
+    body_local_quat_wxyz: np.ndarray  # (nbody, 4)
+    joint_names: tuple  # hinge and slide joints only, in model order
+    joint_ids: np.ndarray  # (njoint,) model joint ids of those
+    geoms: tuple  # GeomVisual for every visible geom
+    entities: tuple  # EntityRecord
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """A copy of the world made by the loop between steps: safe to read from any thread.
+
+    :param joint_position: (njoint,) for ModelInfo.joint_names; likewise velocity and effort.
+    :param body_xpos: (nbody, 3) world positions.
+    :param body_xquat_wxyz: (nbody, 4) world orientations.
+    """
+
+    generation: int
+    step: int
+    time: float
+    joint_position: np.ndarray
+    joint_velocity: np.ndarray
+    joint_effort: np.ndarray
+    body_xpos: np.ndarray
+    body_xquat_wxyz: np.ndarray
+
+
+@dataclass(frozen=True)
+class EntityState:
+    """Pose and twist of an entity's root body in the world frame (or a reference frame).
+
+    Twist: linear velocity of the body origin and angular velocity, both in the world frame.
+    """
+
+    position: np.ndarray  # (3,)
+    quat_wxyz: np.ndarray  # (4,)
+    linear_velocity: np.ndarray  # (3,)
+    angular_velocity: np.ndarray  # (3,)
+    time: float = 0.0
+
+
+@dataclass(frozen=True)
+class PhysicsState:
+    """The full integration state (time, qpos, qvel, act, ctrl, mocap, warm start, applied
+    forces) of one model generation, as ``mj_getState(mjSTATE_INTEGRATION)`` gives it."""
+
+    generation: int
+    step: int
+    values: np.ndarray
+
+
+@dataclass(frozen=True)
+class LoopStatus:
+    """What the stepping loop is doing and why it stopped, if it did."""
+
+    state: str  # 'playing', 'paused', 'stopped'
+    step: int
+    time: float
+    real_time_factor: float
+    stop_reason: str = ''
+    divergence: Optional[dict] = None
