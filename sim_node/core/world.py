@@ -107,7 +107,7 @@ def restitution_to_dampratio(restitution: float) -> float:
     e = exp(-zeta * pi / sqrt(1 - zeta^2))  =>  zeta = -ln(e) / sqrt(pi^2 + ln(e)^2);
     e = 0 maps to zeta = 1 (MuJoCo's default, critically damped), e -> 1 to a small zeta.
     """
-    e = min(max(restitution, 1e-4), 0.99)
+    e = min(max(restitution, 1e-4), MAX_RESTITUTION)
     ln_e = math.log(e)
     return min(1.0, -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2))
 
@@ -116,8 +116,11 @@ def restitution_to_dampratio(restitution: float) -> float:
 _ONE_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 _JOINT_TRN = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
 
-# Contact time constant used with a restitution (s); MuJoCo needs it >= 2 timesteps.
-RESTITUTION_TIMECONST = 0.01
+# Contact time constant used with a restitution (s). Measured (ball dropped 1 m, dt 1-2 ms):
+# with 0.04 s the bounce height follows e^2 monotonically up to e = 0.8; shorter time
+# constants or higher e gain energy (a lightly damped stiff contact), so e is capped at 0.8.
+RESTITUTION_TIMECONST = 0.04
+MAX_RESTITUTION = 0.8
 
 
 class World:
@@ -802,7 +805,7 @@ class World:
             self._recompile_locked()
 
     def set_restitution(self, name: str, restitution: float) -> None:
-        """Bounciness of an entity's geoms in [0, 1); see :func:`restitution_to_dampratio`."""
+        """Bounciness of an entity's geoms in [0, 0.8]; see :func:`restitution_to_dampratio`."""
         e = self._check_restitution(restitution)
         with self._locked():
             self.entity(name)
@@ -826,8 +829,9 @@ class World:
     @staticmethod
     def _check_restitution(restitution: float) -> float:
         (e,) = _check_finite('restitution', [restitution], 1)
-        if not 0.0 <= e < 1.0:
-            raise InvalidArgumentError(f'restitution must be in [0, 1), got {restitution}')
+        if not 0.0 <= e <= MAX_RESTITUTION:
+            raise InvalidArgumentError(
+                f'restitution must be in [0, {MAX_RESTITUTION}], got {restitution}')
         return float(e)
 
     def _apply_contact_locked(self, names: list, world: bool = False) -> None:

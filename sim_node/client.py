@@ -1,0 +1,203 @@
+"""A small Python client for the `sim` node's services, for scripts, tests and machines
+without ros2cli. Plain Python arguments in, plain values out; failures raise
+:class:`SimServiceError` with the Result code and message.
+
+    import rclpy
+    from sim_node.client import SimClient
+    rclpy.init()
+    sim = SimClient()
+    sim.spawn('crate', uri='box', position=(0.75, 0, 1.0))
+    sim.pause(); sim.step(100); sim.play()
+"""
+
+import time
+from typing import Optional, Sequence
+
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from rclpy.action import ActionClient
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from simulation_interfaces import srv
+from simulation_interfaces.action import SimulateSteps
+from simulation_interfaces.msg import EntityState, Result, SimulationState
+
+from msg_adapters import convert
+
+
+class SimServiceError(RuntimeError):
+    """A service answered with a Result other than OK."""
+
+    def __init__(self, service: str, code: int, message: str):
+        super().__init__(f'{service} failed (result {code}): {message}')
+        self.service, self.code, self.message = service, code, message
+
+
+class SimClient:
+    """Wraps the simulation_interfaces services of one `sim` node.
+
+    :param namespace: where the node's services live ('' for a node started without one).
+    :param node: an existing node to create clients on (it must not be spun elsewhere);
+        by default the client makes its own.
+    """
+
+    def __init__(self, namespace: str = '', node: Optional[Node] = None,
+                 timeout_sec: float = 30.0):
+        self._own = node is None
+        self.node = node or rclpy.create_node(f'sim_client_{id(self):x}')
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self.node)
+        self._ns = namespace.rstrip('/')
+        self._timeout = timeout_sec
+        self._clients: dict = {}
+
+    def close(self) -> None:
+        self._executor.remove_node(self.node)
+        self._executor.shutdown()
+        if self._own:
+            self.node.destroy_node()
+
+    def _name(self, service: str) -> str:
+        return f'{self._ns}/{service}' if self._ns else service
+
+    def call(self, service: str, srv_type, request, check: bool = True):
+        """Call a service and wait for the answer; raise on a non-OK Result if `check`."""
+        client = self._clients.get(service)
+        if client is None:
+            client = self._clients[service] = self.node.create_client(srv_type,
+                                                                      self._name(service))
+        deadline = time.monotonic() + self._timeout
+        while not client.wait_for_service(timeout_sec=0.2):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'service {self._name(service)} is not available; is the '
+                                   'sim node running (same ROS_DOMAIN_ID)?')
+        future = client.call_async(request)
+        self._executor.spin_until_future_complete(future, max(0.1, deadline - time.monotonic()))
+        if not future.done():
+            raise TimeoutError(f'{service} did not answer within {self._timeout} s')
+        response = future.result()
+        result = getattr(response, 'result', None)
+        if check and result is not None and result.result != Result.RESULT_OK:
+            raise SimServiceError(service, result.result, result.error_message)
+        return response
+
+    # ---------------------------------------------------------------- entities
+
+    def spawn(self, name: str, uri: str = '', resource_string: str = '',
+              position: Sequence[float] = (0, 0, 0),
+              orientation_xyzw: Sequence[float] = (0, 0, 0, 1), frame_id: str = '',
+              allow_renaming: bool = False, namespace: str = '') -> str:
+        """Spawn an entity; returns its (possibly renamed) name."""
+        req = srv.SpawnEntity.Request(name=name, allow_renaming=allow_renaming, uri=uri,
+                                      resource_string=resource_string,
+                                      entity_namespace=namespace)
+        req.initial_pose = _pose_stamped(position, orientation_xyzw, frame_id)
+        return self.call('spawn_entity', srv.SpawnEntity, req).entity_name
+
+    def delete(self, name: str) -> None:
+        self.call('delete_entity', srv.DeleteEntity, srv.DeleteEntity.Request(entity=name))
+
+    def entities(self, pattern: str = '', categories: Sequence[int] = ()) -> list:
+        from simulation_interfaces.msg import EntityCategory
+        req = srv.GetEntities.Request()
+        req.filters.filter = pattern
+        req.filters.categories = [EntityCategory(category=c) for c in categories]
+        return list(self.call('get_entities', srv.GetEntities, req).entities)
+
+    def entity_state(self, name: str) -> dict:
+        """{'position', 'orientation_xyzw', 'linear', 'angular', 'stamp'} of an entity."""
+        s = self.call('get_entity_state', srv.GetEntityState,
+                      srv.GetEntityState.Request(entity=name)).state
+        p, q = s.pose.position, s.pose.orientation
+        return {'position': (p.x, p.y, p.z), 'orientation_xyzw': (q.x, q.y, q.z, q.w),
+                'linear': (s.twist.linear.x, s.twist.linear.y, s.twist.linear.z),
+                'angular': (s.twist.angular.x, s.twist.angular.y, s.twist.angular.z),
+                'stamp': convert.stamp_to_sec(s.header.stamp), 'frame_id': s.header.frame_id}
+
+    def set_entity_state(self, name: str, position: Sequence[float],
+                         orientation_xyzw: Sequence[float] = (0, 0, 0, 1),
+                         linear: Sequence[float] = (0, 0, 0),
+                         angular: Sequence[float] = (0, 0, 0), frame_id: str = '') -> None:
+        st = EntityState()
+        st.header.frame_id = frame_id
+        st.pose = _pose_stamped(position, orientation_xyzw, frame_id).pose
+        st.twist.linear = convert.vec(linear)
+        st.twist.angular = convert.vec(angular)
+        self.call('set_entity_state', srv.SetEntityState,
+                  srv.SetEntityState.Request(entity=name, state=st))
+
+    def entity_info(self, name: str):
+        return self.call('get_entity_info', srv.GetEntityInfo,
+                         srv.GetEntityInfo.Request(entity=name)).info
+
+    def spawnables(self) -> list:
+        return [s.uri for s in self.call('get_spawnables', srv.GetSpawnables,
+                                         srv.GetSpawnables.Request()).spawnables]
+
+    def features(self):
+        return self.call('get_simulator_features', srv.GetSimulatorFeatures,
+                         srv.GetSimulatorFeatures.Request()).features
+
+    # ---------------------------------------------------------------- simulation
+
+    def reset(self, scope: int = 0) -> None:
+        self.call('reset_simulation', srv.ResetSimulation,
+                  srv.ResetSimulation.Request(scope=scope))
+
+    def step(self, steps: int = 1) -> None:
+        """Step while paused; returns when the steps are done."""
+        self.call('step_simulation', srv.StepSimulation, srv.StepSimulation.Request(steps=steps))
+
+    def state(self) -> int:
+        """SimulationState.STATE_* of the simulation."""
+        return self.call('get_simulation_state', srv.GetSimulationState,
+                         srv.GetSimulationState.Request()).state.state
+
+    def set_state(self, state: int) -> None:
+        self.call('set_simulation_state', srv.SetSimulationState,
+                  srv.SetSimulationState.Request(state=SimulationState(state=state)))
+
+    def play(self) -> None:
+        self.set_state(SimulationState.STATE_PLAYING)
+
+    def pause(self) -> None:
+        self.set_state(SimulationState.STATE_PAUSED)
+
+    def simulate_steps(self, steps: int, feedback=None):
+        """Run the simulate_steps action; `feedback(completed, remaining)` per update."""
+        client = ActionClient(self.node, SimulateSteps, self._name('simulate_steps'))
+        try:
+            if not client.wait_for_server(timeout_sec=self._timeout):
+                raise TimeoutError('simulate_steps action server not available')
+            cb = None if feedback is None else (
+                lambda m: feedback(m.feedback.completed_steps, m.feedback.remaining_steps))
+            goal = client.send_goal_async(SimulateSteps.Goal(steps=steps), feedback_callback=cb)
+            self._executor.spin_until_future_complete(goal, self._timeout)
+            res = goal.result().get_result_async()
+            self._executor.spin_until_future_complete(res, self._timeout)
+            result = res.result().result.result
+            if result.result != Result.RESULT_OK:
+                raise SimServiceError('simulate_steps', result.result, result.error_message)
+            return result
+        finally:
+            client.destroy()
+
+    def load_world(self, uri: str = '', resource_string: str = '') -> str:
+        return self.call('load_world', srv.LoadWorld, srv.LoadWorld.Request(
+            uri=uri, resource_string=resource_string)).world.name
+
+    def unload_world(self) -> None:
+        self.call('unload_world', srv.UnloadWorld, srv.UnloadWorld.Request())
+
+    def current_world(self) -> str:
+        return self.call('get_current_world', srv.GetCurrentWorld,
+                         srv.GetCurrentWorld.Request()).world.name
+
+
+def _pose_stamped(position, orientation_xyzw, frame_id: str) -> PoseStamped:
+    ps = PoseStamped()
+    ps.header.frame_id = frame_id
+    ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, position)
+    o = ps.pose.orientation
+    o.x, o.y, o.z, o.w = map(float, orientation_xyzw)
+    return ps

@@ -1,0 +1,211 @@
+"""Shared fixtures. Every test session keeps DDS discovery on loopback and uses its own
+ROS_DOMAIN_ID, so parallel runs on one machine never meet."""
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('SIM_TEST_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+os.environ['ROS_DOMAIN_ID'] = os.environ['SIM_TEST_DOMAIN_ID']
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / 'scenes'
+DEFAULT_SCENE = SCENES / 'default.xml'
+
+
+def installed_prefix() -> Path:
+    prefix = os.environ.get('SIM_PREFIX')
+    if not prefix:
+        pytest.skip('SIM_PREFIX is not set: run the tests with `make test`')
+    return Path(prefix)
+
+
+def node_executable() -> Path:
+    """The very file `ros2 run sim node` starts."""
+    return installed_prefix() / 'lib' / 'sim' / 'node'
+
+
+class NodeProcess:
+    """The installed node executable running as a subprocess."""
+
+    def __init__(self, *params: str, namespace: str = ''):
+        args = [str(node_executable()), '--ros-args']
+        for p in params:
+            args += ['-p', p]
+        if namespace:
+            args += ['-r', f'__ns:={namespace}']
+        self.log_path = Path(os.environ.get('TMPDIR', '/tmp')) / f'sim_node_{os.getpid()}_{id(self)}.log'
+        self._log = open(self.log_path, 'w+')
+        self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
+                                     start_new_session=True)
+
+    def output(self) -> str:
+        self._log.flush()
+        return self.log_path.read_text()
+
+    def interrupt(self, timeout: float = 5.0) -> tuple:
+        """SIGINT; returns (exit code, seconds it took to exit)."""
+        t0 = time.monotonic()
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            code = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            code = self.proc.wait()
+        return code, time.monotonic() - t0
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.interrupt()
+        self._log.close()
+
+
+@pytest.fixture(scope='session')
+def rclpy_context():
+    import rclpy
+    rclpy.init()
+    try:
+        yield
+    finally:
+        rclpy.try_shutdown()
+
+
+@pytest.fixture
+def start_node():
+    """Start node processes (parameters as 'name:=value' strings); all stopped at the end."""
+    procs = []
+
+    def start(*params, namespace=''):
+        p = NodeProcess(*params, namespace=namespace)
+        procs.append(p)
+        return p
+    yield start
+    for p in procs:
+        p.close()
+
+
+@pytest.fixture
+def client(rclpy_context):
+    from sim_node.client import SimClient
+    c = SimClient()
+    yield c
+    c.close()
+
+
+def wait_for(predicate, timeout: float = 10.0, interval: float = 0.05):
+    """Poll until predicate() is truthy; returns its value or raises AssertionError."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f'condition not met within {timeout} s')
+        time.sleep(interval)
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+class Watcher:
+    """Subscribes, in the test process, to what the node publishes; spins on its own thread."""
+
+    def __init__(self, namespace: str = ''):
+        import threading
+
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from tf2_msgs.msg import TFMessage
+        from visualization_msgs.msg import MarkerArray
+
+        ns = namespace.rstrip('/') + '/' if namespace else ''
+        self.node = rclpy.create_node(f'watcher_{id(self):x}')
+        self.lock = threading.Lock()
+        self.clock = []
+        self.tf = {}  # child frame -> (stamp sec, parent, (x, y, z), (qx, qy, qz, qw))
+        self.tf_stamps = []  # per /tf message: the set of stamps in it
+        self.tf_static = {}
+        self.markers = {}  # (ns, id) -> marker
+        self.joint_states = None
+        latched = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+        n = self.node
+        n.create_subscription(Clock, '/clock', self._on_clock, 100)
+        n.create_subscription(TFMessage, '/tf', self._on_tf, 100)
+        n.create_subscription(TFMessage, '/tf_static', self._on_tf_static, latched)
+        n.create_subscription(MarkerArray, ns + 'markers', self._on_markers, latched)
+        n.create_subscription(JointState, ns + 'joint_states', self._on_js, 10)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(n)
+        self._stop = False
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while not self._stop:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    @staticmethod
+    def _sec(t):
+        return t.sec + t.nanosec * 1e-9
+
+    def _on_clock(self, msg):
+        with self.lock:
+            self.clock.append(self._sec(msg.clock))
+
+    def _tf_entry(self, ts):
+        tr, q = ts.transform.translation, ts.transform.rotation
+        return (self._sec(ts.header.stamp), ts.header.frame_id, (tr.x, tr.y, tr.z),
+                (q.x, q.y, q.z, q.w))
+
+    def _on_tf(self, msg):
+        with self.lock:
+            self.tf_stamps.append({self._sec(t.header.stamp) for t in msg.transforms})
+            for ts in msg.transforms:
+                self.tf[ts.child_frame_id] = self._tf_entry(ts)
+
+    def _on_tf_static(self, msg):
+        with self.lock:
+            self.tf_static = {ts.child_frame_id: self._tf_entry(ts) for ts in msg.transforms}
+
+    def _on_markers(self, msg):
+        from visualization_msgs.msg import Marker
+        with self.lock:
+            for m in msg.markers:
+                if m.action == Marker.DELETE:
+                    self.markers.pop((m.ns, m.id), None)
+                elif m.action == Marker.DELETEALL:
+                    self.markers.clear()
+                else:
+                    self.markers[(m.ns, m.id)] = m
+
+    def _on_js(self, msg):
+        with self.lock:
+            self.joint_states = msg
+
+    def latest_clock(self):
+        with self.lock:
+            return self.clock[-1] if self.clock else None
+
+    def close(self):
+        self._stop = True
+        self.thread.join(2)
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def watcher(rclpy_context):
+    w = Watcher()
+    yield w
+    w.close()
