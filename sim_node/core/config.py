@@ -22,9 +22,11 @@ class WorldConfig:
     max_sim_time: float = 0.0
     #: How often the loop hands an immutable snapshot to consumers (wall-clock Hz).
     snapshot_rate_hz: float = 100.0
-    #: PD gains for joints commanded without a matching actuator (N m/rad, N m s/rad).
-    kp: float = 100.0
-    kd: float = 10.0
+    #: PD gains for joints commanded without a matching actuator, per unit of the joint's
+    #: inertia (torque = M0 * (kp * error + kd * velocity error) + gravity/Coriolis), so
+    #: kp = w^2 and kd = 2 w for a critically damped joint of natural frequency w (rad/s).
+    kp: float = 400.0
+    kd: float = 40.0
     #: Refuse spawns whose geometry would overlap existing geometry deeper than this (m).
     interpenetration_tolerance: float = 1e-3
     #: Allow spawning into overlapping geometry (off by default: deep overlap explodes).

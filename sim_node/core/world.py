@@ -507,22 +507,28 @@ class World:
         self._pd_dof = self._joint_dofadr[idx] if len(idx) else np.zeros(0, int)
         self._pd_qpos = self._joint_qposadr[idx] if len(idx) else np.zeros(0, int)
         modes = [mode for _, mode, _ in items]
-        self._pd_target = np.array([v for _, _, v in items], dtype=float)
-        self._pd_kp = np.array([self._kp if m == POSITION else 0.0 for m in modes])
-        self._pd_kd = np.array([0.0 if m == EFFORT else self._kd for m in modes])
-        # tau = kp * (target - q) + kd * (vtarget - v) + effort
-        self._pd_pos_target = np.where([m == POSITION for m in modes], self._pd_target, 0.0)
-        self._pd_vel_target = np.where([m == VELOCITY for m in modes], self._pd_target, 0.0)
-        self._pd_effort = np.where([m == EFFORT for m in modes], self._pd_target, 0.0)
-        self._pd_is_pos = np.array([m == POSITION for m in modes], dtype=bool)
+        target = np.array([v for _, _, v in items], dtype=float)
+        is_pos = np.array([m == POSITION for m in modes], dtype=bool)
+        is_eff = np.array([m == EFFORT for m in modes], dtype=bool)
+        self._pd_is_pos = is_pos
+        self._pd_pos_target = np.where(is_pos, target, 0.0)
+        self._pd_vel_target = np.where([m == VELOCITY for m in modes], target, 0.0)
+        self._pd_effort = np.where(is_eff, target, 0.0)
+        # Gains act per unit of the joint's own inertia (dof_M0), so one pair of defaults is
+        # stable on a 50 g finger and on a 20 kg arm; gravity/Coriolis is fed forward.
+        m0 = self._model.dof_M0[self._pd_dof] if len(idx) else np.zeros(0)
+        self._pd_kp = np.where(is_pos, self._kp * m0, 0.0)
+        self._pd_kd = np.where(is_eff, 0.0, self._kd * m0)
+        self._pd_bias = ~is_eff
 
     def _apply_pd_locked(self) -> None:
         d = self._data
+        dof = self._pd_dof
         q = d.qpos[self._pd_qpos]
-        v = d.qvel[self._pd_dof]
+        v = d.qvel[dof]
         err = np.where(self._pd_is_pos, self._pd_pos_target - q, 0.0)
-        d.qfrc_applied[self._pd_dof] = (self._pd_kp * err + self._pd_kd * (self._pd_vel_target - v)
-                                        + self._pd_effort)
+        d.qfrc_applied[dof] = (self._pd_kp * err + self._pd_kd * (self._pd_vel_target - v)
+                               + self._pd_effort + np.where(self._pd_bias, d.qfrc_bias[dof], 0.0))
 
     # ---------------------------------------------------------------- stepping
 

@@ -1,0 +1,345 @@
+"""The ROS-free world: spawn/delete keep everything else's state, failures change nothing,
+control, reset, determinism, physics parameters. Real MuJoCo throughout."""
+
+import threading
+
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import DEFAULT_SCENE, SCENES
+from sim_node.core import sources
+from sim_node.core.config import WorldConfig
+from sim_node.core.errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
+                                  InvalidPoseError, MissingAssetsError, NameNotUniqueError,
+                                  NotFoundError, ResourceParseError, UnsupportedFormatError)
+from sim_node.core.types import RESET_SPAWNED, RESET_STATE, RESET_TIME
+from sim_node.core.world import World
+
+ARM_MJCF = '''<mujoco><worldbody>
+  <body name="base"><geom type="box" size=".05 .05 .05"/>
+    <body name="link"><joint name="hinge" type="hinge" axis="0 1 0"/>
+      <geom name="link_geom" type="capsule" fromto="0 0 0 .2 0 0" size=".02"/></body>
+  </body></worldbody>
+  <actuator><motor name="motor" joint="hinge"/></actuator>
+  <sensor><jointpos name="angle" joint="hinge"/></sensor>
+  <contact><exclude body1="base" body2="link"/></contact>
+</mujoco>'''
+
+
+@pytest.fixture
+def world():
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.step(50)
+    return w
+
+
+def box(size=0.05, mass=0.5):
+    return sources.primitive('box', [size] * 3, mass=mass)
+
+
+def named_state(w: World) -> dict:
+    """Every joint's qpos and qvel by name, plus time: comparable across recompiles."""
+    out = {'time': w.time}
+    with w.locked() as (m, d):
+        for j in range(m.njnt):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            q0, v0 = m.jnt_qposadr[j], m.jnt_dofadr[j]
+            nq = {0: 7, 1: 4, 2: 1, 3: 1}[int(m.jnt_type[j])]
+            nv = {0: 6, 1: 3, 2: 1, 3: 1}[int(m.jnt_type[j])]
+            out[name] = (d.qpos[q0:q0 + nq].copy(), d.qvel[v0:v0 + nv].copy())
+        out['ctrl'] = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a): d.ctrl[a]
+                       for a in range(m.nu)}
+        out['warmstart'] = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j):
+                            d.qacc_warmstart[m.jnt_dofadr[j]] for j in range(m.njnt)}
+    return out
+
+
+def assert_same_state(before: dict, after: dict, keys=None):
+    keys = keys or [k for k in before if k in after]
+    for k in keys:
+        a, b = before[k], after[k]
+        if isinstance(a, tuple):
+            assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]), k
+        elif isinstance(a, dict):
+            assert {n: b[n] for n in a if n in b} == {n: a[n] for n in a if n in b}, k
+            assert len([n for n in a if n not in b]) <= 1, k  # at most the deleted entity
+        else:
+            assert a == b, k
+
+
+def test_scene_entities_and_categories(world):
+    cats = {e.name: e.category for e in world.entities()}
+    assert cats == {'robot': 'robot', 'table': 'static', 'box_a': 'dynamic', 'box_b': 'dynamic'}
+    assert world.joint_names() == ['left_shoulder', 'left_elbow', 'right_shoulder',
+                                   'right_elbow']
+
+
+def test_spawn_and_delete_keep_every_other_state_bit_for_bit(world):
+    before = named_state(world)
+    world.spawn('crate', box(), position=[0.2, 1.0, 0.5])
+    assert_same_state(before, named_state(world))
+    world.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
+    world.step(20)
+    before = named_state(world)
+    world.delete('crate')  # in the middle of the tree
+    after = named_state(world)
+    assert 'crate/free' not in after
+    assert_same_state(before, after, [k for k in before if k != 'crate/free'])
+
+
+def test_spawned_model_brings_its_actuators_sensors_and_excludes_and_delete_removes_them(world):
+    world.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
+    with world.locked() as (m, _):
+        assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, 'arm/motor') >= 0
+        assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, 'arm/angle') >= 0
+        assert m.nexclude == 1
+        names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(m.nbody)]
+    assert 'arm' in names and 'arm/link' in names
+    assert world.entity('arm').category == 'robot'
+    world.delete('arm')
+    with world.locked() as (m, _):
+        assert m.nu == 4 and m.nsensor == 0 and m.nexclude == 0
+
+
+@pytest.mark.parametrize('make_source, error', [
+    (lambda: sources.from_model_text('<mujoco><worldbody><body>'), ResourceParseError),
+    (lambda: sources.from_model_text('<notmjcf/>'), UnsupportedFormatError),
+    (lambda: sources.from_model_text(
+        '<mujoco><asset><mesh name="m" file="/nonexistent/m.stl"/></asset>'
+        '<worldbody><body><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'),
+     MissingAssetsError),
+])
+def test_bad_resources_are_refused_before_touching_the_world(world, make_source, error):
+    before = named_state(world)
+    gen = world.generation
+    with pytest.raises(error):
+        world.spawn('bad', make_source(), position=[0, 1, 1])
+    assert world.generation == gen
+    assert_same_state(before, named_state(world))
+
+
+@pytest.mark.parametrize('kwargs, error', [
+    ({'name': 'box_a'}, NameNotUniqueError),
+    ({'position': [0, 1, float('nan')]}, InvalidPoseError),
+    ({'quat_wxyz': [1, 1, 0, 0]}, InvalidPoseError),
+    ({'position': [0.75, 0, 0.41]}, InvalidPoseError),  # inside the table top
+    ({'reference': 'nobody'}, NotFoundError),
+])
+def test_failed_spawn_leaves_the_world_unchanged(world, kwargs, error):
+    before = named_state(world)
+    names = [e.name for e in world.entities()]
+    args = {'name': 'crate', 'position': [0, 1, 1], **kwargs}
+    with pytest.raises(error):
+        world.spawn(args.pop('name'), box(), **args)
+    assert [e.name for e in world.entities()] == names
+    assert_same_state(before, named_state(world))
+    world.spawn('crate', box(), position=[0, 1, 1])  # and the world still works
+    world.step(10)
+
+
+def test_spawn_relative_to_an_entity_and_renaming(world):
+    world.spawn('on_table', box(0.03), position=[0, 0.3, 0.5], reference='table')
+    st = world.get_entity_state('on_table')
+    assert np.allclose(st.position, [0.75, 0.3, 0.5])
+    renamed = world.spawn('on_table', box(0.03), position=[0, -0.3, 0.5], reference='table',
+                          allow_renaming=True)
+    assert renamed == 'on_table_1'
+
+
+def test_delete_then_spawn_same_name_and_reset_spawned(world):
+    world.spawn('crate', box(), position=[0, 1, 0.5])
+    world.delete('crate')
+    world.spawn('crate', box(), position=[0, 1, 0.5])
+    world.step(10)
+    world.reset(RESET_SPAWNED)
+    assert 'crate' not in [e.name for e in world.entities()]
+    with pytest.raises(IncorrectStateError):
+        world.delete('table')  # scene entities stay
+
+
+def test_reset_scopes(world):
+    world.command(['left_shoulder'], [1.0], 'position')
+    world.step(200)
+    t = world.time
+    q_moved = world.get_joint_states()['left_shoulder'][0]
+    world.reset(RESET_TIME)
+    assert world.time == 0.0 and world.get_joint_states()['left_shoulder'][0] == q_moved
+    world.step(10)
+    world.reset(RESET_STATE)
+    assert world.time == pytest.approx(10 * world.timestep)
+    assert world.get_joint_states()['left_shoulder'][0] == pytest.approx(-0.2)  # home key
+    world.step(10)
+    assert t > 0
+    world.reset()  # all
+    assert world.time == 0.0
+
+
+def test_same_state_and_commands_give_the_same_trajectory():
+    def run():
+        w = World.from_file(str(DEFAULT_SCENE))
+        traj = []
+        for i in range(100):
+            w.command(['left_elbow', 'right_shoulder'], [0.5 * np.sin(i / 10), -0.3], 'position')
+            w.step(5)
+            traj.append(w.get_state().values.copy())
+        return np.array(traj)
+    assert np.array_equal(run(), run())
+
+
+def test_get_and_set_full_state_round_trip(world):
+    snap = world.get_state()
+    world.step(100)
+    world.set_state(snap)
+    assert np.array_equal(world.get_state().values, snap.values)
+    world.spawn('crate', box(), position=[0, 1, 0.5])
+    with pytest.raises(IncorrectStateError):
+        world.set_state(snap)  # from another model generation
+
+
+def test_entity_state_set_and_get_and_static_twist_refused(world):
+    world.set_entity_state('box_a', position=[0.1, 1.0, 1.0], quat_wxyz=[0, 0, 0, 1],
+                           linear_velocity=[0.5, 0, 0], angular_velocity=[0, 0, 2])
+    st = world.get_entity_state('box_a')
+    assert np.allclose(st.position, [0.1, 1.0, 1.0])
+    assert np.allclose(st.linear_velocity, [0.5, 0, 0], atol=1e-9)
+    assert np.allclose(st.angular_velocity, [0, 0, 2], atol=1e-9)
+    with pytest.raises(IncorrectStateError):
+        world.set_entity_state('table', linear_velocity=[1, 0, 0])
+    world.set_entity_state('table', position=[0.8, 0, 0])  # moving a static entity is fine
+    assert np.allclose(world.get_entity_state('table').position, [0.8, 0, 0])
+
+
+def test_commands_are_validated_and_position_command_reaches_target(world):
+    with pytest.raises(InvalidArgumentError):
+        world.command(['left_elbow'], [float('nan')], 'position')
+    with pytest.raises(NotFoundError):
+        world.command(['no_joint'], [0.0], 'position')
+    with pytest.raises(InvalidArgumentError):
+        world.command(['left_elbow', 'right_elbow'], [0.0], 'position')
+    world.command(['left_elbow'], [-0.5], 'position')
+    world.step(1500)
+    assert world.get_joint_states()['left_elbow'][0] == pytest.approx(-0.5, abs=0.03)
+
+
+def test_pd_control_without_actuators():
+    w = World.from_file(str(SCENES / 'push_stack.xml'))
+    w.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
+    w.command(['arm/hinge'], [0.5], 'position')  # 'arm/motor' is a motor: PD through torque
+    w.step(2000)
+    assert w.get_joint_states()['arm/hinge'][0] == pytest.approx(0.5, abs=0.05)
+    w.command(['arm/hinge'], [2.0], 'velocity')
+    w.step(500)
+    assert w.get_joint_states()['arm/hinge'][1] == pytest.approx(2.0, abs=0.1)
+
+
+def test_eight_threads_commanding_while_stepping_lose_nothing(world):
+    errors = []
+    last = {}
+
+    def sender(k):
+        try:
+            for i in range(200):
+                joint = world.joint_names()[k % 4]
+                world.command([joint], [0.001 * i + k * 0.01], 'position')
+                last[k] = 0.001 * i + k * 0.01
+        except Exception as exc:  # noqa: B902 - any error is the failure we look for
+            errors.append(exc)
+
+    stop = threading.Event()
+
+    def stepper():
+        while not stop.is_set():
+            world.step(5)
+    t = threading.Thread(target=stepper)
+    t.start()
+    threads = [threading.Thread(target=sender, args=(k,)) for k in range(8)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    stop.set()
+    t.join()
+    world.step(1)
+    assert not errors
+    with world.locked() as (m, d):
+        ctrl = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a): d.ctrl[a]
+                for a in range(m.nu)}
+    # The last command to each joint is what the actuator holds.
+    for k in range(4):
+        joint = world.joint_names()[k]
+        assert ctrl[joint + '_pos'] in (pytest.approx(last[k]), pytest.approx(last[k + 4]))
+
+
+def test_injected_divergence_restores_the_last_good_state_and_reports_the_step(world):
+    world.step(10)
+    good = world.get_state()
+    with world.locked() as (m, d):
+        d.qvel[-1] = 1e12  # a value MuJoCo flags as divergent
+    with pytest.raises(DivergenceError) as info:
+        world.step(5)
+    assert info.value.step == good.step + 1
+    assert 'BADQVEL' in ''.join(info.value.report['warnings']) or info.value.report[
+        'nonfinite_qvel']
+    assert np.all(np.isfinite(world.get_state().values))
+    assert world.step_count == good.step
+
+
+def test_restitution_and_friction_rank_as_expected():
+    w = World.from_file(str(SCENES / 'friction_restitution.xml'))
+    start = {e.name: w.get_entity_state(e.name).position.copy() for e in w.entities()}
+    peaks = np.zeros(10)
+    landed = np.zeros(10, bool)
+    for _ in range(1000):
+        w.step(2)
+        for i in range(10):
+            st = w.get_entity_state(f'ball_{i}')
+            landed[i] |= st.position[2] < 0.04
+            if landed[i] and st.linear_velocity[2] > 0:
+                peaks[i] = max(peaks[i], st.position[2])
+    assert np.all(np.diff(peaks) > 0), peaks  # higher restitution bounces higher
+    slid = [np.linalg.norm(w.get_entity_state(f'block_{i}').position - start[f'block_{i}'])
+            for i in range(10)]
+    assert slid[0] > slid[1] > slid[5] and slid[2] > slid[5]  # lower friction slides further
+    assert slid[9] < 0.02
+
+
+def test_set_restitution_mass_friction_gravity_timestep_validate(world):
+    with pytest.raises(InvalidArgumentError):
+        world.set_restitution('box_a', 1.5)
+    with pytest.raises(InvalidArgumentError):
+        world.set_mass('box_a', float('nan'))
+    world.set_mass('box_a', 2.0)
+    with world.locked() as (m, _):
+        assert m.body_mass[m.body('box_a').id] == pytest.approx(2.0)
+    world.set_friction('box_a', 0.3)
+    world.set_gravity([0, 0, -1.62])
+    world.set_timestep(0.001)
+    assert world.timestep == 0.001
+    with pytest.raises(InvalidArgumentError):
+        world.set_timestep(0)
+
+
+def test_fifo_and_dotdot_paths_are_refused(tmp_path):
+    import os
+    fifo = tmp_path / 'pipe.xml'
+    os.mkfifo(fifo)
+    with pytest.raises(Exception) as info:
+        sources.from_file(str(fifo))
+    assert 'regular file' in str(info.value)
+    with pytest.raises(MissingAssetsError):
+        sources.from_file(str(tmp_path / '..' / 'x.xml'))
+    with pytest.raises(MissingAssetsError):
+        sources.from_file(str(DEFAULT_SCENE), allowed_roots=[str(tmp_path)])
+
+
+def test_mesh_spawn(world, tmp_path):
+    src = sources.from_file(str(SCENES / 'objects' / 'pyramid.obj'))
+    world.spawn('pyr', src, position=[0, 1, 0.3])
+    world.step(100)
+    assert world.entity('pyr').category == 'dynamic'
+    world.delete('pyr')
+    bad = tmp_path / 'bad.stl'
+    bad.write_text('this is not a mesh')
+    with pytest.raises(Exception):
+        sources.from_file(str(bad))
