@@ -65,6 +65,11 @@ def _check_finite(what: str, values: Sequence[float], n: Optional[int] = None) -
     return arr
 
 
+def _clean(state: np.ndarray) -> bool:
+    """True if a state vector has nothing MuJoCo would call divergent."""
+    return bool(np.all(np.isfinite(state)) and np.max(np.abs(state), initial=0) < MAX_ABS_VALUE)
+
+
 def check_quat(quat_wxyz: Sequence[float], tol: float = 1e-3) -> np.ndarray:
     """Validate a (4,) w,x,y,z quaternion: finite and of unit norm (within `tol`)."""
     q = _check_finite('orientation', quat_wxyz, 4)
@@ -158,6 +163,7 @@ class World:
         self._default_friction: Optional[np.ndarray] = None
         self._default_restitution: Optional[float] = None
         self._commands: dict = {}  # joint name -> (mode, value), held until replaced
+        self._last_good: Optional[np.ndarray] = None  # a clean state from before a step
         self._warnings = self._data.warning.number.copy()
         self._reset_state_locked(keep_time=False)
         self._rebuild_locked()
@@ -556,6 +562,8 @@ class World:
         if self._diverged_locked():
             self._locate_divergence_locked(before, n)
         self._step_count += n
+        # Kept for divergence caused by values put in between steps (e.g. via locked()).
+        self._last_good = self._get_state_locked().values
         return self._step_count
 
     def _diverged_locked(self) -> bool:
@@ -596,6 +604,10 @@ class World:
                   'nonfinite_qpos': int(np.count_nonzero(~np.isfinite(d.qpos))),
                   'nonfinite_qvel': int(np.count_nonzero(~np.isfinite(d.qvel)))}
         self._step_count += k
+        if not _clean(good):
+            # The bad values were put in between steps (e.g. through locked()): go back to
+            # the state before the batch that was last stepped successfully.
+            good = self._last_good if self._last_good is not None else good
         self._set_state_locked(good, self._step_count)
         raise DivergenceError(f'physics diverged at step {bad_step} (t={report["time"]:.4f} s): '
                               f'{changed or "non-finite state"}; restored the state before it',
@@ -763,6 +775,7 @@ class World:
             raise ResourceParseError(f'the model does not compile: {exc}') from None
         self._model, self._data = model, data
         self._generation += 1
+        self._last_good = None  # its layout belongs to the old model
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         mujoco.mj_forward(model, data)
         self._warnings = data.warning.number.copy()

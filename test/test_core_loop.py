@@ -1,0 +1,114 @@
+"""The stepping loop: pause costs nothing, step N while paused, limits, divergence, pacing."""
+
+import time
+
+import pytest
+
+from conftest import DEFAULT_SCENE
+from sim_node.core.config import WorldConfig
+from sim_node.core.errors import IncorrectStateError
+from sim_node.core.loop import SimLoop
+from sim_node.core.world import World
+
+
+@pytest.fixture
+def make_loop():
+    loops = []
+
+    def make(**cfg):
+        w = World.from_file(str(DEFAULT_SCENE), WorldConfig(**cfg))
+        loop = SimLoop(w)
+        loop.start()
+        loops.append(loop)
+        return loop
+    yield make
+    for lp in loops:
+        lp.stop()
+
+
+def test_step_n_while_paused_advances_exactly_n_steps(make_loop):
+    loop = make_loop(paused=True)
+    t0 = loop.world.time
+    assert loop.step(250) == 250
+    assert loop.world.time == pytest.approx(t0 + 250 * loop.world.timestep, abs=1e-12)
+    assert loop.latest_snapshot().time == loop.world.time
+
+
+def test_step_while_playing_is_refused(make_loop):
+    loop = make_loop(real_time_factor=1.0)
+    with pytest.raises(IncorrectStateError):
+        loop.step(1)
+
+
+def test_paused_loop_uses_no_cpu(make_loop):
+    loop = make_loop(paused=True)
+    time.sleep(0.1)
+    c0 = time.thread_time()  # this thread only; measure the process instead:
+    p0 = time.process_time()
+    time.sleep(0.5)
+    assert time.process_time() - p0 < 0.05
+    assert c0 >= 0
+
+
+def test_max_steps_stops_the_loop_and_says_why(make_loop):
+    loop = make_loop(real_time_factor=0, max_steps=3000)
+    deadline = time.monotonic() + 20
+    while not loop.paused and time.monotonic() < deadline:
+        time.sleep(0.01)
+    st = loop.status()
+    assert st.state == 'paused' and 'max_steps' in st.stop_reason
+    assert loop.world.step_count == 3000
+
+
+def test_max_sim_time_stops_the_loop(make_loop):
+    loop = make_loop(real_time_factor=0, max_sim_time=1.5)
+    deadline = time.monotonic() + 20
+    while not loop.paused and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert loop.world.time == pytest.approx(1.5, abs=1e-9)
+    assert 'max_sim_time' in loop.status().stop_reason
+
+
+def test_real_time_factor_paces_simulated_time(make_loop):
+    loop = make_loop(real_time_factor=2.0)
+    time.sleep(0.2)
+    s0, w0 = loop.world.time, time.monotonic()
+    time.sleep(1.0)
+    ratio = (loop.world.time - s0) / (time.monotonic() - w0)
+    assert ratio == pytest.approx(2.0, rel=0.1)
+
+
+def test_divergence_pauses_the_loop_with_a_report(make_loop):
+    loop = make_loop(real_time_factor=0)
+    with loop.world.locked() as (m, d):
+        d.qvel[-1] = 1e12
+    deadline = time.monotonic() + 10
+    while not loop.paused and time.monotonic() < deadline:
+        time.sleep(0.01)
+    st = loop.status()
+    assert st.state == 'paused' and st.divergence is not None
+    assert 'diverged' in st.stop_reason and st.divergence['step'] >= 1
+    loop.play()  # the restored state is good: it runs again
+    time.sleep(0.1)
+    assert not loop.paused
+
+
+def test_commands_from_many_threads_while_the_loop_runs(make_loop):
+    import threading
+    loop = make_loop(real_time_factor=0)
+    errors = []
+
+    def send(k):
+        try:
+            for i in range(300):
+                loop.world.command(['left_elbow'], [0.1 * (i % 5)], 'position')
+                loop.world.get_entity_state('box_a')
+        except Exception as exc:  # noqa: B902
+            errors.append(exc)
+    threads = [threading.Thread(target=send, args=(k,)) for k in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    assert not errors
+    assert loop.status().state == 'playing'
