@@ -222,6 +222,11 @@ class SimLoop:
     def _iterate(self) -> None:
         """Wait until stepping is due, run one batch of steps, hand out a snapshot."""
         with self._cv:
+            idle = not self._stopping and self._paused and not self._pending_steps
+        if idle:
+            # Consumers see the state the loop stopped in, not one from before the pause.
+            self.refresh_snapshot()
+        with self._cv:
             while not self._stopping and self._paused and not self._pending_steps:
                 self._cv.wait()
                 self._deadline = time.perf_counter()

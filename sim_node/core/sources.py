@@ -179,6 +179,8 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     is_urdf = root.tag == 'robot'
     base = Path(base_dir) if base_dir else None
+    if is_urdf:
+        text = _urdf_keep_root_link(root)
     try:
         spec = mujoco.MjSpec.from_string(text) if base is None else _from_string_in(text, base)
     except ValueError as exc:
@@ -186,6 +188,19 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     kind = 'urdf' if is_urdf else 'mjcf'
     name = root.attrib.get('name') or root.attrib.get('model') or ''
     return _finish(spec, kind, f'{kind.upper()} model {name}'.strip())
+
+
+def _urdf_keep_root_link(root: ET.Element) -> str:
+    """MuJoCo's URDF import fuses links welded to the world into the world body (fusestatic),
+    which would leave a fixed-base robot without a root body to be the entity: keep them."""
+    ext = root.find('mujoco')
+    if ext is None:
+        ext = ET.SubElement(root, 'mujoco')
+    compiler = ext.find('compiler')
+    if compiler is None:
+        compiler = ET.SubElement(ext, 'compiler')
+    compiler.set('fusestatic', 'false')
+    return ET.tostring(root, encoding='unicode')
 
 
 def _from_string_in(text: str, base: Path) -> mujoco.MjSpec:

@@ -1,0 +1,294 @@
+"""The node as users meet it: the installed executable in its own process, a real client here.
+
+One node process serves the whole module (start-up costs seconds); tests that need a clean
+world reset it first.
+"""
+
+import math
+import threading
+import time
+
+import pytest
+from simulation_interfaces.msg import EntityCategory, Result, SimulationState
+from simulation_interfaces.srv import SetSimulationState, SpawnEntity
+
+from conftest import NodeProcess, Watcher, wait_for
+from sim_node.client import SimClient, SimServiceError
+
+BOX = ('<mujoco><worldbody><body name="b"><freejoint/>'
+       '<geom type="box" size=".05 .05 .05" mass=".3"/></body></worldbody></mujoco>')
+
+
+@pytest.fixture(scope='module')
+def node():
+    proc = NodeProcess('real_time_factor:=1.0')
+    yield proc
+    code, seconds = proc.interrupt()
+    assert code == 0, proc.output()
+
+
+@pytest.fixture
+def sim(node, rclpy_context):
+    c = SimClient(timeout_sec=30)
+    c.reset()  # scope default: everything, spawned entities included
+    if c.state() != SimulationState.STATE_PLAYING:
+        c.play()
+    yield c
+    c.close()
+
+
+@pytest.fixture
+def watch(node, rclpy_context):
+    w = Watcher()
+    yield w
+    w.close()
+
+
+def world_state(sim):
+    return {n: sim.entity_state(n) for n in sim.entities()}
+
+
+def test_features_list_what_works(sim):
+    f = sim.features()
+    from simulation_interfaces.msg import SimulatorFeatures as F
+    for feature in (F.SPAWNING, F.DELETING, F.STEP_SIMULATION_MULTIPLE, F.SIMULATION_RESET,
+                    F.ENTITY_STATE_SETTING):
+        assert feature in f.features
+    assert F.NAMED_POSES not in f.features
+    assert 'mjcf' in f.spawn_formats and 'urdf' in f.spawn_formats
+
+
+def test_box_falls_onto_the_table_in_tf_then_delete_removes_tf_and_markers(sim, watch):
+    name = sim.spawn('crate', uri='box', position=(0.75, 0.3, 1.0))
+    assert name == 'crate'
+    first = wait_for(lambda: watch.tf.get('crate'), timeout=10)
+    assert first[1] == 'world'
+
+    def resting():
+        e = watch.tf.get('crate')
+        st = sim.entity_state('crate')
+        return e and abs(e[2][2] - 0.47) < 0.01 and math.dist(st['linear'], (0, 0, 0)) < 1e-2
+    wait_for(resting, timeout=15)
+    x, y, z = watch.tf['crate'][2]
+    assert (x, y) == pytest.approx((0.75, 0.3), abs=0.02)  # on the table top (z 0.42 + 0.05)
+    wait_for(lambda: any(ns == 'sim/crate' for ns, _ in watch.markers), timeout=5)
+    sim.delete('crate')
+    wait_for(lambda: not any(ns == 'sim/crate' for ns, _ in watch.markers), timeout=5)
+    assert 'crate' not in sim.entities()
+    n = len(watch.tf_stamps)
+    wait_for(lambda: len(watch.tf_stamps) > n + 3, timeout=5)
+    watch.tf.pop('crate', None)
+    time.sleep(0.3)
+    assert 'crate' not in watch.tf
+
+
+def test_tf_stamps_are_simulation_time_one_stamp_per_message(sim, watch):
+    wait_for(lambda: len(watch.tf_stamps) > 5 and watch.clock, timeout=10)
+    with watch.lock:
+        stamps = list(watch.tf_stamps[-5:])
+        clock = watch.clock[-1]
+    assert all(len(s) == 1 for s in stamps)
+    assert abs(max(next(iter(s)) for s in stamps) - clock) < 1.0  # sim time, not wall time
+    assert clock < 1e6
+    assert 'table' in watch.tf_static and watch.tf_static['table'][1] == 'world'
+
+
+def test_step_simulation_advances_clock_by_exactly_n_steps(sim, watch):
+    sim.pause()
+    with pytest.raises(SimServiceError):
+        sim.pause()  # already paused: ALREADY_IN_TARGET_STATE
+    time.sleep(0.3)
+    before = wait_for(watch.latest_clock)
+    sim.step(250)
+    after = wait_for(lambda: watch.latest_clock() if watch.latest_clock() != before else None)
+    assert after - before == pytest.approx(250 * 0.002, abs=1e-6)
+    sim.play()
+    with pytest.raises(SimServiceError) as info:
+        sim.step(1)
+    assert info.value.code == Result.RESULT_INCORRECT_STATE
+
+
+def test_simulate_steps_action_reports_feedback(sim):
+    sim.pause()
+    seen = []
+    t0 = sim.entity_state('box_a')['stamp']
+    sim.simulate_steps(300, feedback=lambda done, left: seen.append((done, left)))
+    assert sim.entity_state('box_a')['stamp'] == pytest.approx(t0 + 300 * 0.002, abs=1e-9)
+    # Feedback travels on a topic: some may arrive after the result, but each adds up.
+    assert seen and all(done + left == 300 for done, left in seen)
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen)
+
+
+def test_reset_scopes_over_services(sim):
+    sim.spawn('crate', uri='box', position=(0.75, 0.3, 1.0))
+    time.sleep(0.3)
+    sim.reset(4)  # spawned
+    assert 'crate' not in sim.entities()
+    sim.pause()
+    sim.step(500)
+    sim.reset(1)  # time only: the boxes stay where they fell
+    assert sim.entity_state('box_a')['stamp'] == pytest.approx(0.0, abs=1e-9)
+    assert sim.entity_state('box_a')['position'][2] < 0.5
+    sim.reset(2)  # state: back to the home keyframe
+    assert sim.entity_state('box_a')['position'][2] == pytest.approx(0.6, abs=1e-6)
+
+
+def test_position_command_reaches_target_in_joint_states(sim, watch):
+    from sensor_msgs.msg import JointState
+    pub = watch.node.create_publisher(JointState, 'joint_commands', 10)
+    target = -0.5
+
+    def reached():
+        pub.publish(JointState(name=['left_elbow'], position=[target]))
+        js = watch.joint_states
+        return js and abs(js.position[list(js.name).index('left_elbow')] - target) < 0.03
+    wait_for(reached, timeout=15, interval=0.2)
+    js = watch.joint_states
+    assert set(js.name) == {'left_shoulder', 'left_elbow', 'right_shoulder', 'right_elbow'}
+
+
+def test_set_get_entity_state_round_trip(sim):
+    sim.pause()
+    sim.set_entity_state('box_b', position=(0.2, 1.0, 0.8),
+                         orientation_xyzw=(0, 0, math.sin(0.25), math.cos(0.25)),
+                         linear=(0.1, 0, 0))
+    st = sim.entity_state('box_b')
+    assert st['position'] == pytest.approx((0.2, 1.0, 0.8), abs=1e-9)
+    assert st['orientation_xyzw'] == pytest.approx((0, 0, math.sin(0.25), math.cos(0.25)),
+                                                   abs=1e-9)
+    assert st['linear'] == pytest.approx((0.1, 0, 0), abs=1e-9)
+    info = sim.entity_info('robot')
+    assert info.category.category == EntityCategory.CATEGORY_ROBOT
+
+
+BAD_SPAWNS = [
+    ({'name': 'box_a', 'uri': 'box'}, SpawnEntity.Response.NAME_NOT_UNIQUE),
+    ({'name': 'bad name!', 'uri': 'box'}, SpawnEntity.Response.NAME_INVALID),
+    ({'name': 'x', 'uri': 'box', 'namespace': 'not a ns'},
+     SpawnEntity.Response.NAMESPACE_INVALID),
+    ({'name': 'x'}, SpawnEntity.Response.NO_RESOURCE),
+    ({'name': 'x', 'resource_string': '<mujoco><worldbody><body>'},
+     SpawnEntity.Response.RESOURCE_PARSE_ERROR),
+    ({'name': 'x', 'resource_string': '<sdf version="1.9"/>'},
+     SpawnEntity.Response.UNSUPPORTED_FORMAT),
+    ({'name': 'x', 'resource_string': '<mujoco><asset><mesh name="m" file="/etc/passwd.stl"/>'
+      '</asset><worldbody><body><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'},
+     SpawnEntity.Response.MISSING_ASSETS),
+    ({'name': 'x', 'uri': 'file:///etc/passwd'}, SpawnEntity.Response.MISSING_ASSETS),
+    ({'name': 'x', 'uri': 'package://sim/scenes/../../../../etc/passwd'},
+     SpawnEntity.Response.MISSING_ASSETS),
+    ({'name': 'x', 'uri': 'no_such_object'}, SpawnEntity.Response.MISSING_ASSETS),
+    ({'name': 'x', 'uri': 'box', 'orientation_xyzw': (0, 0, 0.5, 0.5)},
+     SpawnEntity.Response.INVALID_POSE),
+    ({'name': 'x', 'uri': 'box', 'position': (float('nan'), 0, 1)},
+     SpawnEntity.Response.INVALID_POSE),
+    ({'name': 'x', 'resource_string': 'x' * 6_000_000}, SpawnEntity.Response.UNSUPPORTED_ASSETS),
+]
+
+
+@pytest.mark.parametrize('kwargs, code', BAD_SPAWNS)
+def test_bad_spawn_gets_its_code_and_changes_nothing(sim, kwargs, code):
+    sim.pause()
+    before = world_state(sim)
+    kw = dict(kwargs)
+    with pytest.raises(SimServiceError) as info:
+        sim.spawn(kw.pop('name'), position=kw.pop('position', (0, 1, 1)), **kw)
+    assert info.value.code == code, info.value.message
+    assert info.value.message
+    assert world_state(sim) == before
+
+
+@pytest.mark.parametrize('call, code', [
+    (lambda s: s.delete('nobody'), Result.RESULT_NOT_FOUND),
+    (lambda s: s.entity_state('nobody'), Result.RESULT_NOT_FOUND),
+    (lambda s: s.set_entity_state('table', (0.75, 0, 0), linear=(1, 0, 0)),
+     Result.RESULT_INCORRECT_STATE),
+    (lambda s: s.set_entity_state('box_a', (0, 0, 1), orientation_xyzw=(0, 0, 0, 2)),
+     SetSimulationState.Response.INCORRECT_TRANSITION if False else 109),
+])
+def test_bad_requests_get_their_code_and_change_nothing(sim, call, code):
+    sim.pause()
+    before = world_state(sim)
+    with pytest.raises(SimServiceError) as info:
+        call(sim)
+    if code != 109:
+        assert info.value.code == code, info.value.message
+    else:  # a non-unit quaternion: SetEntityState has no pose code of its own in Result
+        assert info.value.code in (Result.RESULT_OPERATION_FAILED, 101), info.value.message
+    assert world_state(sim) == before
+
+
+def test_flood_of_requests_does_not_stall_clock(sim, watch):
+    stop = threading.Event()
+
+    def flood():
+        c = SimClient()
+        try:
+            while not stop.is_set():
+                c.entities()
+                try:
+                    c.spawn('x', resource_string='<mujoco><worldbody><body>')
+                except SimServiceError:
+                    pass
+        finally:
+            c.close()
+    threads = [threading.Thread(target=flood) for _ in range(2)]
+    for t in threads:
+        t.start()
+    try:
+        time.sleep(0.5)
+        n0, c0 = len(watch.clock), watch.latest_clock()
+        time.sleep(1.5)
+        n1, c1 = len(watch.clock), watch.latest_clock()
+    finally:
+        stop.set()
+        for t in threads:
+            t.join(10)
+    assert n1 - n0 > 30, 'clock messages stalled'
+    assert c1 - c0 > 1.0
+
+
+def test_two_clients_at_once(sim):
+    errors = []
+
+    def work(k):
+        c = SimClient()
+        try:
+            for i in range(3):
+                name = c.spawn(f'c{k}_{i}', uri='sphere', position=(-1 - k, i * 0.3, 0.5))
+                assert name in c.entities()
+                c.delete(name)
+        except Exception as exc:  # noqa: B902
+            errors.append(exc)
+        finally:
+            c.close()
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert not errors, errors
+
+
+def test_spawn_urdf_and_mesh_and_relative_pose(sim):
+    urdf = ('<robot name="r"><link name="base"><visual><geometry><box size=".1 .1 .1"/>'
+            '</geometry></visual><collision><geometry><box size=".1 .1 .1"/></geometry>'
+            '</collision><inertial><mass value="1"/><inertia ixx=".01" iyy=".01" izz=".01" '
+            'ixy="0" ixz="0" iyz="0"/></inertial></link></robot>')
+    sim.spawn('urdf_thing', resource_string=urdf, position=(-1, -1, 0.5))
+    sim.spawn('pyr', uri='pyramid', position=(0, 0.35, 0.6), frame_id='table')
+    st = sim.entity_state('pyr')
+    assert st['position'] == pytest.approx((0.75, 0.35, 0.6), abs=0.01)
+    assert any(u.endswith('box.xml') for u in sim.spawnables())
+
+
+def test_worlds_load_unload(sim):
+    sim.load_world(uri='package://sim/scenes/push_stack.xml')
+    assert sim.current_world() == 'push_stack'
+    assert 'finger_base' in sim.entities()
+    sim.unload_world()
+    with pytest.raises(SimServiceError):
+        sim.entities()
+    assert sim.state() == SimulationState.STATE_NO_WORLD
+    sim.load_world(uri='package://sim/scenes/default.xml')
+    assert 'robot' in sim.entities()
