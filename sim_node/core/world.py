@@ -142,6 +142,7 @@ class World:
         # Callers waiting for the lock; the loop steps aside for them (a Lock is not fair).
         self._waiting = 0
         self._waiting_cv = threading.Condition(threading.Lock())
+        self._loop_waiting = False
         self._stage_lock = threading.Lock()
         self._staged: dict = {}
         self._kp = float(config.kp)
@@ -163,7 +164,8 @@ class World:
         self._default_friction: Optional[np.ndarray] = None
         self._default_restitution: Optional[float] = None
         self._commands: dict = {}  # joint name -> (mode, value), held until replaced
-        self._last_good: Optional[np.ndarray] = None  # a clean state from before a step
+        self._last_good: Optional[np.ndarray] = None  # state after the last clean batch
+        self._cached: Optional[np.ndarray] = None  # the current state, while untouched
         self._warnings = self._data.warning.number.copy()
         self._reset_state_locked(keep_time=False)
         self._rebuild_locked()
@@ -202,13 +204,16 @@ class World:
         finally:
             with self._waiting_cv:
                 self._waiting -= 1
-                self._waiting_cv.notify_all()
+                if self._loop_waiting and not self._waiting:
+                    self._waiting_cv.notify_all()
 
     def wait_for_callers(self, timeout: float = 0.05) -> None:
         """Used by the loop: let callers waiting for the lock go first."""
         with self._waiting_cv:
             if self._waiting:
+                self._loop_waiting = True
                 self._waiting_cv.wait_for(lambda: self._waiting == 0, timeout)
+                self._loop_waiting = False
 
     @contextlib.contextmanager
     def locked(self) -> Iterator[tuple]:
@@ -217,6 +222,7 @@ class World:
         Anything changed here is the caller's responsibility; the loop is held off meanwhile.
         """
         with self._locked():
+            self._cached = None  # the caller may change anything
             yield self._model, self._data
 
     # ---------------------------------------------------------------- introspection
@@ -317,6 +323,7 @@ class World:
             self._set_state_locked(values, state.step)
 
     def _set_state_locked(self, values: np.ndarray, step: int) -> None:
+        self._cached = None
         mujoco.mj_setState(self._model, self._data, values, mujoco.mjtState.mjSTATE_INTEGRATION)
         self._step_count = step
         mujoco.mj_forward(self._model, self._data)
@@ -397,6 +404,7 @@ class World:
             if ang is not None:
                 # A free joint's angular velocity is in the body frame.
                 d.qvel[dadr + 3:dadr + 6] = quat_rotate(quat_conj(body_quat), ang)
+            self._cached = None
             mujoco.mj_forward(m, d)
 
     def _move_welded_locked(self, rec: EntityRecord, pos: np.ndarray, quat: np.ndarray) -> None:
@@ -421,6 +429,7 @@ class World:
             vals = _check_finite(f'joint {what}s', list(values.values()))
             adr = self._joint_qposadr[idx] if use_qpos else self._joint_dofadr[idx]
             (self._data.qpos if use_qpos else self._data.qvel)[adr] = vals
+            self._cached = None
             mujoco.mj_forward(self._model, self._data)
 
     def get_joint_states(self) -> dict:
@@ -505,6 +514,7 @@ class World:
     def _rebuild_control_locked(self) -> None:
         """Index arrays for PD/effort joints; rebuilt on a new command or a new generation."""
         d = self._data
+        self._cached = None  # ctrl or qfrc_applied may change here
         prev = getattr(self, '_pd_dof', np.zeros(0, int))
         d.qfrc_applied[prev] = 0
         items = [(self._joint_index[n], mode, v) for n, (mode, v) in self._commands.items()
@@ -552,7 +562,8 @@ class World:
     def _step_locked(self, n: int) -> int:
         self._apply_staged_locked()
         m, d = self._model, self._data
-        before = self._get_state_locked().values
+        # The state after the last clean batch, unless something changed it since.
+        before = self._cached if self._cached is not None else self._get_state_locked().values
         if len(self._pd_dof):
             for _ in range(n):
                 self._apply_pd_locked()
@@ -562,8 +573,10 @@ class World:
         if self._diverged_locked():
             self._locate_divergence_locked(before, n)
         self._step_count += n
-        # Kept for divergence caused by values put in between steps (e.g. via locked()).
-        self._last_good = self._get_state_locked().values
+        # The state after a clean batch: the next batch's starting point (unless something
+        # changes it), and the fallback for divergence caused by values put in between steps
+        # (e.g. through locked()).
+        self._last_good = self._cached = self._get_state_locked().values
         return self._step_count
 
     def _diverged_locked(self) -> bool:
@@ -634,11 +647,13 @@ class World:
                 self._clear_commands_locked()
                 self._reset_state_locked(keep_time=not scope & RESET_TIME)
             elif scope & RESET_TIME:
+                self._cached = None
                 self._data.time = 0.0
                 self._step_count = 0
 
     def _reset_state_locked(self, keep_time: bool) -> None:
         m, d = self._model, self._data
+        self._cached = None
         t, steps = d.time, self._step_count
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, 'home')
         if key >= 0:
@@ -749,6 +764,66 @@ class World:
                 raise InvalidPoseError(ERR_INTERPENETRATION.format(name=name, other=other_name,
                                                                    depth=-c.dist))
 
+    def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
+                 position: Sequence[float] = (0.0, 0.0, 0.0),
+                 quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), mass: float = 0.0,
+                 joint: Optional[str] = None, axis: Sequence[float] = (0.0, 0.0, 1.0),
+                 rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> str:
+        """Add a body with one geom under an existing body of a spawned entity, while running.
+
+        :param parent: name of the parent body (an entity or one of its bodies).
+        :param position: in the parent's frame.
+        :param joint: None (welded: the body becomes part of its parent), 'hinge' or 'slide'
+            about/along `axis` (in the body frame).
+        :param mass: kg; 0 uses the geom's default density.
+        """
+        pos, quat = check_pose(position, quat_wxyz)
+        ax = _check_finite('axis', axis, 3)
+        if not NAME_RE.match(name or ''):
+            raise NameInvalidError(ERR_NAME.format(name=name))
+        if joint not in (None, 'hinge', 'slide'):
+            raise InvalidArgumentError(f"joint must be None, 'hinge' or 'slide', got {joint!r}")
+        # Validate the geometry with the same rules as a primitive spawn.
+        sources.primitive(shape, size, mass=mass or None, rgba=rgba, static=True)
+        with self._locked():
+            if parent not in self._info.body_names:
+                raise NotFoundError(f'no body named {parent!r}')
+            root = self._root_entity_of_locked(parent)
+            if root not in self._spawned:
+                raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
+            full = f'{root}/{name}'
+            if full in self._info.body_names:
+                raise NameNotUniqueError(ERR_DUPLICATE.format(name=full))
+            trial = self._spec.copy()
+            self._add_child(trial, parent, full, shape, size, pos, quat, mass, joint, ax, rgba)
+            try:
+                trial.compile()
+            except ValueError as exc:
+                raise ResourceParseError(f'adding {full!r} does not compile: {exc}') from None
+            self._add_child(self._spec, parent, full, shape, size, pos, quat, mass, joint, ax,
+                            rgba)
+            self._recompile_locked()
+            return full
+
+    @staticmethod
+    def _add_child(spec, parent, full, shape, size, pos, quat, mass, joint, axis, rgba) -> None:
+        n = {'box': 3, 'sphere': 1, 'cylinder': 2, 'capsule': 2}[shape]
+        body = spec.body(parent).add_body(name=full, pos=pos.tolist(), quat=quat.tolist())
+        if joint:
+            body.add_joint(name=f'{full}/joint', axis=axis.tolist(), type=getattr(
+                mujoco.mjtJoint, 'mjJNT_HINGE' if joint == 'hinge' else 'mjJNT_SLIDE'))
+        geom = body.add_geom(name=f'{full}/geom', size=list(map(float, size)) + [0.0] * (3 - n),
+                             type=getattr(mujoco.mjtGeom, f'mjGEOM_{shape.upper()}'),
+                             rgba=list(map(float, rgba)))
+        if mass:
+            geom.mass = float(mass)
+
+    def _root_entity_of_locked(self, body_name: str) -> str:
+        b = self._info.body_names.index(body_name)
+        while self._info.body_parent[b] != 0:
+            b = int(self._info.body_parent[b])
+        return self._info.body_names[b]
+
     def delete(self, name: str) -> None:
         """Remove a spawned entity with its joints, geoms, actuators, sensors, equality
         constraints, contact pairs and excludes; everything else keeps its state exactly."""
@@ -775,7 +850,7 @@ class World:
             raise ResourceParseError(f'the model does not compile: {exc}') from None
         self._model, self._data = model, data
         self._generation += 1
-        self._last_good = None  # its layout belongs to the old model
+        self._last_good = self._cached = None  # their layout belongs to the old model
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         mujoco.mj_forward(model, data)
         self._warnings = data.warning.number.copy()
@@ -877,24 +952,41 @@ class World:
             self._recompile_locked()
 
     def set_mass(self, name: str, mass: float) -> None:
-        """Total mass of an entity (kg); each body's mass and inertia scale by one factor."""
+        """Total mass of an entity (kg); each body's mass and inertia scale by one factor.
+
+        A body without mass is static: giving a static (jointless) entity a mass frees it
+        (it gets a free joint and falls), and a mass of 0 welds a free object to the world.
+        """
         (m_new,) = _check_finite('mass', [mass], 1)
-        if m_new <= 0:
-            raise InvalidArgumentError(f'mass must be > 0, got {mass}')
+        if m_new < 0:
+            raise InvalidArgumentError(f'mass must be >= 0, got {mass}')
         with self._locked():
             rec = self.entity(name)
+            body = self._spec.body(name)
+            if m_new == 0:
+                if rec.category == ROBOT:
+                    raise IncorrectStateError(f'{name!r} is a robot: give it a positive mass')
+                if rec.has_free_joint:
+                    for j in list(body.joints):
+                        self._spec.delete(j)
+                self._recompile_locked()
+                return
+            if rec.category == STATIC:
+                body.add_freejoint(name=f'{name}/free')
+                self._recompile_locked()
+                rec = self.entity(name)
             m = self._model
             total = float(sum(m.body_mass[b] for b in rec.body_ids))
             if total <= 0:
                 raise IncorrectStateError(f'{name!r} has no mass to scale')
             k = m_new / total
             for b in rec.body_ids:
-                body = self._spec.body(self._info.body_names[b])
-                body.explicitinertial = True
-                body.mass = float(m.body_mass[b] * k)
-                body.inertia = (m.body_inertia[b] * k).tolist()
-                body.ipos = m.body_ipos[b].tolist()
-                body.iquat = m.body_iquat[b].tolist()
+                bs = self._spec.body(self._info.body_names[b])
+                bs.explicitinertial = True
+                bs.mass = float(m.body_mass[b] * k)
+                bs.inertia = (m.body_inertia[b] * k).tolist()
+                bs.ipos = m.body_ipos[b].tolist()
+                bs.iquat = m.body_iquat[b].tolist()
             self._recompile_locked()
 
     # ---------------------------------------------------------------- model tables

@@ -1,0 +1,55 @@
+"""Registers the `sim/...` Gymnasium ids as soon as Gymnasium's registry is imported.
+
+Gymnasium before 1.0 loaded plugins from the ``gymnasium.envs`` entry point (declared in
+setup.py); Gymnasium 1.x no longer does. So the project venv runs this module at start-up
+(a ``.pth`` line written by ros_env/bootstrap.py): it imports nothing heavy, and only adds a
+hook that registers the ids (as strings: nothing is imported) right after
+``gymnasium.envs.registration`` loads. Then ``gymnasium.make('sim/PushBox-v0')`` works with no
+import first.
+"""
+
+import importlib.abc
+import sys
+
+_TARGET = 'gymnasium.envs.registration'
+IDS = (('sim/PushBox-v0', 'sim_node.gym_env:make_push_box', 200),
+       ('sim/Reach-v0', 'sim_node.gym_env:make_reach', 200))
+
+
+def register_ids(registration) -> None:
+    for env_id, entry, steps in IDS:
+        if env_id not in registration.registry:
+            registration.register(id=env_id, entry_point=entry, max_episode_steps=steps)
+
+
+class _Finder(importlib.abc.MetaPathFinder):
+    def find_spec(self, fullname, path, target=None):
+        if fullname != _TARGET:
+            return None
+        sys.meta_path.remove(self)  # find the real module, then wrap its loader
+        try:
+            import importlib.util
+            spec = importlib.util.find_spec(fullname)
+        finally:
+            sys.meta_path.insert(0, self)
+        if spec is None or spec.loader is None:
+            return None
+        real_exec = spec.loader.exec_module
+
+        def exec_module(module):
+            real_exec(module)
+            register_ids(module)
+            if self in sys.meta_path:
+                sys.meta_path.remove(self)
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+def install() -> None:
+    if _TARGET in sys.modules:
+        register_ids(sys.modules[_TARGET])
+    elif not any(isinstance(f, _Finder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _Finder())
+
+
+install()

@@ -1,0 +1,219 @@
+"""A small stepping API for scripts and notebooks: no ROS, no thread.
+
+    from sim_node.simulation import Simulation
+    sim = Simulation.from_file('scenes/default.xml')
+    sim.step({'left_elbow': -0.5}, dt=0.5, mode='position')
+    state = sim.get_state()            # body poses, joint positions (and velocities)
+    sim.set_state(state)               # overwrite a scene mid-run, no rebuild
+    sim.run(max_steps=10_000)          # with termination constraints
+
+Rules worth knowing:
+
+* A body without mass is static: :meth:`add_object` with ``mass=0`` welds it to the world;
+  :meth:`set_mass` with a positive mass frees it (it falls), ``0`` welds it again.
+* A body added under another without a joint is welded to it and moves as part of it.
+"""
+
+from typing import Callable, Optional, Sequence, Union
+
+import numpy as np
+
+from .core import sources
+from .core.config import WorldConfig
+from .core.errors import InvalidArgumentError
+from .core.world import World
+
+MODES = ('none', 'position', 'velocity', 'effort', 'kinematic')
+EMPTY_WORLD = ('<mujoco model="empty"><compiler angle="radian"/><option timestep="0.002"/>'
+               '<worldbody><light pos="0 0 4" dir="0 0 -1" directional="true"/>'
+               '<geom name="floor" type="plane" size="10 10 0.1" rgba="0.35 0.4 0.45 1"/>'
+               '</worldbody></mujoco>')
+
+
+class Simulation:
+    """A :class:`~sim_node.core.world.World` driven step by step from the calling thread."""
+
+    def __init__(self, world: World):
+        self.world = world
+
+    @classmethod
+    def from_file(cls, path: str, **config) -> 'Simulation':
+        return cls(World.from_file(path, WorldConfig(**config)))
+
+    @classmethod
+    def from_string(cls, xml: str, **config) -> 'Simulation':
+        return cls(World.from_string(xml, WorldConfig(**config)))
+
+    @classmethod
+    def empty(cls, **config) -> 'Simulation':
+        """A world with only a floor, to build in code."""
+        return cls.from_string(EMPTY_WORLD, **config)
+
+    # ------------------------------------------------------------------ building
+
+    def add_object(self, name: str, shape: str, size: Sequence[float],
+                   position: Sequence[float] = (0, 0, 0),
+                   quat_wxyz: Sequence[float] = (1, 0, 0, 0), mass: float = 0.0,
+                   rgba: Sequence[float] = (0.7, 0.7, 0.7, 1), friction: Optional[float] = None,
+                   restitution: Optional[float] = None) -> str:
+        """A top-level object (box, sphere, cylinder, capsule). ``mass=0``: static."""
+        src = sources.primitive(shape, size, mass=mass, rgba=rgba)
+        self.world.spawn(name, src, position, quat_wxyz)
+        if friction is not None:
+            self.world.set_friction(name, friction)
+        if restitution is not None:
+            self.world.set_restitution(name, restitution)
+        return name
+
+    def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
+                 position: Sequence[float] = (0, 0, 0),
+                 quat_wxyz: Sequence[float] = (1, 0, 0, 0), mass: float = 0.0,
+                 joint: Optional[str] = None, axis: Sequence[float] = (0, 0, 1),
+                 rgba: Sequence[float] = (0.7, 0.7, 0.7, 1)) -> str:
+        """A body under `parent` (its frame); ``joint=None`` welds it to the parent."""
+        return self.world.add_body(name, parent, shape, size, position, quat_wxyz, mass,
+                                   joint, axis, rgba)
+
+    def add_model(self, name: str, xml: str, position: Sequence[float] = (0, 0, 0),
+                  quat_wxyz: Sequence[float] = (1, 0, 0, 0)) -> str:
+        """An MJCF or URDF model (text) as one entity."""
+        return self.world.spawn(name, sources.from_model_text(xml), position, quat_wxyz)
+
+    def remove(self, name: str) -> None:
+        self.world.delete(name)
+
+    # ------------------------------------------------------------------ physics parameters
+
+    def set_mass(self, name: str, mass: float) -> None:
+        self.world.set_mass(name, mass)
+
+    def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
+                     rolling: Optional[float] = None) -> None:
+        self.world.set_friction(name, sliding, torsional, rolling)
+
+    def set_restitution(self, name: str, restitution: float) -> None:
+        self.world.set_restitution(name, restitution)
+
+    def set_defaults(self, friction: Optional[Sequence[float]] = None,
+                     restitution: Optional[float] = None,
+                     gravity: Optional[Sequence[float]] = None,
+                     timestep: Optional[float] = None) -> None:
+        """Global physics defaults; friction/restitution apply to every geom without its own."""
+        if friction is not None or restitution is not None:
+            self.world.set_default_contact(friction, restitution)
+        if gravity is not None:
+            self.world.set_gravity(gravity)
+        if timestep is not None:
+            self.world.set_timestep(timestep)
+
+    # ------------------------------------------------------------------ stepping
+
+    @property
+    def time(self) -> float:
+        return self.world.time
+
+    @property
+    def joint_names(self) -> list:
+        return self.world.joint_names()
+
+    def step(self, ctrl: Union[None, dict, Sequence[float]] = None, dt: Optional[float] = None,
+             mode: str = 'none') -> float:
+        """Advance by `dt` seconds (one timestep by default) under a control.
+
+        :param ctrl: {joint: value}, or values for :attr:`joint_names` in order.
+        :param mode: 'none' (ctrl ignored), 'position', 'velocity', 'effort', or 'kinematic'
+            (the joints take the commanded positions exactly, with zero velocity: no dynamics
+            for them; everything else is simulated).
+        :returns: the simulation time.
+        """
+        if mode not in MODES:
+            raise InvalidArgumentError(f'unknown mode {mode!r}; use one of {MODES}')
+        n = 1 if dt is None else int(round(dt / self.world.timestep))
+        if n < 1:
+            raise InvalidArgumentError(f'dt must be at least one timestep '
+                                       f'({self.world.timestep} s), got {dt}')
+        commands = self._as_dict(ctrl)
+        if mode == 'kinematic':
+            for _ in range(n):
+                self._pin(commands)
+                self.world.step(1)
+            self._pin(commands)
+            return self.world.time
+        if mode != 'none' and commands:
+            self.world.command(list(commands), list(commands.values()), mode)
+        self.world.step(n)
+        return self.world.time
+
+    def _pin(self, commands: dict) -> None:
+        if commands:
+            self.world.set_joint_positions(commands)
+            self.world.set_joint_velocities({k: 0.0 for k in commands})
+
+    def _as_dict(self, ctrl) -> dict:
+        if ctrl is None:
+            return {}
+        if isinstance(ctrl, dict):
+            return {str(k): float(v) for k, v in ctrl.items()}
+        values = list(np.asarray(ctrl, dtype=float).reshape(-1))
+        names = self.world.joint_names()
+        if len(values) != len(names):
+            raise InvalidArgumentError(f'ctrl has {len(values)} values for {len(names)} joints '
+                                       f'{names}')
+        return dict(zip(names, values))
+
+    def run(self, max_steps: Optional[int] = None, max_time: Optional[float] = None,
+            ctrl: Union[None, dict, Sequence[float]] = None, mode: str = 'none',
+            callback: Optional[Callable[['Simulation'], bool]] = None) -> str:
+        """Step until a termination constraint holds; returns why it stopped.
+
+        :param callback: called after every step; returning True stops the run.
+        """
+        if max_steps is None and max_time is None and callback is None:
+            raise InvalidArgumentError('give max_steps, max_time or a callback, or it never '
+                                       'ends')
+        steps = 0
+        while True:
+            if max_steps is not None and steps >= max_steps:
+                return 'max_steps'
+            if max_time is not None and self.world.time >= max_time - 0.5 * self.world.timestep:
+                return 'max_time'
+            self.step(ctrl, mode=mode)
+            ctrl, steps = (ctrl if mode in ('kinematic',) else None), steps + 1
+            if callback is not None and callback(self):
+                return 'callback'
+
+    # ------------------------------------------------------------------ state
+
+    def get_state(self, velocities: bool = True) -> dict:
+        """{'time', 'bodies': {entity: (position, quat_wxyz)}, 'joints': {joint: position}}
+        plus 'body_velocities' {entity: (linear, angular)} and 'joint_velocities'."""
+        out = {'time': self.world.time, 'bodies': {}, 'joints': {}}
+        for rec in self.world.entities():
+            st = self.world.get_entity_state(rec.name)
+            out['bodies'][rec.name] = (st.position, st.quat_wxyz)
+            if velocities:
+                out.setdefault('body_velocities', {})[rec.name] = (st.linear_velocity,
+                                                                   st.angular_velocity)
+        joints = self.world.get_joint_states()
+        out['joints'] = {k: v[0] for k, v in joints.items()}
+        if velocities:
+            out['joint_velocities'] = {k: v[1] for k, v in joints.items()}
+        return out
+
+    def set_state(self, state: dict) -> None:
+        """Overwrite any part of a :meth:`get_state` dict (no rebuild): free bodies' poses (and
+        velocities), joint positions (and velocities). Missing parts are left as they are."""
+        bodies = state.get('bodies', {})
+        vels = state.get('body_velocities', {})
+        for name, (pos, quat) in bodies.items():
+            lin, ang = vels.get(name, (None, None))
+            if self.world.entity(name).has_free_joint:
+                self.world.set_entity_state(name, pos, quat, lin, ang)
+        if state.get('joints'):
+            self.world.set_joint_positions(state['joints'])
+        if state.get('joint_velocities'):
+            self.world.set_joint_velocities(state['joint_velocities'])
+
+    def reset(self) -> None:
+        """Back to the initial (or `home` keyframe) state at time 0, without rebuilding."""
+        self.world.reset(1 | 2)
