@@ -519,6 +519,22 @@ class World:
         d.qfrc_applied[prev] = 0
         items = [(self._joint_index[n], mode, v) for n, (mode, v) in self._commands.items()
                  if n in self._joint_index]
+        # A velocity or effort command on a joint that only has a position servo: the servo's
+        # target moves at the commanded velocity, or follows the joint (so the servo only
+        # damps) while the effort goes through qfrc_applied.
+        servo = [(self._joint_actuators[i].get(POSITION), i, mode, v) for i, mode, v in items
+                 if mode in (VELOCITY, EFFORT) and POSITION in self._joint_actuators[i]]
+        self._servo_act = np.array([a for a, _, _, _ in servo], dtype=int)
+        self._servo_qpos = self._joint_qposadr[[i for _, i, _, _ in servo]] if servo else \
+            np.zeros(0, int)
+        self._servo_rate = np.array([v if mode == VELOCITY else np.nan
+                                     for _, _, mode, v in servo], dtype=float)
+        self._servo_range = self._model.actuator_ctrlrange[self._servo_act] if servo else \
+            np.zeros((0, 2))
+        self._servo_limited = self._model.actuator_ctrllimited[self._servo_act].astype(bool) \
+            if servo else np.zeros(0, bool)
+        items = [(i, mode, v) for i, mode, v in items
+                 if not (mode == VELOCITY and POSITION in self._joint_actuators[i])]
         idx = np.array([i for i, _, _ in items], dtype=int)
         self._pd_dof = self._joint_dofadr[idx] if len(idx) else np.zeros(0, int)
         self._pd_qpos = self._joint_qposadr[idx] if len(idx) else np.zeros(0, int)
@@ -545,6 +561,14 @@ class World:
         err = np.where(self._pd_is_pos, self._pd_pos_target - q, 0.0)
         d.qfrc_applied[dof] = (self._pd_kp * err + self._pd_kd * (self._pd_vel_target - v)
                                + self._pd_effort + np.where(self._pd_bias, d.qfrc_bias[dof], 0.0))
+        if len(self._servo_act):
+            follow = np.isnan(self._servo_rate)
+            target = np.where(follow, d.qpos[self._servo_qpos],
+                              d.ctrl[self._servo_act] + np.nan_to_num(self._servo_rate)
+                              * self._model.opt.timestep)
+            lo, hi = self._servo_range[:, 0], self._servo_range[:, 1]
+            d.ctrl[self._servo_act] = np.where(self._servo_limited, np.clip(target, lo, hi),
+                                               target)
 
     # ---------------------------------------------------------------- stepping
 
@@ -564,7 +588,7 @@ class World:
         m, d = self._model, self._data
         # The state after the last clean batch, unless something changed it since.
         before = self._cached if self._cached is not None else self._get_state_locked().values
-        if len(self._pd_dof):
+        if len(self._pd_dof) or len(self._servo_act):
             for _ in range(n):
                 self._apply_pd_locked()
                 mujoco.mj_step(m, d)
@@ -604,7 +628,7 @@ class World:
         self._set_state_locked(before, self._step_count)
         for k in range(n):
             good = self._get_state_locked().values
-            if len(self._pd_dof):
+            if len(self._pd_dof) or len(self._servo_act):
                 self._apply_pd_locked()
             mujoco.mj_step(m, d)
             if self._diverged_locked() or k == n - 1:
