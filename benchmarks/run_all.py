@@ -4,6 +4,7 @@
    over a bare Python `mj_step` loop on the same scene.
 2. Spawn latency into a running world of 10, 100 and 500 bodies (median, 95th percentile).
 3. Real-time tracking at factor 1.0: simulated time over wall time.
+4. Gym env.step throughput over Gymnasium's own MujocoEnv on the same model (gym_step.py).
 
 Run with `make bench`; set SIM_BENCH_RT_SEC to shorten the real-time run (default 20 s).
 """
@@ -19,6 +20,7 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sim_node.core import sources  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
 from sim_node.core.loop import SimLoop  # noqa: E402
@@ -123,6 +125,8 @@ def main() -> None:
     bench_throughput()
     bench_spawn()
     bench_realtime(float(os.environ.get('SIM_BENCH_RT_SEC', '20')))
+    import gym_step
+    gym_step.main()
 
 
 if __name__ == '__main__':

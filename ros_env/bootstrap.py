@@ -182,8 +182,14 @@ def write_gym_autoload(python: Path) -> None:
                            '["purelib"])'], capture_output=True, text=True, check=True,
                           env={**os.environ, '_ROS_WHEELS_BOOTSTRAP_COMPLETE': '1'}).stdout
     pth = Path(site.strip()) / 'sim_gym_autoload.pth'
-    line = ("import importlib.util as _u; _u.find_spec('sim_node') and "
-            "__import__('sim_node.gym_autoload')\n")
+    # Loaded by file path under its own name, so the sim_node package itself is not imported
+    # at start-up (that would pin sys.modules['sim_node'] to the installed copy).
+    line = ("import importlib.util as _u, sys as _y; _s = _u.find_spec('sim_node'); "
+            "_p = _s and _u.spec_from_file_location('_sim_gym_autoload', "
+            "_s.submodule_search_locations[0] + '/gym_autoload.py'); "
+            "_m = _p and _u.module_from_spec(_p); "
+            "_m and (_y.modules.__setitem__('_sim_gym_autoload', _m) or _p.loader.exec_module(_m))"
+            "\n")
     if not pth.is_file() or pth.read_text() != line:
         pth.write_text(line)
 

@@ -11,6 +11,7 @@ snapshot of the initial state instead of rebuilding; actions are actuator contro
 actuators' control ranges.
 """
 
+import math
 from pathlib import Path
 from typing import Optional
 
@@ -89,13 +90,11 @@ class SimEnv(gym.Env):
         return obs, {}
 
     def step(self, action):
-        action = np.clip(np.asarray(action, dtype=np.float64), self.action_space.low,
-                         self.action_space.high)
-        if not np.all(np.isfinite(action)):
+        # MuJoCo clamps ctrl to the control ranges itself (ctrllimited actuators).
+        action = np.asarray(action, dtype=np.float64)
+        if not math.isfinite(action.sum()):
             raise ValueError(f'action must be finite, got {action}')
-        with self.world.locked() as (m, d):
-            d.ctrl[:] = action
-        self.world.step(self.task.frame_skip)
+        self.world.step(self.task.frame_skip, ctrl=action)
         m, d = self._model, self._data  # the env owns the world: no other thread steps it
         obs = self.task.observation(m, d)
         return obs, float(self.task.reward(m, d)), bool(self.task.terminated(m, d)), False, {}

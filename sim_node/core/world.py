@@ -117,6 +117,10 @@ def restitution_to_dampratio(restitution: float) -> float:
     return min(1.0, -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2))
 
 
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+_BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
+                 int(mujoco.mjtWarning.mjWARN_BADQACC)]
+
 # Enum membership must be tested on ints: numpy ints and MuJoCo enums do not hash alike.
 _ONE_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 _JOINT_TRN = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
@@ -143,6 +147,7 @@ class World:
         self._waiting = 0
         self._waiting_cv = threading.Condition(threading.Lock())
         self._loop_waiting = False
+        self._lock_cm = _WorldLock(self)
         self._stage_lock = threading.Lock()
         self._staged: dict = {}
         self._kp = float(config.kp)
@@ -194,18 +199,9 @@ class World:
 
     # ---------------------------------------------------------------- locking
 
-    @contextlib.contextmanager
-    def _locked(self) -> Iterator[None]:
-        with self._waiting_cv:
-            self._waiting += 1
-        try:
-            with self._lock:
-                yield
-        finally:
-            with self._waiting_cv:
-                self._waiting -= 1
-                if self._loop_waiting and not self._waiting:
-                    self._waiting_cv.notify_all()
+    def _locked(self) -> '_WorldLock':
+        """The world lock, counting waiters so the loop can step aside for them."""
+        return self._lock_cm
 
     def wait_for_callers(self, timeout: float = 0.05) -> None:
         """Used by the loop: let callers waiting for the lock go first."""
@@ -306,9 +302,8 @@ class World:
             return self._get_state_locked()
 
     def _get_state_locked(self) -> PhysicsState:
-        spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        values = np.empty(mujoco.mj_stateSize(self._model, spec))
-        mujoco.mj_getState(self._model, self._data, values, spec)
+        values = np.empty(self._state_size)
+        mujoco.mj_getState(self._model, self._data, values, _STATE)
         return PhysicsState(generation=self._generation, step=self._step_count, values=values)
 
     def set_state(self, state: PhysicsState) -> None:
@@ -572,8 +567,11 @@ class World:
 
     # ---------------------------------------------------------------- stepping
 
-    def step(self, n: int = 1) -> int:
+    def step(self, n: int = 1, ctrl: Optional[np.ndarray] = None) -> int:
         """Advance `n` steps (applying staged commands first); returns the step count.
+
+        :param ctrl: (nu,) actuator controls to set first, for callers that own the world
+            (the Gym environment); must be finite.
 
         :raises DivergenceError: the physics diverged; the world is back at the last good
             state (the one before the bad step) and ``error.step`` names the bad step.
@@ -581,6 +579,10 @@ class World:
         if n < 1:
             raise InvalidArgumentError(f'steps must be >= 1, got {n}')
         with self._locked():
+            if ctrl is not None:
+                self._data.ctrl[:] = ctrl
+                if self._cached is not None:  # keep the cached state current, cheaply
+                    self._cached[self._ctrl_slice] = self._data.ctrl
             return self._step_locked(int(n))
 
     def _step_locked(self, n: int) -> int:
@@ -604,23 +606,20 @@ class World:
         return self._step_count
 
     def _diverged_locked(self) -> bool:
+        """True on a new bad-state warning or non-finite qpos/qvel; logs other warnings."""
         d = self._data
         warn = d.warning.number
-        if not np.array_equal(warn, self._warnings):
-            bad = (warn[mujoco.mjtWarning.mjWARN_BADQPOS] != self._warnings[
-                mujoco.mjtWarning.mjWARN_BADQPOS]
-                or warn[mujoco.mjtWarning.mjWARN_BADQVEL] != self._warnings[
-                    mujoco.mjtWarning.mjWARN_BADQVEL]
-                or warn[mujoco.mjtWarning.mjWARN_BADQACC] != self._warnings[
-                    mujoco.mjtWarning.mjWARN_BADQACC])
-            if not bad:
-                for i in np.nonzero(warn != self._warnings)[0]:
-                    log.warning('MuJoCo warning %s (info %d)', mujoco.mjtWarning(i).name,
-                                d.warning[i].lastinfo)
-                self._warnings = warn.copy()
-                return False
-            return True
-        return not (math.isfinite(d.qpos.sum()) and math.isfinite(d.qvel.sum()))
+        if warn.tobytes() != self._warnings.tobytes():
+            changed = warn != self._warnings
+            if changed[_BAD_WARNINGS].any():
+                return True
+            for i in np.nonzero(changed)[0]:
+                log.warning('MuJoCo warning %s (info %d)', mujoco.mjtWarning(i).name,
+                            d.warning[i].lastinfo)
+            self._warnings = warn.copy()
+        # A NaN made by the batch's last step is not flagged until the next step checks it;
+        # the integrator carries a NaN acceleration into qvel (and only then into qpos).
+        return not math.isfinite(d.qvel.sum())
 
     def _locate_divergence_locked(self, before: np.ndarray, n: int) -> None:
         """Replay the batch one step at a time to find the bad step; end at the state before."""
@@ -1018,6 +1017,14 @@ class World:
     def _rebuild_locked(self) -> None:
         """Rebuild every name/index table for a new model generation."""
         m = self._model
+        self._state_size = mujoco.mj_stateSize(m, _STATE)
+        # Where ctrl sits in the state vector (mjtState order: time, qpos, qvel, act,
+        # warm start, ctrl, ...).
+        before_ctrl = mujoco.mj_stateSize(m, int(_STATE) & (
+            int(mujoco.mjtState.mjSTATE_TIME) | int(mujoco.mjtState.mjSTATE_QPOS)
+            | int(mujoco.mjtState.mjSTATE_QVEL) | int(mujoco.mjtState.mjSTATE_ACT)
+            | int(mujoco.mjtState.mjSTATE_WARMSTART)))
+        self._ctrl_slice = slice(before_ctrl, before_ctrl + m.nu)
         names = []
         for b in range(m.nbody):
             n = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
@@ -1131,6 +1138,29 @@ class World:
                 description=sp.get('description', 'from the scene'),
                 namespace=sp.get('namespace', ''), has_free_joint=has_free))
         return tuple(recs)
+
+
+class _WorldLock:
+    """Context manager for the world lock (a class: cheaper than a generator per step)."""
+
+    __slots__ = ('_w',)
+
+    def __init__(self, world: 'World'):
+        self._w = world
+
+    def __enter__(self) -> None:
+        w = self._w
+        with w._waiting_cv:
+            w._waiting += 1
+        w._lock.acquire()
+
+    def __exit__(self, *exc) -> None:
+        w = self._w
+        w._lock.release()
+        with w._waiting_cv:
+            w._waiting -= 1
+            if w._loop_waiting and not w._waiting:
+                w._waiting_cv.notify_all()
 
 
 def _rename_body_references(spec: mujoco.MjSpec, old: str, new: str) -> None:
