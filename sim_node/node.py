@@ -13,7 +13,6 @@ import threading
 from pathlib import Path
 from typing import Optional
 
-from action_msgs.msg import GoalStatus  # noqa: F401  (action_msgs must be importable)
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, \
     SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse

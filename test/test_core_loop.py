@@ -112,3 +112,15 @@ def test_commands_from_many_threads_while_the_loop_runs(make_loop):
         t.join(30)
     assert not errors
     assert loop.status().state == 'playing'
+
+
+def test_pacing_resyncs_after_a_stall_instead_of_bursting(make_loop):
+    loop = make_loop(real_time_factor=1.0)
+    time.sleep(0.2)
+    with loop.world.locked():
+        t_stall = loop.world.time
+        time.sleep(1.0)  # the loop cannot step for 1 s
+    time.sleep(0.3)
+    gained = loop.world.time - t_stall
+    # Catching up would add the missed second at once; re-syncing continues at real time.
+    assert gained < 0.6, f'burst: {gained:.2f} s of simulated time in 0.3 s of wall time'

@@ -292,3 +292,31 @@ def test_worlds_load_unload(sim):
     assert sim.state() == SimulationState.STATE_NO_WORLD
     sim.load_world(uri='package://sim/scenes/default.xml')
     assert 'robot' in sim.entities()
+
+
+def test_paused_and_real_time_factor_parameters_change_at_run_time(sim, watch):
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    params = AsyncParameterClient(sim.node, 'sim')
+    assert params.wait_for_services(timeout_sec=10)
+
+    def set_param(name, value):
+        future = params.set_parameters([Parameter(name, value=value)])
+        sim._executor.spin_until_future_complete(future, 10)
+        assert all(r.successful for r in future.result().results), future.result()
+    try:
+        set_param('paused', True)
+        time.sleep(0.3)
+        c0 = watch.latest_clock()
+        time.sleep(0.5)
+        assert watch.latest_clock() == c0
+        set_param('real_time_factor', 3.0)
+        set_param('paused', False)
+        time.sleep(0.3)
+        c1, w1 = watch.latest_clock(), time.monotonic()
+        time.sleep(1.0)
+        rate = (watch.latest_clock() - c1) / (time.monotonic() - w1)
+        assert rate == pytest.approx(3.0, rel=0.2)
+    finally:
+        set_param('real_time_factor', 1.0)
+        set_param('paused', False)
