@@ -178,7 +178,9 @@ class Simulation:
             if max_time is not None and self.world.time >= max_time - 0.5 * self.world.timestep:
                 return 'max_time'
             self.step(ctrl, mode=mode)
-            ctrl, steps = (ctrl if mode in ('kinematic',) else None), steps + 1
+            steps += 1
+            if mode != 'kinematic':
+                ctrl = None  # the world holds a command until replaced: send it once
             if callback is not None and callback(self):
                 return 'callback'
 

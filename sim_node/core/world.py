@@ -174,7 +174,6 @@ class World:
         self._warnings = self._data.warning.number.copy()
         self._reset_state_locked(keep_time=False)
         self._rebuild_locked()
-        self._initial_spawned = frozenset()
 
     # ---------------------------------------------------------------- construction
 
@@ -661,7 +660,7 @@ class World:
             scope = 255
         with self._locked():
             if scope & RESET_SPAWNED:
-                doomed = [n for n in self._spawned if n not in self._initial_spawned]
+                doomed = list(self._spawned)
                 for name in doomed:
                     self._remove_spawned_from_spec_locked(name)
                 if doomed:
