@@ -362,9 +362,7 @@ class SimNode(Node):
     def _source_for(self, uri: str, resource_string: str) -> sources.SpawnSource:
         roots = self._resource_paths
         if resource_string:
-            if len(resource_string.encode()) > MAX_RESOURCE_STRING_BYTES:
-                raise sources.UnsupportedAssetsError(sources.ERR_TOO_LARGE.format(
-                    size=len(resource_string.encode()), limit=MAX_RESOURCE_STRING_BYTES))
+            # from_model_text refuses text over max_bytes (UNSUPPORTED_ASSETS) before parsing.
             return sources.from_model_text(resource_string, base_dir=None,
                                            allowed_roots=roots,
                                            max_bytes=MAX_RESOURCE_STRING_BYTES)
@@ -632,9 +630,7 @@ class SimNode(Node):
         cfg = self.world_config()
         if request.resource_string:
             src = request.resource_string
-            if len(src.encode()) > MAX_RESOURCE_STRING_BYTES:
-                raise sources.UnsupportedAssetsError('world resource_string is too large')
-            # World text may only read files inside the resource paths, like a spawn.
+            # Size, XML, and files only inside the resource paths: the same checks as a spawn.
             sources.check_model_text(src, None, self._resource_paths, MAX_RESOURCE_STRING_BYTES)
             world = World.from_string(src, cfg)
             name, uri = 'resource_string', ''
