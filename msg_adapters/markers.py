@@ -15,10 +15,8 @@ INFINITE_PLANE_HALF = 10.0
 
 def _marker_ns(info: ModelInfo, geom: GeomVisual) -> str:
     """Markers are grouped by entity, so deleting an entity deletes one namespace."""
-    b = geom.body
-    while b and info.body_parent[b] != 0:
-        b = int(info.body_parent[b])
-    return NAMESPACE_PREFIX + (info.body_names[b] if b else 'world')
+    root = int(info.body_root[geom.body])
+    return NAMESPACE_PREFIX + (info.body_names[root] if root else 'world')
 
 
 def _shape(marker: Marker, geom: GeomVisual) -> None:

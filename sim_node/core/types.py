@@ -66,6 +66,7 @@ class ModelInfo:
     timestep: float
     body_names: tuple  # (nbody,) body 0 is the world
     body_parent: np.ndarray  # (nbody,)
+    body_root: np.ndarray  # (nbody,) the entity (top-level) body each body belongs to; 0: world
     body_has_joint: np.ndarray  # (nbody,) bool: moves relative to its parent
     body_local_pos: np.ndarray  # (nbody, 3) pose in the parent frame for welded bodies
     body_local_quat_wxyz: np.ndarray  # (nbody, 4)

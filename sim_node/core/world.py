@@ -842,9 +842,7 @@ class World:
 
     def _root_entity_of_locked(self, body_name: str) -> str:
         b = self._info.body_names.index(body_name)
-        while self._info.body_parent[b] != 0:
-            b = int(self._info.body_parent[b])
-        return self._info.body_names[b]
+        return self._info.body_names[self._info.body_root[b]]
 
     def delete(self, name: str) -> None:
         """Remove a spawned entity with its joints, geoms, actuators, sensors, equality
@@ -1048,12 +1046,17 @@ class World:
             self._model, self._data = self._spec.recompile(m, self._data)
             mujoco.mj_forward(self._model, self._data)
             return self._rebuild_locked()
+        root_of = np.zeros(m.nbody, dtype=int)
+        for b in range(1, m.nbody):  # parents come before children
+            root_of[b] = b if parent[b] == 0 else root_of[parent[b]]
         self._info = ModelInfo(
             generation=self._generation, timestep=float(m.opt.timestep),
-            body_names=tuple(names), body_parent=parent, body_has_joint=has_joint,
+            body_names=tuple(names), body_parent=parent, body_root=root_of,
+            body_has_joint=has_joint,
             body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
             joint_names=jnames, joint_ids=np.asarray(jids, dtype=int),
-            geoms=self._geom_visuals(m, names), entities=self._entity_records(m, names))
+            geoms=self._geom_visuals(m, names),
+            entities=self._entity_records(m, names, root_of))
         self._rebuild_control_locked()
 
     @staticmethod
@@ -1107,12 +1110,8 @@ class World:
                 mesh_vertices=verts, mesh_faces=faces))
         return tuple(out)
 
-    def _entity_records(self, m: mujoco.MjModel, names: list) -> tuple:
+    def _entity_records(self, m: mujoco.MjModel, names: list, root_of: np.ndarray) -> tuple:
         """One record per top-level body; grouped with index arrays (O(n), not O(n^2))."""
-        root_of = np.zeros(m.nbody, dtype=int)
-        for b in range(1, m.nbody):
-            p = m.body_parentid[b]
-            root_of[b] = b if p == 0 else root_of[p]
         jroot = root_of[m.jnt_bodyid]
         groot = root_of[m.geom_bodyid]
         trn_joint = np.isin(m.actuator_trntype, _JOINT_TRN)
