@@ -56,7 +56,6 @@ class SimLoop:
         self._snapshot = world.snapshot()
         self._snapshot_seq = 0
         self._snapshot_cv = threading.Condition()
-        self._listeners: list = []
         self._batch = 1
         self._deadline = time.perf_counter()
         self._last_snapshot = 0.0

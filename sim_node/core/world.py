@@ -546,6 +546,8 @@ class World:
         self._pd_kp = np.where(is_pos, self._kp * m0, 0.0)
         self._pd_kd = np.where(is_eff, 0.0, self._kd * m0)
         self._pd_bias = ~is_eff
+        # PD torques and moving servo targets are recomputed before every single step.
+        self._per_step_control = bool(len(self._pd_dof) or len(self._servo_act))
 
     def _apply_pd_locked(self) -> None:
         d = self._data
@@ -589,7 +591,7 @@ class World:
         m, d = self._model, self._data
         # The state after the last clean batch, unless something changed it since.
         before = self._cached if self._cached is not None else self._get_state_locked().values
-        if len(self._pd_dof) or len(self._servo_act):
+        if self._per_step_control:
             for _ in range(n):
                 self._apply_pd_locked()
                 mujoco.mj_step(m, d)
@@ -626,7 +628,7 @@ class World:
         self._set_state_locked(before, self._step_count)
         for k in range(n):
             good = self._get_state_locked().values
-            if len(self._pd_dof) or len(self._servo_act):
+            if self._per_step_control:
                 self._apply_pd_locked()
             mujoco.mj_step(m, d)
             if self._diverged_locked() or k == n - 1:
