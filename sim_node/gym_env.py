@@ -12,7 +12,6 @@ actuators' control ranges.
 """
 
 import math
-from pathlib import Path
 from typing import Optional
 
 import gymnasium as gym
@@ -20,18 +19,14 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from . import resources
 from .core.world import World
-
-SCENES = Path(__file__).resolve().parent.parent / 'scenes'
 
 
 def _scene(name: str) -> str:
     """A scene file: from the source tree, else from the installed share folder."""
-    path = SCENES / name
-    if path.is_file():
-        return str(path)
-    from .resources import installed_scenes_dir
-    return str(installed_scenes_dir() / name)
+    path = resources.source_scenes_dir() / name
+    return str(path if path.is_file() else resources.installed_scenes_dir() / name)
 
 
 class Task:
