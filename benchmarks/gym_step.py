@@ -1,24 +1,100 @@
-"""env.step throughput: our sim/Reach-v0 over Gymnasium's own MujocoEnv stepping the same
-model (scenes/default.xml) with the same frame skip, observation and reward. Both unwrapped,
-same random actions, interleaved runs; prints the ratio."""
+"""env.step throughput of our Gymnasium environments over Gymnasium's own MuJoCo environments.
 
+Two comparisons, each measured side by side in one run (interleaved rounds, median):
+
+1. Gymnasium's own environments, Pusher-v5 (frame skip 5) and Reacher-v5 (frame skip 2),
+   against a SimEnv on the same model file with the same frame skip and a Task that computes
+   the same observation and reward. Before timing, both are put in the same state and driven
+   with the same actions; the largest observation and reward differences are printed, so the
+   two are shown to be the same environment.
+2. Framework overhead alone: sim/Reach-v0 against a minimal MujocoEnv subclass that runs the
+   very same Task code on scenes/default.xml. Only the stepping machinery differs: ours adds the
+   world lock, the divergence check and the state kept for replaying a divergence; Gymnasium's
+   adds mj_rnePostConstraint and its action-shape check.
+
+All environments are unwrapped (no TimeLimit or checker wrappers) and get the same actions.
+"""
+
+import os
 import statistics
 import sys
 import time
 from pathlib import Path
 
+import gymnasium as gym
+import mujoco
 import numpy as np
 from gymnasium.envs.mujoco import MujocoEnv
 from gymnasium.spaces import Box
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from sim_node.gym_env import ReachTask, SimEnv  # noqa: E402
+from sim_node.gym_env import ReachTask, SimEnv, Task  # noqa: E402
 
 SCENE = str(Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml')
+GYM_ASSETS = Path(gym.__file__).parent / 'envs' / 'mujoco' / 'assets'
+
+
+class PusherTask(Task):
+    """Gymnasium's Pusher-v5, written as a Task: ids looked up once, the same numbers."""
+
+    scene = str(GYM_ASSETS / 'pusher_v5.xml')
+    frame_skip = 5
+
+    def setup(self, model):
+        self.tips, self.obj, self.goal = (model.body(n).id for n in ('tips_arm', 'object', 'goal'))
+
+    def randomize(self, model, data, rng):
+        while True:
+            cylinder = np.concatenate([rng.uniform(-0.3, 0, 1), rng.uniform(-0.2, 0.2, 1)])
+            if np.linalg.norm(cylinder) > 0.17:
+                break
+        data.qpos[-4:-2], data.qpos[-2:] = cylinder, 0
+        data.qvel[:] = rng.uniform(-0.005, 0.005, size=model.nv)
+        data.qvel[-4:] = 0
+
+    def observation(self, model, data):
+        x = data.xpos
+        return np.concatenate([data.qpos[:7], data.qvel[:7], x[self.tips], x[self.obj],
+                               x[self.goal]])
+
+    def reward(self, model, data):
+        x = data.xpos
+        near = -np.linalg.norm(x[self.obj] - x[self.tips]) * 0.5
+        dist = -np.linalg.norm(x[self.obj] - x[self.goal])
+        return dist - np.square(data.ctrl).sum() * 0.1 + near
+
+
+class ReacherTask(Task):
+    """Gymnasium's Reacher-v5, written as a Task."""
+
+    scene = str(GYM_ASSETS / 'reacher.xml')
+    frame_skip = 2
+
+    def setup(self, model):
+        self.tip, self.target = model.body('fingertip').id, model.body('target').id
+
+    def randomize(self, model, data, rng):
+        data.qpos[:] += rng.uniform(-0.1, 0.1, size=model.nq)
+        while True:
+            goal = rng.uniform(-0.2, 0.2, size=2)
+            if np.linalg.norm(goal) < 0.2:
+                break
+        data.qpos[-2:] = goal
+        data.qvel[:] = rng.uniform(-0.005, 0.005, size=model.nv)
+        data.qvel[-2:] = 0
+
+    def observation(self, model, data):
+        theta = data.qpos[:2]
+        return np.concatenate([np.cos(theta), np.sin(theta), data.qpos[2:], data.qvel[:2],
+                               (data.xpos[self.tip] - data.xpos[self.target])[:2]])
+
+    def reward(self, model, data):
+        return (-np.linalg.norm(data.xpos[self.tip] - data.xpos[self.target])
+                - np.square(data.ctrl).sum())
 
 
 class GymnasiumReach(MujocoEnv):
-    """The same task written the usual Gymnasium way."""
+    """sim/Reach-v0's Task run by Gymnasium's MujocoEnv: the same work per step as SimEnv."""
 
     metadata = {'render_modes': ['human', 'rgb_array', 'depth_array', 'rgbd_tuple'],
                 'render_fps': 100}
@@ -31,12 +107,30 @@ class GymnasiumReach(MujocoEnv):
 
     def step(self, action):
         self.do_simulation(action, self.frame_skip)
-        obs = self.task.observation(self.model, self.data)
-        return obs, self.task.reward(self.model, self.data), False, False, {}
+        m, d = self.model, self.data
+        obs = self.task.observation(m, d)
+        return obs, float(self.task.reward(m, d)), bool(self.task.terminated(m, d)), False, {}
 
     def reset_model(self):
         self.set_state(self.init_qpos, self.init_qvel)
         return self.task.observation(self.model, self.data)
+
+
+def same_environment(ours: SimEnv, theirs, actions) -> tuple:
+    """Put both in Gymnasium's reset state, step both; the largest obs and reward gaps."""
+    theirs.reset(seed=0)
+    ours.reset(seed=0)
+    d = theirs.unwrapped.data
+    with ours.world.locked() as (m, od):
+        od.qpos[:], od.qvel[:] = d.qpos, d.qvel
+        mujoco.mj_forward(m, od)
+    obs_gap = rew_gap = 0.0
+    for a in actions[:200]:
+        o1, r1, *_ = ours.step(a)
+        o2, r2, *_ = theirs.step(a)
+        obs_gap = max(obs_gap, float(np.abs(o1 - o2).max()))
+        rew_gap = max(rew_gap, abs(r1 - r2))
+    return obs_gap, rew_gap
 
 
 def steps_per_sec(env, actions) -> float:
@@ -47,20 +141,33 @@ def steps_per_sec(env, actions) -> float:
     return len(actions) / (time.perf_counter() - t0)
 
 
-def main(n: int = 20000, rounds: int = 5) -> None:
-    ours, theirs = SimEnv(ReachTask()), GymnasiumReach()
-    actions = np.random.default_rng(0).uniform(-1, 1, size=(n, 4))
+def compare(ours, theirs, n: int, rounds: int) -> tuple:
+    shape = ours.action_space.shape
+    actions = np.random.default_rng(0).uniform(-1, 1, size=(n,) + shape)
     a, b = [], []
     for _ in range(rounds):
         a.append(steps_per_sec(ours, actions))
         b.append(steps_per_sec(theirs, actions))
-    ra, rb = statistics.median(a), statistics.median(b)
-    print(f'[gym env.step] Reach on scenes/default.xml, frame skip {ReachTask.frame_skip}, '
-          f'{rounds} interleaved rounds of {n} steps (median)')
-    print(f'  sim SimEnv (sim/Reach-v0)         : {ra:9.0f} steps/s')
-    print(f'  Gymnasium MujocoEnv, same model   : {rb:9.0f} steps/s')
-    print(f'  ratio sim/Gymnasium               : {ra / rb:9.2f}   (target >= 1.0)')
+    return statistics.median(a), statistics.median(b), actions
+
+
+def main(n: int = 20000, rounds: int = 5) -> None:
+    print(f'[gym env.step] steps/s, median of {rounds} interleaved rounds of {n} steps; '
+          'all unwrapped, same random actions')
+    for name, task in (('Pusher-v5', PusherTask()), ('Reacher-v5', ReacherTask())):
+        ours, theirs = SimEnv(task), gym.make(name).unwrapped
+        ra, rb, actions = compare(ours, theirs, n, rounds)
+        obs_gap, rew_gap = same_environment(ours, theirs, actions)
+        print(f'  Gymnasium {name:10s} (own env, frame skip {task.frame_skip}): {rb:8.0f}   '
+              f'SimEnv, same model file and task: {ra:8.0f}   ratio {ra / rb:5.2f}'
+              f'   (target >= 1.0; same run: max |obs diff| {obs_gap:.1e}, '
+              f'|reward diff| {rew_gap:.1e})')
+    ra, rb, _ = compare(SimEnv(ReachTask()), GymnasiumReach(), n, rounds)
+    print(f'  framework only, sim/Reach-v0 Task on default.xml, frame skip '
+          f'{ReachTask.frame_skip}: MujocoEnv subclass {rb:8.0f}   SimEnv {ra:8.0f}   '
+          f'ratio {ra / rb:5.2f}')
 
 
 if __name__ == '__main__':
+    os.environ.setdefault('MUJOCO_GL', 'disable')
     main()

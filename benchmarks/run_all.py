@@ -4,7 +4,8 @@
    over a bare Python `mj_step` loop on the same scene.
 2. Spawn latency into a running world of 10, 100 and 500 bodies (median, 95th percentile).
 3. Real-time tracking at factor 1.0: simulated time over wall time.
-4. Gym env.step throughput over Gymnasium's own MujocoEnv on the same model (gym_step.py).
+4. Gym env.step throughput over Gymnasium's own Pusher-v5 and Reacher-v5 on the same model
+   files, and over a MujocoEnv subclass running the same Task code (gym_step.py).
 
 Run with `make bench`; set SIM_BENCH_RT_SEC to shorten the real-time run (default 20 s).
 """

@@ -11,7 +11,6 @@ snapshot of the initial state instead of rebuilding; actions are actuator contro
 actuators' control ranges.
 """
 
-import math
 from typing import Optional
 
 import gymnasium as gym
@@ -20,7 +19,7 @@ import numpy as np
 from gymnasium import spaces
 
 from . import resources
-from .core.world import World
+from .core.world import MAX_ABS_VALUE as MAX_CONTROL, World
 
 
 def _scene(name: str) -> str:
@@ -73,6 +72,7 @@ class SimEnv(gym.Env):
         self.action_space = spaces.Box(lo.astype(np.float32), hi.astype(np.float32),
                                        dtype=np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=obs.shape, dtype=np.float64)
+        self._action_shape = self.action_space.shape
         self._initial = self.world.get_state()
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
@@ -85,10 +85,17 @@ class SimEnv(gym.Env):
         return obs, {}
 
     def step(self, action):
-        # MuJoCo clamps ctrl to the control ranges itself (ctrllimited actuators).
+        # MuJoCo clamps ctrl to the control ranges itself (ctrllimited actuators), but zeroes
+        # every actuator while any control is NaN or beyond 1e10: refuse those here.
         action = np.asarray(action, dtype=np.float64)
-        if not math.isfinite(action.sum()):
-            raise ValueError(f'action must be finite, got {action}')
+        if action.shape != self._action_shape:
+            raise ValueError(f'action must have shape {self._action_shape}, '
+                             f'got {action.shape}')
+        # Exact and cheap for a short vector: NaN or inf make the sum fail the test; a large
+        # sum gets the element-wise check.
+        if not sum(map(abs, action.tolist())) <= MAX_CONTROL and not (
+                np.abs(action) <= MAX_CONTROL).all():
+            raise ValueError(f'action must be finite and within +-{MAX_CONTROL:g}, got {action}')
         self.world.step(self.task.frame_skip, ctrl=action)
         m, d = self._model, self._data  # the env owns the world: no other thread steps it
         obs = self.task.observation(m, d)

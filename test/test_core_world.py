@@ -285,6 +285,46 @@ def test_injected_divergence_restores_the_last_good_state_and_reports_the_step(w
     assert world.step_count == good.step
 
 
+UNSTABLE_MJCF = """<mujoco><option integrator="Euler" timestep="0.01" gravity="0 0 0"/>
+  <worldbody>
+    <body name="slider"><joint name="j" type="slide" axis="1 0 0"/>
+      <geom type="sphere" size=".1" mass="1"/></body>
+    <body name="box" pos="0 1 0"><freejoint/><geom type="box" size=".1 .1 .1" mass="1"/></body>
+  </worldbody>
+  <actuator><position name="servo" joint="j" kp="50000"/></actuator></mujoco>"""
+
+
+def test_divergence_mid_batch_names_the_exact_step_and_restores_the_state_before_it():
+    """A servo far too stiff for its time step blows up some steps into a batch that was
+    given new controls: the report names that step and the world is left exactly where a
+    plain MuJoCo run stands one step before it, still holding the new control."""
+    world = World.from_string(UNSTABLE_MJCF)
+    world.step(3, ctrl=np.array([0.0]))  # at rest: the next batch starts from a cached state
+    with pytest.raises(DivergenceError) as info:
+        world.step(40, ctrl=np.array([1.0]))
+    # The same run in bare MuJoCo, one step at a time.
+    m = mujoco.MjModel.from_xml_string(UNSTABLE_MJCF)
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    d = mujoco.MjData(m)
+    mujoco.mj_step(m, d, 3)
+    d.ctrl[:] = 1.0
+    warnings = d.warning.number.copy()
+    states = []
+    for _ in range(40):
+        states.append((d.qpos.copy(), d.qvel.copy()))
+        mujoco.mj_step(m, d)
+        if (d.warning.number != warnings).any() or not np.isfinite(d.qvel).all():
+            break
+    bad_step = 3 + len(states)
+    assert 3 + 1 < bad_step < 3 + 40  # mid-batch, or the test proves nothing
+    assert info.value.step == bad_step
+    assert world.step_count == bad_step - 1
+    with world.locked() as (_, wd):
+        np.testing.assert_array_equal(wd.qpos, states[-1][0])
+        np.testing.assert_array_equal(wd.qvel, states[-1][1])
+        assert wd.ctrl[0] == 1.0
+
+
 def test_restitution_and_friction_rank_as_expected():
     w = World.from_file(str(SCENES / 'friction_restitution.xml'))
     start = {e.name: w.get_entity_state(e.name).position.copy() for e in w.entities()}

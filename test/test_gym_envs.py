@@ -59,6 +59,23 @@ def test_actions_follow_control_ranges():
     assert np.allclose(env.action_space.high, [0.5, 0.5])
 
 
+@pytest.mark.parametrize('bad', [[np.nan, 0.0], [0.0, np.inf], [1e11, 0.0], [0.1], 0.1])
+def test_a_bad_action_is_refused_and_changes_nothing(bad):
+    """NaN, inf or > 1e10 would make MuJoCo zero every actuator; a wrong shape would be
+    broadcast. Each is a ValueError, and the world is where it was."""
+    env = gym.make('sim/PushBox-v0').unwrapped
+    env.reset(seed=3)
+    env.step(np.array([0.2, -0.1]))
+    before = env.world.get_state()
+    with pytest.raises(ValueError, match='action must'):
+        env.step(np.asarray(bad))
+    after = env.world.get_state()
+    assert after.step == before.step and np.array_equal(after.values, before.values)
+    # Out of range but finite is fine: MuJoCo clamps it to the control range.
+    env.step(np.array([5.0, -5.0]))
+    assert env.world.step_count == before.step + env.task.frame_skip
+
+
 def test_pushing_toward_the_goal_improves_the_reward():
     env = gym.make('sim/PushBox-v0').unwrapped
     obs, _ = env.reset(seed=1)

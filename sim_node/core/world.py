@@ -117,7 +117,7 @@ def restitution_to_dampratio(restitution: float) -> float:
     return min(1.0, -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2))
 
 
-_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+_STATE = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # an int: cheaper to pass per step
 _BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
                  int(mujoco.mjtWarning.mjWARN_BADQACC)]
 
@@ -171,7 +171,7 @@ class World:
         self._commands: dict = {}  # joint name -> (mode, value), held until replaced
         self._last_good: Optional[np.ndarray] = None  # state after the last clean batch
         self._cached: Optional[np.ndarray] = None  # the current state, while untouched
-        self._warnings = self._data.warning.number.copy()
+        self._note_warnings_locked()
         self._reset_state_locked(keep_time=False)
         self._rebuild_locked()
 
@@ -321,7 +321,7 @@ class World:
         mujoco.mj_setState(self._model, self._data, values, mujoco.mjtState.mjSTATE_INTEGRATION)
         self._step_count = step
         mujoco.mj_forward(self._model, self._data)
-        self._warnings = self._data.warning.number.copy()
+        self._note_warnings_locked()
 
     # ---------------------------------------------------------------- entity state
 
@@ -490,6 +490,8 @@ class World:
             self._rebuild_control_locked()
 
     def _apply_staged_locked(self) -> None:
+        if not self._staged:  # the common case, read without the lock: a command staged
+            return            # meanwhile is applied before the next batch instead
         with self._stage_lock:
             if not self._staged:
                 return
@@ -572,25 +574,36 @@ class World:
         """Advance `n` steps (applying staged commands first); returns the step count.
 
         :param ctrl: (nu,) actuator controls to set first, for callers that own the world
-            (the Gym environment); must be finite.
+            (the Gym environment); the caller checks them (finite, within +-1e10).
 
         :raises DivergenceError: the physics diverged; the world is back at the last good
             state (the one before the bad step) and ``error.step`` names the bad step.
         """
         if n < 1:
             raise InvalidArgumentError(f'steps must be >= 1, got {n}')
-        with self._locked():
-            if ctrl is not None:
-                self._data.ctrl[:] = ctrl
-                if self._cached is not None:  # keep the cached state current, cheaply
-                    self._cached[self._ctrl_slice] = self._data.ctrl
-            return self._step_locked(int(n))
+        # This runs once per Gym step and per loop batch, where each call layer costs about
+        # as much as the checks themselves: take a free lock directly (see _WorldLock).
+        if self._lock.acquire(blocking=False):
+            try:
+                return self._step_locked(int(n), ctrl)
+            finally:
+                self._lock.release()
+        with self._lock_cm:
+            return self._step_locked(int(n), ctrl)
 
-    def _step_locked(self, n: int) -> int:
-        self._apply_staged_locked()
+    def _step_locked(self, n: int, ctrl: Optional[np.ndarray]) -> int:
+        # The state after the last clean batch, if untouched since: it holds the previous
+        # controls, so a replay writes `ctrl` again.
+        before = self._cached
+        if ctrl is not None:
+            self._ctrl[:] = ctrl
+        if self._staged:
+            self._apply_staged_locked()
+            before = None
         m, d = self._model, self._data
-        # The state after the last clean batch, unless something changed it since.
-        before = self._cached if self._cached is not None else self._get_state_locked().values
+        if before is None:
+            before = self._get_state_locked().values
+            ctrl = None  # already in `before`
         if self._per_step_control:
             for _ in range(n):
                 self._apply_pd_locked()
@@ -598,34 +611,52 @@ class World:
         else:
             mujoco.mj_step(m, d, n)
         if self._diverged_locked():
-            self._locate_divergence_locked(before, n)
+            self._locate_divergence_locked(before, n, ctrl)
         self._step_count += n
         # The state after a clean batch: the next batch's starting point (unless something
         # changes it), and the fallback for divergence caused by values put in between steps
-        # (e.g. through locked()).
-        self._last_good = self._cached = self._get_state_locked().values
+        # (e.g. through locked()). One buffer, overwritten in place: `before` is spent by now.
+        mujoco.mj_getState(m, d, self._good_buf, _STATE)
+        self._last_good = self._cached = self._good_buf
         return self._step_count
 
     def _diverged_locked(self) -> bool:
-        """True on a new bad-state warning or non-finite qpos/qvel; logs other warnings."""
-        d = self._data
-        warn = d.warning.number
-        if warn.tobytes() != self._warnings.tobytes():
-            changed = warn != self._warnings
-            if changed[_BAD_WARNINGS].any():
-                return True
-            for i in np.nonzero(changed)[0]:
-                log.warning('MuJoCo warning %s (info %d)', mujoco.mjtWarning(i).name,
-                            d.warning[i].lastinfo)
-            self._warnings = warn.copy()
-        # A NaN made by the batch's last step is not flagged until the next step checks it;
-        # the integrator carries a NaN acceleration into qvel (and only then into qpos).
-        return not math.isfinite(d.qvel.sum())
+        """True if MuJoCo calls the state bad (NaN, inf or beyond 1e10 in qpos, qvel or qacc);
+        logs other new warnings. Runs after every batch, so the common case is three C calls
+        and one comparison.
+        """
+        m, d = self._model, self._data
+        # mj_step checks qpos and qvel only at the start of the next step; the integrator may
+        # have just carried a bad acceleration into them. Check them now, as MuJoCo would.
+        mujoco.mj_checkPos(m, d)
+        mujoco.mj_checkVel(m, d)
+        warn = self._warn_view
+        if warn.tobytes() == self._warnings_bytes:
+            return False
+        changed = warn != self._warnings
+        if changed[_BAD_WARNINGS].any():
+            return True
+        for i in np.nonzero(changed)[0]:
+            log.warning('MuJoCo warning %s (info %d)', mujoco.mjtWarning(i).name,
+                        d.warning[i].lastinfo)
+        self._note_warnings_locked()
+        return False
 
-    def _locate_divergence_locked(self, before: np.ndarray, n: int) -> None:
-        """Replay the batch one step at a time to find the bad step; end at the state before."""
+    def _note_warnings_locked(self) -> None:
+        """Take the current warning counters as seen (new ones are what _diverged looks for)."""
+        self._warnings = self._data.warning.number.copy()
+        self._warnings_bytes = self._warnings.tobytes()
+
+    def _locate_divergence_locked(self, before: np.ndarray, n: int,
+                                  ctrl: Optional[np.ndarray]) -> None:
+        """Replay the batch one step at a time to find the bad step; end at the state before.
+
+        :param ctrl: the batch's controls, if `before` does not hold them yet.
+        """
         m, d = self._model, self._data
         self._set_state_locked(before, self._step_count)
+        if ctrl is not None:
+            d.ctrl[:] = ctrl
         for k in range(n):
             good = self._get_state_locked().values
             if self._per_step_control:
@@ -875,7 +906,7 @@ class World:
         self._last_good = self._cached = None  # their layout belongs to the old model
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         mujoco.mj_forward(model, data)
-        self._warnings = data.warning.number.copy()
+        self._note_warnings_locked()
         self._rebuild_locked()
 
     # ---------------------------------------------------------------- physics parameters
@@ -1048,6 +1079,10 @@ class World:
             self._model, self._data = self._spec.recompile(m, self._data)
             mujoco.mj_forward(self._model, self._data)
             return self._rebuild_locked()
+        # Views into this MjData, and the state buffer, for the per-step path.
+        d = self._data
+        self._ctrl, self._qvel, self._warn_view = d.ctrl, d.qvel, d.warning.number
+        self._good_buf = np.empty(self._state_size)
         root_of = np.zeros(m.nbody, dtype=int)
         for b in range(1, m.nbody):  # parents come before children
             root_of[b] = b if parent[b] == 0 else root_of[parent[b]]
@@ -1143,20 +1178,28 @@ class World:
 class _WorldLock:
     """Context manager for the world lock (a class: cheaper than a generator per step)."""
 
-    __slots__ = ('_w',)
+    __slots__ = ('_w', '_counted')
 
     def __init__(self, world: 'World'):
         self._w = world
+        self._counted = False  # written and read only by the thread holding the lock
 
     def __enter__(self) -> None:
         w = self._w
+        if w._lock.acquire(blocking=False):
+            self._counted = False  # never waited: nobody needs to step aside for us
+            return
         with w._waiting_cv:
             w._waiting += 1
         w._lock.acquire()
+        self._counted = True
 
     def __exit__(self, *exc) -> None:
         w = self._w
+        counted = self._counted
         w._lock.release()
+        if not counted:
+            return
         with w._waiting_cv:
             w._waiting -= 1
             if w._loop_waiting and not w._waiting:
