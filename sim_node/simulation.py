@@ -203,18 +203,13 @@ class Simulation:
         return out
 
     def set_state(self, state: dict) -> None:
-        """Overwrite any part of a :meth:`get_state` dict (no rebuild): free bodies' poses (and
-        velocities), joint positions (and velocities). Missing parts are left as they are."""
-        bodies = state.get('bodies', {})
-        vels = state.get('body_velocities', {})
-        for name, (pos, quat) in bodies.items():
-            lin, ang = vels.get(name, (None, None))
-            if self.world.entity(name).has_free_joint:
-                self.world.set_entity_state(name, pos, quat, lin, ang)
-        if state.get('joints'):
-            self.world.set_joint_positions(state['joints'])
-        if state.get('joint_velocities'):
-            self.world.set_joint_velocities(state['joint_velocities'])
+        """Overwrite any part of a :meth:`get_state` dict, without rebuilding: bodies' poses
+        (and velocities), joint positions (and velocities); missing parts are left as they
+        are. Everything is checked first: an error changes nothing. A static body given a new
+        pose is moved (see :meth:`World.overwrite <sim_node.core.world.World.overwrite>`)."""
+        self.world.overwrite(poses=state.get('bodies'), twists=state.get('body_velocities'),
+                             joint_positions=state.get('joints'),
+                             joint_velocities=state.get('joint_velocities'))
 
     def reset(self) -> None:
         """Back to the initial (or `home` keyframe) state at time 0, without rebuilding."""

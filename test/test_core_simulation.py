@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from conftest import DEFAULT_SCENE
-from sim_node.core.errors import InvalidArgumentError
+from sim_node.core.errors import InvalidArgumentError, SimError
 from sim_node.simulation import Simulation
 
 
@@ -49,6 +49,39 @@ def test_state_overwrite_and_reset_without_rebuild():
     assert np.allclose(after['bodies']['box_b'][0], st['bodies']['box_b'][0])
     sim.reset()
     assert sim.time == 0.0 and sim.world.generation == gen
+
+
+@pytest.mark.parametrize('bad', [
+    {'joints': {'no_such_joint': 0.3}},
+    {'joints': {'left_elbow': float('nan')}},
+    {'bodies': {'no_such_body': ([0, 0, 1], [1, 0, 0, 0])}},
+    {'bodies': {'box_b': ([0.9, 0.1, 0.9], [2, 0, 0, 0])}},  # not a unit quaternion
+    {'body_velocities': {'table': ([0, 0, 1], [0, 0, 0])}},  # a static body cannot move
+])
+def test_a_bad_part_of_a_state_overwrite_changes_nothing(bad):
+    sim = Simulation.from_file(str(DEFAULT_SCENE))
+    sim.step(dt=0.1)
+    before = sim.world.get_state()
+    state = {'bodies': {'box_a': (np.array([0.7, 0.3, 0.8]), np.array([1., 0, 0, 0]))},
+             'joints': {'left_elbow': 0.2}}
+    for key, part in bad.items():
+        state.setdefault(key, {}).update(part)
+    with pytest.raises(SimError):
+        sim.set_state(state)
+    after = sim.world.get_state()
+    assert after.generation == before.generation
+    assert np.array_equal(after.values, before.values)
+
+
+def test_state_round_trip_keeps_the_model_and_a_static_body_can_be_moved():
+    sim = Simulation.from_file(str(DEFAULT_SCENE))
+    sim.step(dt=0.2)
+    gen = sim.world.generation
+    sim.set_state(sim.get_state())  # static bodies at their own pose: no rebuild
+    assert sim.world.generation == gen
+    table = sim.get_state()['bodies']['table']
+    sim.set_state({'bodies': {'table': (table[0] + [0, 0.5, 0], table[1])}})
+    assert np.allclose(sim.get_state()['bodies']['table'][0], table[0] + [0, 0.5, 0])
 
 
 def test_run_stops_at_the_constraint():

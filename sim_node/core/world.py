@@ -386,20 +386,74 @@ class World:
                 if pos is not None:
                     self._move_welded_locked(rec, pos, quat)
                 return
-            m, d = self._model, self._data
-            jnt = m.body_jntadr[rec.root_body]
-            qadr, dadr = m.jnt_qposadr[jnt], m.jnt_dofadr[jnt]
-            if pos is not None:
-                d.qpos[qadr:qadr + 3] = pos
-                d.qpos[qadr + 3:qadr + 7] = quat
-            body_quat = d.qpos[qadr + 3:qadr + 7].copy()
-            if lin is not None:
-                d.qvel[dadr:dadr + 3] = lin
-            if ang is not None:
-                # A free joint's angular velocity is in the body frame.
-                d.qvel[dadr + 3:dadr + 6] = quat_rotate(quat_conj(body_quat), ang)
+            self._set_free_body_locked(rec, pos, quat, lin, ang)
+            mujoco.mj_forward(self._model, self._data)
+
+    def _set_free_body_locked(self, rec: EntityRecord, pos, quat, lin, ang) -> None:
+        """Write checked world-frame values (or None) into a free body's joint."""
+        m, d = self._model, self._data
+        jnt = m.body_jntadr[rec.root_body]
+        qadr, dadr = m.jnt_qposadr[jnt], m.jnt_dofadr[jnt]
+        if pos is not None:
+            d.qpos[qadr:qadr + 3] = pos
+            d.qpos[qadr + 3:qadr + 7] = quat
+        body_quat = d.qpos[qadr + 3:qadr + 7].copy()
+        if lin is not None:
+            d.qvel[dadr:dadr + 3] = lin
+        if ang is not None:
+            # A free joint's angular velocity is in the body frame.
+            d.qvel[dadr + 3:dadr + 6] = quat_rotate(quat_conj(body_quat), ang)
+        self._cached = None
+
+    def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
+                  joint_positions: Optional[dict] = None,
+                  joint_velocities: Optional[dict] = None) -> None:
+        """Overwrite any parts of the state at once, in the world frame: ``poses``
+        {entity: (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and
+        {joint: value} for hinge/slide joint positions and velocities.
+
+        Everything is checked before anything changes, so an error changes nothing. An
+        entity without a free joint given its current pose stays put (no rebuild); given
+        another pose it is moved as :meth:`set_entity_state` does (model rebuilt, state
+        kept), and a non-zero twist for it is refused.
+        """
+        poses, twists = poses or {}, twists or {}
+        joint_positions, joint_velocities = joint_positions or {}, joint_velocities or {}
+        with self._locked():
+            d = self._data
+            recs = {n: self.entity(n) for n in (*poses, *twists)}
+            checked = {n: check_pose(p, q) for n, (p, q) in poses.items()}
+            moving = {n: (_check_finite('linear velocity', lin, 3),
+                          _check_finite('angular velocity', ang, 3))
+                      for n, (lin, ang) in twists.items()}
+            for n, (lin, ang) in moving.items():
+                if not recs[n].has_free_joint and (lin.any() or ang.any()):
+                    raise IncorrectStateError(ERR_STATIC_TWIST.format(
+                        name=n, category=recs[n].category))
+            jq = self._joint_indices_locked(joint_positions)
+            jq_values = _check_finite('joint positions', list(joint_positions.values()))
+            jv = self._joint_indices_locked(joint_velocities)
+            jv_values = _check_finite('joint velocities', list(joint_velocities.values()))
+            welded_moves = []
+            for n, (pos, quat) in checked.items():
+                root = recs[n].root_body
+                if recs[n].has_free_joint:
+                    continue
+                same_quat = abs(abs(float(np.dot(quat, d.xquat[root]))) - 1.0) < 1e-12
+                if not (np.allclose(pos, d.xpos[root], rtol=0, atol=1e-9) and same_quat):
+                    welded_moves.append((recs[n], pos, quat))
+            # Apply: direct writes first, then the moves that rebuild the model.
+            for n, rec in recs.items():
+                if rec.has_free_joint:
+                    pos, quat = checked.get(n, (None, None))
+                    lin, ang = moving.get(n, (None, None))
+                    self._set_free_body_locked(rec, pos, quat, lin, ang)
+            d.qpos[self._joint_qposadr[jq]] = jq_values
+            d.qvel[self._joint_dofadr[jv]] = jv_values
             self._cached = None
-            mujoco.mj_forward(m, d)
+            mujoco.mj_forward(self._model, d)
+            for rec, pos, quat in welded_moves:
+                self._move_welded_locked(rec, pos, quat)
 
     def _move_welded_locked(self, rec: EntityRecord, pos: np.ndarray, quat: np.ndarray) -> None:
         body = self._spec.body(self._info.body_names[rec.root_body])
