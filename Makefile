@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test bench clean
+.PHONY: setup run test bench bench-gym clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -19,6 +19,9 @@ test: setup
 
 bench: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/run_all.py
+
+bench-gym: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/gym_step.py
 
 clean:
 	rm -rf .venv .build .pytest_cache
