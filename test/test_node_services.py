@@ -277,9 +277,13 @@ def test_spawn_urdf_and_mesh_and_relative_pose(sim):
             '</collision><inertial><mass value="1"/><inertia ixx=".01" iyy=".01" izz=".01" '
             'ixy="0" ixz="0" iyz="0"/></inertial></link></robot>')
     sim.spawn('urdf_thing', resource_string=urdf, position=(-1, -1, 0.5))
-    sim.spawn('pyr', uri='pyramid', position=(0, 0.35, 0.6), frame_id='table')
-    st = sim.entity_state('pyr')
-    assert st['position'] == pytest.approx((0.75, 0.35, 0.6), abs=0.01)
+    sim.pause()  # the pyramid has mass: running, it would fall before we look
+    try:
+        sim.spawn('pyr', uri='pyramid', position=(0, 0.35, 0.6), frame_id='table')
+        st = sim.entity_state('pyr')
+    finally:
+        sim.play()
+    assert st['position'] == pytest.approx((0.75, 0.35, 0.6), abs=1e-6)
     assert any(u.endswith('box.xml') for u in sim.spawnables())
 
 
