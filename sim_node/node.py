@@ -18,6 +18,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -84,6 +85,7 @@ class SimNode(Node):
         self._world_frame = p('world_frame')
         self._resource_paths = [str(Path(r).resolve()) for r in p('resource_paths') if r]
         self._sim: Optional[_Sim] = None
+        self._syncing_thread: Optional[int] = None  # set while we mirror `paused` ourselves
         self._sim_lock = threading.RLock()
         self._stopped = False  # STATE_STOPPED until play or pause
         self._published_generation = None
@@ -162,6 +164,8 @@ class SimNode(Node):
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         sim = self._sim
+        if self._syncing_thread == threading.get_ident():
+            return SetParametersResult(successful=True)  # our own mirror of the loop state
         try:
             for prm in params:
                 if sim is None:
@@ -257,7 +261,22 @@ class SimNode(Node):
         if snap.generation == info.generation and info.joint_names:
             self._joint_pub.publish(convert.joint_state(info, snap))
 
+    def _sync_paused_parameter(self) -> None:
+        """Mirror the loop's paused state (changed by services, limits or divergence too) in
+        the `paused` parameter, so `ros2 param get` tells the truth."""
+        sim = self._sim
+        if sim is None:
+            return
+        paused = bool(sim.loop.paused)
+        if self._param('paused') != paused:
+            self._syncing_thread = threading.get_ident()
+            try:
+                self.set_parameters([Parameter('paused', Parameter.Type.BOOL, paused)])
+            finally:
+                self._syncing_thread = None
+
     def _drain_logs(self) -> None:
+        self._sync_paused_parameter()
         log = self.get_logger()
         while self._forwarder.records:
             rec = self._forwarder.records.popleft()
@@ -575,6 +594,7 @@ class SimNode(Node):
             sim.world.reset(RESET_ALL)
             self._stopped = True
             self._after_change(sim)
+        self._sync_paused_parameter()
         response.result = convert.ok()
         return response
 

@@ -299,6 +299,34 @@ def test_worlds_load_unload(sim):
     assert 'robot' in sim.entities()
 
 
+def test_paused_parameter_follows_the_simulation_state_service(sim):
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    params = AsyncParameterClient(sim.node, 'sim')
+    assert params.wait_for_services(timeout_sec=10)
+
+    def paused_param():
+        future = params.get_parameters(['paused'])
+        sim._executor.spin_until_future_complete(future, 10)
+        return future.result().values[0].bool_value
+    try:
+        sim.pause()
+        assert paused_param() is True
+        sim.play()
+        assert paused_param() is False
+        # The loop pausing itself at a limit shows up too.
+        future = params.set_parameters([Parameter(
+            'max_sim_time', value=sim.entity_state('box_a')['stamp'] + 0.2)])
+        sim._executor.spin_until_future_complete(future, 10)
+        wait_for(lambda: sim.state() == SimulationState.STATE_PAUSED, timeout=10)
+        wait_for(paused_param, timeout=5)
+    finally:
+        future = params.set_parameters([Parameter('max_sim_time', value=0.0)])
+        sim._executor.spin_until_future_complete(future, 10)
+        if sim.state() != SimulationState.STATE_PLAYING:
+            sim.play()
+
+
 def test_paused_and_real_time_factor_parameters_change_at_run_time(sim, watch):
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
