@@ -383,3 +383,22 @@ def test_mesh_spawn(world, tmp_path):
     bad.write_text('this is not a mesh')
     with pytest.raises(Exception):
         sources.from_file(str(bad))
+
+
+def test_radian_looking_ranges_in_a_degree_model_are_warned_about(caplog):
+    """MJCF reads angles in degrees unless told otherwise: range="-1.57 1.57" is +-1.57 deg."""
+    arm = ('<body name="b"><joint name="elbow" type="hinge" range="-1.57 1.57"/>'
+           '<geom size=".05"/></body>')
+    with caplog.at_level('WARNING'):
+        World.from_string(f'<mujoco><worldbody>{arm}</worldbody></mujoco>')
+    assert 'elbow [-1.57, 1.57]' in caplog.text and 'angle="radian"' in caplog.text
+    caplog.clear()
+    with caplog.at_level('WARNING'):
+        World.from_string(f'<mujoco><compiler angle="radian"/><worldbody>{arm}</worldbody>'
+                          '</mujoco>')
+        World.from_string('<mujoco><worldbody><body><joint type="hinge" range="-90 90"/>'
+                          '<geom size=".05"/></body></worldbody></mujoco>')
+    assert 'look like radians' not in caplog.text
+    with caplog.at_level('WARNING'):
+        sources.from_model_text(f'<mujoco><worldbody>{arm}</worldbody></mujoco>')
+    assert 'elbow [-1.57, 1.57]' in caplog.text

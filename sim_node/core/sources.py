@@ -5,6 +5,7 @@ top-level body, plus the in-memory assets it needs. Parsing, file checks and mes
 happen here, outside the world lock. Nothing here touches a live world.
 """
 
+import logging
 import math
 import os
 import stat
@@ -50,6 +51,30 @@ ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
 _FILE_ATTRIBUTES = ('file', 'filename', 'meshdir', 'texturedir', 'assetdir')
 
 
+log = logging.getLogger(__name__)
+
+ERR_DEGREE_RANGES = ('{what} reads joint angles in degrees (MJCF\'s default), but these hinge '
+                     'ranges look like radians: {joints}. Add <compiler angle="radian"/> if '
+                     'you meant radians.')
+
+
+def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> list:
+    """Log (and return) hinge ranges of a degree-reading model that look like radians: all
+    within +-pi and not empty. ``range="-1.57 1.57"`` without ``<compiler angle="radian"/>``
+    is +-1.57 degrees, a joint that barely moves."""
+    if not spec.compiler.degree:
+        return []
+    joints = []
+    for j in spec.joints:
+        lo, hi = (float(v) for v in j.range)
+        if (int(j.type) == int(mujoco.mjtJoint.mjJNT_HINGE) and (lo, hi) != (0.0, 0.0)
+                and max(abs(lo), abs(hi)) <= math.pi + 1e-3):
+            joints.append(f'{j.name or "(unnamed)"} [{lo:g}, {hi:g}]')
+    if joints:
+        log.warning(ERR_DEGREE_RANGES.format(what=what, joints=', '.join(joints)))
+    return joints
+
+
 @dataclass
 class SpawnSource:
     """A parsed, compiled-once description of one entity, ready to attach to a world.
@@ -64,6 +89,10 @@ class SpawnSource:
     assets: dict = field(default_factory=dict)
     kind: str = 'mjcf'
     description: str = ''
+
+    def __post_init__(self):
+        if self.kind == 'mjcf':
+            warn_radian_like_ranges(self.spec, self.description or 'the model')
 
     @property
     def root(self) -> mujoco.MjsBody:

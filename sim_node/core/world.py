@@ -157,6 +157,7 @@ class World:
         if config.timestep > 0:
             spec.option.timestep = float(config.timestep)
         self._spec = spec
+        sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         try:
             self._model = spec.compile()
         except ValueError as exc:
