@@ -402,3 +402,12 @@ def test_radian_looking_ranges_in_a_degree_model_are_warned_about(caplog):
     with caplog.at_level('WARNING'):
         sources.from_model_text(f'<mujoco><worldbody>{arm}</worldbody></mujoco>')
     assert 'elbow [-1.57, 1.57]' in caplog.text
+
+
+def test_mujoco_warnings_go_to_logging_not_to_a_file(tmp_path, monkeypatch, caplog):
+    monkeypatch.chdir(tmp_path)
+    world = World.from_string(UNSTABLE_MJCF)
+    with caplog.at_level('WARNING'), pytest.raises(DivergenceError):
+        world.step(40, ctrl=np.array([1.0]))
+    assert 'MuJoCo: Nan, Inf or huge value' in caplog.text
+    assert not (tmp_path / 'MUJOCO_LOG.TXT').exists()

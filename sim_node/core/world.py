@@ -117,6 +117,21 @@ def restitution_to_dampratio(restitution: float) -> float:
     return min(1.0, -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2))
 
 
+_MUJOCO_LOG = logging.getLogger('sim_node.mujoco')
+
+
+def _log_mujoco_warning(message: str) -> None:
+    _MUJOCO_LOG.warning('MuJoCo: %s', message)
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warning text to logging (the node forwards it to the ROS log) instead
+    of stderr and a MUJOCO_LOG.TXT in the working directory; unless the application has
+    installed a handler of its own (the handler is process-wide)."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_log_mujoco_warning)
+
+
 _STATE = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # an int: cheaper to pass per step
 _BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
                  int(mujoco.mjtWarning.mjWARN_BADQACC)]
@@ -156,6 +171,7 @@ class World:
         spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         if config.timestep > 0:
             spec.option.timestep = float(config.timestep)
+        route_mujoco_warnings()
         self._spec = spec
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         try:
