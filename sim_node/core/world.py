@@ -186,6 +186,7 @@ class World:
         self._default_friction: Optional[np.ndarray] = None
         self._default_restitution: Optional[float] = None
         self._commands: dict = {}  # joint name -> (mode, value), held until replaced
+        self._stale_kinematics = False  # body poses lag qpos by a step (see _kinematics_locked)
         self._last_good: Optional[np.ndarray] = None  # state after the last clean batch
         self._cached: Optional[np.ndarray] = None  # the current state, while untouched
         self._note_warnings_locked()
@@ -279,6 +280,7 @@ class World:
         """Axis-aligned bounds of an entity's geoms in the world frame: (min (3,), max (3,))."""
         with self._locked():
             rec = self.entity(name)
+            self._kinematics_locked()
             m, d = self._model, self._data
             lo = np.full(3, np.inf)
             hi = np.full(3, -np.inf)
@@ -304,6 +306,7 @@ class World:
             return self._snapshot_locked()
 
     def _snapshot_locked(self) -> Snapshot:
+        self._kinematics_locked()
         d = self._data
         effort = d.qfrc_actuator[self._joint_dofadr] + d.qfrc_applied[self._joint_dofadr]
         return Snapshot(generation=self._generation, step=self._step_count, time=float(d.time),
@@ -346,6 +349,7 @@ class World:
         """Pose and twist of the entity's root body, in the world or `reference`'s frame."""
         with self._locked():
             rec = self.entity(name)
+            self._kinematics_locked()
             m, d = self._model, self._data
             b = rec.root_body
             vel = np.zeros(6)
@@ -363,6 +367,7 @@ class World:
 
     def _frame_locked(self, name: str) -> tuple:
         rec = self.entity(name)
+        self._kinematics_locked()
         return self._data.xpos[rec.root_body].copy(), self._data.xquat[rec.root_body].copy()
 
     def set_entity_state(self, name: str, position: Optional[Sequence[float]] = None,
@@ -378,6 +383,7 @@ class World:
         """
         with self._locked():
             rec = self.entity(name)
+            self._kinematics_locked()
             pos = quat = lin = ang = None
             if position is not None or quat_wxyz is not None:
                 cur = self._data.xquat[rec.root_body]
@@ -452,6 +458,7 @@ class World:
             jv = self._joint_indices_locked(joint_velocities)
             jv_values = _check_finite('joint velocities', list(joint_velocities.values()))
             welded_moves = []
+            self._kinematics_locked()
             for n, (pos, quat) in checked.items():
                 root = recs[n].root_body
                 if recs[n].has_free_joint:
@@ -689,7 +696,22 @@ class World:
         # (e.g. through locked()). One buffer, overwritten in place: `before` is spent by now.
         mujoco.mj_getState(m, d, self._good_buf, _STATE)
         self._last_good = self._cached = self._good_buf
+        self._stale_kinematics = True
         return self._step_count
+
+    def _kinematics_locked(self) -> None:
+        """Bring body poses and velocities up to the current state before reading them.
+
+        mj_step computes them before integrating, so afterwards they describe the state one
+        step earlier than qpos, qvel and time (MuJoCo's convention, kept for the Gym
+        environment's observations as in Gymnasium). Recomputing them changes no state.
+        """
+        if self._stale_kinematics:
+            m, d = self._model, self._data
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_comVel(m, d)
+            self._stale_kinematics = False
 
     def _diverged_locked(self) -> bool:
         """True if MuJoCo calls the state bad (NaN, inf or beyond 1e10 in qpos, qvel or qacc);
