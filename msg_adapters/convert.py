@@ -9,8 +9,8 @@ from typing import Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, Pose, Quaternion, Transform, TransformStamped, Twist, \
-    Vector3
+from geometry_msgs.msg import Accel, Point, Pose, Quaternion, Transform, TransformStamped, \
+    Twist, Vector3
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Result, \
@@ -110,6 +110,8 @@ def entity_state_to_msg(state, frame_id: str) -> EntityState:
     msg.header.frame_id = frame_id
     msg.pose = pose_to_msg(state.position, state.quat_wxyz)
     msg.twist = Twist(linear=vec(state.linear_velocity), angular=vec(state.angular_velocity))
+    msg.acceleration = Accel(linear=vec(state.linear_acceleration),
+                             angular=vec(state.angular_acceleration))
     return msg
 
 

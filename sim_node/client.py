@@ -105,13 +105,18 @@ class SimClient:
         return list(self.call('get_entities', srv.GetEntities, req).entities)
 
     def entity_state(self, name: str) -> dict:
-        """{'position', 'orientation_xyzw', 'linear', 'angular', 'stamp'} of an entity."""
+        """{'position', 'orientation_xyzw', 'linear', 'angular', 'linear_acceleration',
+        'angular_acceleration', 'stamp', 'frame_id'} of an entity."""
         s = self.call('get_entity_state', srv.GetEntityState,
                       srv.GetEntityState.Request(entity=name)).state
         p, q = s.pose.position, s.pose.orientation
         return {'position': (p.x, p.y, p.z), 'orientation_xyzw': (q.x, q.y, q.z, q.w),
                 'linear': (s.twist.linear.x, s.twist.linear.y, s.twist.linear.z),
                 'angular': (s.twist.angular.x, s.twist.angular.y, s.twist.angular.z),
+                'linear_acceleration': (s.acceleration.linear.x, s.acceleration.linear.y,
+                                        s.acceleration.linear.z),
+                'angular_acceleration': (s.acceleration.angular.x, s.acceleration.angular.y,
+                                         s.acceleration.angular.z),
                 'stamp': convert.stamp_to_sec(s.header.stamp), 'frame_id': s.header.frame_id}
 
     def set_entity_state(self, name: str, position: Sequence[float],

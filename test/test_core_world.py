@@ -429,3 +429,24 @@ def test_entity_state_and_snapshot_describe_the_state_at_their_time_stamp():
     assert st.linear_velocity[2] == pytest.approx(qvel_z, abs=1e-12)
     assert snap.body_xpos[body][2] == pytest.approx(qpos_z, abs=1e-12)
     assert st.time == snap.time == pytest.approx(100 * world.timestep)
+
+
+def test_entity_acceleration_is_the_coordinate_acceleration():
+    """Free fall reads -g, resting reads 0, and a tumbling brick (spun off its principal
+    axes, so its angular velocity wanders) matches the finite difference of its twist."""
+    world = World.from_string('''<mujoco><worldbody>
+      <geom type="plane" size="5 5 .1"/>
+      <body name="brick" pos="0 0 20"><freejoint/><geom type="box" size=".05 .1 .2"/></body>
+      <body name="crate" pos="1 0 .1"><freejoint/><geom type="box" size=".1 .1 .1"/></body>
+      </worldbody></mujoco>''')
+    world.set_entity_state('brick', angular_velocity=[3, 1, 2])
+    world.step(500)  # the crate settles on the floor meanwhile
+    brick = world.get_entity_state('brick')
+    assert brick.linear_acceleration == pytest.approx([0, 0, -9.81], abs=1e-6)
+    world.step(1)
+    later = world.get_entity_state('brick')
+    fd = (later.angular_velocity - brick.angular_velocity) / world.timestep
+    assert np.abs(fd).max() > 1.0  # tumbling for real
+    assert brick.angular_acceleration == pytest.approx(fd, abs=0.02 * np.abs(fd).max())
+    resting = world.get_entity_state('crate')
+    assert np.abs(resting.linear_acceleration).max() < 0.05

@@ -157,6 +157,7 @@ def test_set_get_entity_state_round_trip(sim):
     assert st['orientation_xyzw'] == pytest.approx((0, 0, math.sin(0.25), math.cos(0.25)),
                                                    abs=1e-9)
     assert st['linear'] == pytest.approx((0.1, 0, 0), abs=1e-9)
+    assert st['linear_acceleration'] == pytest.approx((0, 0, -9.81), abs=1e-6)  # in the air
     info = sim.entity_info('robot')
     assert info.category.category == EntityCategory.CATEGORY_ROBOT
 

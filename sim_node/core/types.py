@@ -1,6 +1,6 @@
 """Immutable values the world hands out: entity records, model info, snapshots, states."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -97,9 +97,12 @@ class Snapshot:
 
 @dataclass(frozen=True)
 class EntityState:
-    """Pose and twist of an entity's root body in the world frame (or a reference frame).
+    """Pose, twist and acceleration of an entity's root body in the world frame (or a
+    reference frame).
 
     Twist: linear velocity of the body origin and angular velocity, both in the world frame.
+    Acceleration: the same point's linear acceleration (coordinate acceleration: -9.81 m/s^2
+    in free fall, 0 at rest) and the angular acceleration.
     """
 
     position: np.ndarray  # (3,)
@@ -107,6 +110,8 @@ class EntityState:
     linear_velocity: np.ndarray  # (3,)
     angular_velocity: np.ndarray  # (3,)
     time: float = 0.0
+    linear_acceleration: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    angular_acceleration: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 @dataclass(frozen=True)

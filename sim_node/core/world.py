@@ -187,6 +187,7 @@ class World:
         self._default_restitution: Optional[float] = None
         self._commands: dict = {}  # joint name -> (mode, value), held until replaced
         self._stale_kinematics = False  # body poses lag qpos by a step (see _kinematics_locked)
+        self._stale_dynamics = False
         self._last_good: Optional[np.ndarray] = None  # state after the last clean batch
         self._cached: Optional[np.ndarray] = None  # the current state, while untouched
         self._note_warnings_locked()
@@ -349,21 +350,29 @@ class World:
         """Pose and twist of the entity's root body, in the world or `reference`'s frame."""
         with self._locked():
             rec = self.entity(name)
-            self._kinematics_locked()
+            self._dynamics_locked()
             m, d = self._model, self._data
             b = rec.root_body
-            vel = np.zeros(6)
+            vel, acc = np.zeros(6), np.zeros(6)
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, vel, 0)
+            mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, b, acc, 0)
             pos, quat = d.xpos[b].copy(), d.xquat[b].copy()
             ang, lin = vel[:3].copy(), vel[3:].copy()
+            ang_acc, lin_acc = acc[:3].copy(), acc[3:].copy()
+            if not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+                # MuJoCo's is an accelerometer's (gravity shows as +g at rest): make it the
+                # coordinate acceleration.
+                lin_acc += m.opt.gravity
             if reference:
                 rpos, rquat = self._frame_locked(reference)
                 inv = quat_conj(rquat)
                 pos = quat_rotate(inv, pos - rpos)
                 quat = quat_mul(inv, quat)
                 lin, ang = quat_rotate(inv, lin), quat_rotate(inv, ang)
+                lin_acc, ang_acc = quat_rotate(inv, lin_acc), quat_rotate(inv, ang_acc)
             return EntityState(position=pos, quat_wxyz=quat, linear_velocity=lin,
-                               angular_velocity=ang, time=float(d.time))
+                               angular_velocity=ang, time=float(d.time),
+                               linear_acceleration=lin_acc, angular_acceleration=ang_acc)
 
     def _frame_locked(self, name: str) -> tuple:
         rec = self.entity(name)
@@ -696,7 +705,7 @@ class World:
         # (e.g. through locked()). One buffer, overwritten in place: `before` is spent by now.
         mujoco.mj_getState(m, d, self._good_buf, _STATE)
         self._last_good = self._cached = self._good_buf
-        self._stale_kinematics = True
+        self._stale_kinematics = self._stale_dynamics = True
         return self._step_count
 
     def _kinematics_locked(self) -> None:
@@ -712,6 +721,15 @@ class World:
             mujoco.mj_comPos(m, d)
             mujoco.mj_comVel(m, d)
             self._stale_kinematics = False
+
+    def _dynamics_locked(self) -> None:
+        """As :meth:`_kinematics_locked`, and accelerations too (mj_forward, then the body
+        accelerations mj_objectAcceleration reads). Changes no state either."""
+        m, d = self._model, self._data
+        if self._stale_dynamics:
+            mujoco.mj_forward(m, d)
+            self._stale_kinematics = self._stale_dynamics = False
+        mujoco.mj_rnePostConstraint(m, d)
 
     def _diverged_locked(self) -> bool:
         """True if MuJoCo calls the state bad (NaN, inf or beyond 1e10 in qpos, qvel or qacc);
