@@ -392,17 +392,8 @@ class World:
         """
         with self._locked():
             rec = self.entity(name)
-            self._kinematics_locked()
-            pos = quat = lin = ang = None
-            if position is not None or quat_wxyz is not None:
-                cur = self._data.xquat[rec.root_body]
-                pos, quat = check_pose(
-                    position if position is not None else self._data.xpos[rec.root_body],
-                    quat_wxyz if quat_wxyz is not None else cur)
-            if linear_velocity is not None:
-                lin = _check_finite('linear velocity', linear_velocity, 3)
-            if angular_velocity is not None:
-                ang = _check_finite('angular velocity', angular_velocity, 3)
+            pos, quat, lin, ang = self._check_target_locked(rec, position, quat_wxyz,
+                                                            linear_velocity, angular_velocity)
             if reference:
                 rpos, rquat = self._frame_locked(reference)
                 if pos is not None:
@@ -411,15 +402,35 @@ class World:
                 lin = None if lin is None else quat_rotate(rquat, lin)
                 ang = None if ang is None else quat_rotate(rquat, ang)
             if not rec.has_free_joint:
-                moving = any(v is not None and np.any(v != 0) for v in (lin, ang))
-                if moving:
-                    raise IncorrectStateError(ERR_STATIC_TWIST.format(
-                        name=name, category=rec.category))
+                self._refuse_static_twist(rec, lin, ang)
                 if pos is not None:
                     self._move_welded_locked(rec, pos, quat)
                 return
             self._set_free_body_locked(rec, pos, quat, lin, ang)
             mujoco.mj_forward(self._model, self._data)
+
+    def _check_target_locked(self, rec: EntityRecord, position, quat_wxyz, linear,
+                             angular) -> tuple:
+        """Checked (pos, quat, lin, ang) for an entity's root body, None where not given; a
+        pose given by one half keeps the current other half."""
+        pos = quat = lin = ang = None
+        if position is not None or quat_wxyz is not None:
+            self._kinematics_locked()
+            d, root = self._data, rec.root_body
+            pos, quat = check_pose(position if position is not None else d.xpos[root],
+                                   quat_wxyz if quat_wxyz is not None else d.xquat[root])
+        if linear is not None:
+            lin = _check_finite('linear velocity', linear, 3)
+        if angular is not None:
+            ang = _check_finite('angular velocity', angular, 3)
+        return pos, quat, lin, ang
+
+    @staticmethod
+    def _refuse_static_twist(rec: EntityRecord, lin, ang) -> None:
+        """An entity welded to the world cannot be given a non-zero twist."""
+        if any(v is not None and np.any(v != 0) for v in (lin, ang)):
+            raise IncorrectStateError(ERR_STATIC_TWIST.format(name=rec.name,
+                                                              category=rec.category))
 
     def _set_free_body_locked(self, rec: EntityRecord, pos, quat, lin, ang) -> None:
         """Write checked world-frame values (or None) into a free body's joint."""
@@ -453,36 +464,29 @@ class World:
         joint_positions, joint_velocities = joint_positions or {}, joint_velocities or {}
         with self._locked():
             d = self._data
-            recs = {n: self.entity(n) for n in (*poses, *twists)}
-            checked = {n: check_pose(p, q) for n, (p, q) in poses.items()}
-            moving = {n: (_check_finite('linear velocity', lin, 3),
-                          _check_finite('angular velocity', ang, 3))
-                      for n, (lin, ang) in twists.items()}
-            for n, (lin, ang) in moving.items():
-                if not recs[n].has_free_joint and (lin.any() or ang.any()):
-                    raise IncorrectStateError(ERR_STATIC_TWIST.format(
-                        name=n, category=recs[n].category))
-            jq = self._joint_indices_locked(joint_positions)
-            jq_values = _check_finite('joint positions', list(joint_positions.values()))
-            jv = self._joint_indices_locked(joint_velocities)
-            jv_values = _check_finite('joint velocities', list(joint_velocities.values()))
+            targets = {}  # entity -> (record, pos, quat, lin, ang), all checked
+            for n in (*poses, *twists):
+                rec = self.entity(n)
+                targets[n] = (rec, *self._check_target_locked(
+                    rec, *poses.get(n, (None, None)), *twists.get(n, (None, None))))
+            q_adr, q_values = self._joint_targets_locked('position', joint_positions, True)
+            v_adr, v_values = self._joint_targets_locked('velocity', joint_velocities, False)
             welded_moves = []
-            self._kinematics_locked()
-            for n, (pos, quat) in checked.items():
-                root = recs[n].root_body
-                if recs[n].has_free_joint:
-                    continue
-                same_quat = abs(abs(float(np.dot(quat, d.xquat[root]))) - 1.0) < 1e-12
-                if not (np.allclose(pos, d.xpos[root], rtol=0, atol=1e-9) and same_quat):
-                    welded_moves.append((recs[n], pos, quat))
-            # Apply: direct writes first, then the moves that rebuild the model.
-            for n, rec in recs.items():
+            for rec, pos, quat, lin, ang in targets.values():
                 if rec.has_free_joint:
-                    pos, quat = checked.get(n, (None, None))
-                    lin, ang = moving.get(n, (None, None))
+                    continue
+                self._refuse_static_twist(rec, lin, ang)
+                root = rec.root_body
+                if pos is not None and not (
+                        np.allclose(pos, d.xpos[root], rtol=0, atol=1e-9)
+                        and abs(abs(float(np.dot(quat, d.xquat[root]))) - 1.0) < 1e-12):
+                    welded_moves.append((rec, pos, quat))
+            # Apply: direct writes first, then the moves that rebuild the model.
+            for rec, pos, quat, lin, ang in targets.values():
+                if rec.has_free_joint:
                     self._set_free_body_locked(rec, pos, quat, lin, ang)
-            d.qpos[self._joint_qposadr[jq]] = jq_values
-            d.qvel[self._joint_dofadr[jv]] = jv_values
+            d.qpos[q_adr] = q_values
+            d.qvel[v_adr] = v_values
             self._cached = None
             mujoco.mj_forward(self._model, d)
             for rec, pos, quat in welded_moves:
@@ -506,12 +510,16 @@ class World:
 
     def _set_joints(self, what: str, values: dict, use_qpos: bool) -> None:
         with self._locked():
-            idx = self._joint_indices_locked(values.keys())
-            vals = _check_finite(f'joint {what}s', list(values.values()))
-            adr = self._joint_qposadr[idx] if use_qpos else self._joint_dofadr[idx]
+            adr, vals = self._joint_targets_locked(what, values, use_qpos)
             (self._data.qpos if use_qpos else self._data.qvel)[adr] = vals
             self._cached = None
             mujoco.mj_forward(self._model, self._data)
+
+    def _joint_targets_locked(self, what: str, values: dict, use_qpos: bool) -> tuple:
+        """Checked (qpos or qvel addresses, values) for {joint: value}."""
+        idx = self._joint_indices_locked(values.keys())
+        vals = _check_finite(f'joint {what}s', list(values.values()))
+        return (self._joint_qposadr[idx] if use_qpos else self._joint_dofadr[idx]), vals
 
     def get_joint_states(self) -> dict:
         """name -> (position, velocity, effort) for every hinge and slide joint."""
