@@ -676,8 +676,9 @@ class World:
         """
         if n < 1:
             raise InvalidArgumentError(f'steps must be >= 1, got {n}')
-        # This runs once per Gym step and per loop batch, where each call layer costs about
-        # as much as the checks themselves: take a free lock directly (see _WorldLock).
+        # This runs once per Gym step and per loop batch: take a free lock directly. It is
+        # _WorldLock's own fast path without the context-manager calls, 0.25 us a step
+        # (1% of a Reacher-v5 step); a contended lock goes through _WorldLock as usual.
         if self._lock.acquire(blocking=False):
             try:
                 return self._step_locked(int(n), ctrl)
