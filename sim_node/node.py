@@ -112,8 +112,8 @@ class SimNode(Node):
         self._js_timer = self.create_timer(1.0 / p('joint_states_rate_hz'),
                                            self._publish_joint_states,
                                            callback_group=self._pub_group)
-        self._log_timer = self.create_timer(0.2, self._drain_logs,
-                                            callback_group=self._pub_group)
+        self._housekeeping_timer = self.create_timer(0.2, self._housekeeping,
+                                                     callback_group=self._pub_group)
         self._make_services()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -275,8 +275,11 @@ class SimNode(Node):
             finally:
                 self._syncing_thread = None
 
-    def _drain_logs(self) -> None:
+    def _housekeeping(self) -> None:
         self._sync_paused_parameter()
+        self._drain_logs()
+
+    def _drain_logs(self) -> None:
         log = self.get_logger()
         while self._forwarder.records:
             rec = self._forwarder.records.popleft()
