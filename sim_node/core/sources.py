@@ -58,12 +58,12 @@ ERR_DEGREE_RANGES = ('{what} reads joint angles in degrees (MJCF\'s default), bu
                      'you meant radians.')
 
 
-def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> list:
-    """Log (and return) hinge ranges of a degree-reading model that look like radians: all
-    within +-pi and not empty. ``range="-1.57 1.57"`` without ``<compiler angle="radian"/>``
-    is +-1.57 degrees, a joint that barely moves."""
+def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
+    """Log hinge ranges of a degree-reading model that look like radians: all within +-pi
+    and not empty. ``range="-1.57 1.57"`` without ``<compiler angle="radian"/>`` is +-1.57
+    degrees, a joint that barely moves."""
     if not spec.compiler.degree:
-        return []
+        return
     joints = []
     for j in spec.joints:
         lo, hi = (float(v) for v in j.range)
@@ -72,7 +72,6 @@ def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> list:
             joints.append(f'{j.name or "(unnamed)"} [{lo:g}, {hi:g}]')
     if joints:
         log.warning(ERR_DEGREE_RANGES.format(what=what, joints=', '.join(joints)))
-    return joints
 
 
 @dataclass
