@@ -17,8 +17,8 @@ from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Resul
     SimulationState
 from tf2_msgs.msg import TFMessage
 
-from sim_node.core import errors
-from sim_node.core.types import DYNAMIC, ROBOT, STATIC, EntityRecord, ModelInfo, Snapshot
+from sim_node.core import errors, quat
+from sim_node.core.types import DYNAMIC, ROBOT, STATIC, ModelInfo, Snapshot
 
 # Core exceptions -> simulation_interfaces Result codes, in one table. Service-specific codes
 # (SpawnEntity.Response.NAME_NOT_UNIQUE, ...) are looked up by name on the response type.
@@ -119,10 +119,6 @@ def bounds_box(lo: Sequence[float], hi: Sequence[float]) -> Bounds:
     return Bounds(type=Bounds.TYPE_BOX, points=[vec(lo), vec(hi)])
 
 
-def category_to_msg(rec: EntityRecord) -> EntityCategory:
-    return EntityCategory(category=CATEGORY_TO_MSG[rec.category])
-
-
 def simulation_state(loop_state: str) -> SimulationState:
     code = {'playing': SimulationState.STATE_PLAYING, 'paused': SimulationState.STATE_PAUSED,
             'stopped': SimulationState.STATE_STOPPED,
@@ -171,25 +167,8 @@ def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> t
     """Pose of each body in its parent's frame: (pos (n, 3), quat_wxyz (n, 4))."""
     pp, pq = snap.body_xpos[parents], snap.body_xquat_wxyz[parents]
     cp, cq = snap.body_xpos[bodies], snap.body_xquat_wxyz[bodies]
-    inv = pq * np.array([1.0, -1.0, -1.0, -1.0])
-    rel_p = _rotate(inv, cp - pp)
-    return rel_p, _qmul(inv, cq)
-
-
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = a.T
-    bw, bx, by, bz = b.T
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)
-
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    u = q[:, 1:]
-    w = q[:, :1]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    inv = quat.conj(pq)
+    return quat.rotate(inv, cp - pp), quat.mul(inv, cq)
 
 
 def moving_transforms(info: ModelInfo, snap: Snapshot, bodies: np.ndarray,
@@ -199,8 +178,8 @@ def moving_transforms(info: ModelInfo, snap: Snapshot, bodies: np.ndarray,
     if not len(bodies):
         return TFMessage()
     parents = info.body_parent[bodies]
-    pos, quat = relative_poses(snap, bodies, parents)
+    pos, rot = relative_poses(snap, bodies, parents)
     t = stamp(snap.time)
     return TFMessage(transforms=[
-        _transform(_frame(info, int(p), world_frame), info.body_names[b], pos[i], quat[i], t)
+        _transform(_frame(info, int(p), world_frame), info.body_names[b], pos[i], rot[i], t)
         for i, (b, p) in enumerate(zip(bodies, parents))])

@@ -52,25 +52,20 @@ def _shape(marker: Marker, geom: GeomVisual) -> None:
                          for p in v[geom.mesh_faces.reshape(-1)]]
 
 
-def delete_markers(removed: dict, sim_time: float, world_frame: str) -> MarkerArray:
-    """DELETE markers for every marker of the given namespaces (namespace -> count)."""
-    out = MarkerArray()
-    t = stamp(sim_time)
-    for ns, count in removed.items():
-        for i in range(count):
-            m = Marker(action=Marker.DELETE, ns=ns, id=i)
-            m.header.stamp = t
-            m.header.frame_id = world_frame
-            out.markers.append(m)
-    return out
+def clear_markers(sim_time: float, world_frame: str) -> MarkerArray:
+    """One DELETEALL marker: RViz drops every marker it has from this topic."""
+    m = Marker(action=Marker.DELETEALL)
+    m.header.stamp = stamp(sim_time)
+    m.header.frame_id = world_frame
+    return MarkerArray(markers=[m])
 
 
-def markers(info: ModelInfo, sim_time: float, world_frame: str,
-            removed: dict = None) -> MarkerArray:
-    """One marker per visible geom, in its body's frame, then DELETE markers for the
-    markers of entities that are gone (`removed`: namespace -> marker count)."""
-    out = delete_markers(removed or {}, sim_time, world_frame)
-    t = stamp(sim_time)
+def markers(info: ModelInfo, sim_time: float, world_frame: str) -> MarkerArray:
+    """The markers of one model generation: a DELETEALL first (so nothing of an earlier
+    generation survives, whatever was respawned under which name), then one marker per
+    visible geom, in its body's frame."""
+    out = clear_markers(sim_time, world_frame)
+    t = out.markers[0].header.stamp
     counters: dict = {}
     for geom in info.geoms:
         m = Marker()
@@ -87,12 +82,3 @@ def markers(info: ModelInfo, sim_time: float, world_frame: str,
         _shape(m, geom)
         out.markers.append(m)
     return out
-
-
-def marker_counts(info: ModelInfo) -> dict:
-    """namespace -> number of markers, to know what to delete when entities go."""
-    counts: dict = {}
-    for g in info.geoms:
-        ns = _marker_ns(info, g)
-        counts[ns] = counts.get(ns, 0) + 1
-    return counts

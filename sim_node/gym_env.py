@@ -19,7 +19,8 @@ import numpy as np
 from gymnasium import spaces
 
 from . import resources
-from .core.world import MAX_ABS_VALUE as MAX_CONTROL, World
+from .core.checks import MAX_ABS_VALUE as MAX_CONTROL
+from .core.world import World
 
 
 def _scene(name: str) -> str:

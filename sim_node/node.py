@@ -90,7 +90,6 @@ class SimNode(Node):
         self._stopped = False  # STATE_STOPPED until play or pause
         self._published_generation = None
         self._published_seq = -1
-        self._marker_counts: dict = {}
         self._moving = None
         self._forwarder = _LogForwarder()
         logging.getLogger('sim_node').addHandler(self._forwarder)
@@ -227,13 +226,10 @@ class SimNode(Node):
         sim = self._sim
         if sim is None:
             return
-        info = sim.world.model_info
         seq, snap = sim.loop.wait_snapshot(-1, 0)
-        if snap.generation != info.generation:
-            sim.loop.refresh_snapshot()  # a structural change: wait for a matching snapshot
-            return
+        info = snap.info
         if info.generation != self._published_generation:
-            self._publish_model(sim, info, snap.time)
+            self._publish_model(info, snap.time)
         if seq == self._published_seq:
             return
         self._published_seq = seq
@@ -241,25 +237,21 @@ class SimNode(Node):
         self._tf_pub.publish(convert.moving_transforms(info, snap, self._moving,
                                                        self._world_frame))
 
-    def _publish_model(self, sim: _Sim, info, sim_time: float) -> None:
-        """On a new model: /tf_static for welded bodies, markers (deleting those gone)."""
+    def _publish_model(self, info, sim_time: float) -> None:
+        """On a new model generation: /tf_static for welded bodies, and every marker anew."""
         self._published_generation = info.generation
         self._moving = convert.moving_body_ids(info)
         self._tf_static_pub.publish(convert.static_transforms(info, sim_time,
                                                               self._world_frame))
-        counts = markers.marker_counts(info)
-        removed = {ns: n for ns, n in self._marker_counts.items() if ns not in counts}
-        self._marker_counts = counts
-        self._marker_pub.publish(markers.markers(info, sim_time, self._world_frame, removed))
+        self._marker_pub.publish(markers.markers(info, sim_time, self._world_frame))
 
     def _publish_joint_states(self) -> None:
         sim = self._sim
         if sim is None:
             return
-        info = sim.world.model_info
         snap = sim.loop.latest_snapshot()
-        if snap.generation == info.generation and info.joint_names:
-            self._joint_pub.publish(convert.joint_state(info, snap))
+        if snap.info.joint_names:
+            self._joint_pub.publish(convert.joint_state(snap.info, snap))
 
     def _sync_paused_parameter(self) -> None:
         """Mirror the loop's paused state (changed by services, limits or divergence too) in
@@ -676,10 +668,8 @@ class SimNode(Node):
                                      error_message=ERR_NO_WORLD)
             return response
         sim.loop.stop()
-        removed, self._marker_counts = self._marker_counts, {}
         self._published_generation = None
-        self._marker_pub.publish(markers.delete_markers(removed, sim.world.time,
-                                                        self._world_frame))
+        self._marker_pub.publish(markers.clear_markers(sim.world.time, self._world_frame))
         self._tf_static_pub.publish(TFMessage())
         response.result = convert.ok()
         return response

@@ -115,11 +115,10 @@ def check_folder(folder: str, resource_paths: Sequence[str]) -> Path:
     p = Path(unquote(urlparse(folder).path) if folder.startswith('file://') else folder)
     if '..' in p.parts:
         raise MissingAssetsError(sources.ERR_DOTDOT.format(path=folder))
+    if not sources.inside_roots(str(p), resource_paths):
+        raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(
+            path=folder, roots=[os.path.realpath(r) for r in resource_paths]))
     real = Path(os.path.realpath(p))
-    roots = [Path(os.path.realpath(r)) for r in resource_paths]
-    if not any(real == r or r in real.parents for r in roots):
-        raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(path=folder,
-                                                                 roots=[str(r) for r in roots]))
     if not real.is_dir():
         raise MissingAssetsError(f'not a directory: {folder}')
     return real

@@ -12,7 +12,14 @@ Rules worth knowing:
 * A body without mass is static: :meth:`add_object` with ``mass=0`` welds it to the world;
   :meth:`set_mass` with a positive mass frees it (it falls), ``0`` welds it again.
 * A body added under another without a joint is welded to it and moves as part of it.
+* ``step(dt=...)`` runs a whole number of timesteps: `dt` is rounded to the nearest one
+  (halves round up), so the returned time is where the world really is.
+* ``run(max_time=T)`` stops after the first step whose time is >= T.
+* An object's own friction or restitution wins over surfaces without their own; two objects
+  that both have one get MuJoCo's mix (see ``World.set_restitution``).
 """
+
+import math
 
 from typing import Callable, Optional, Sequence, Union
 
@@ -21,6 +28,8 @@ import numpy as np
 from .core import sources
 from .core.config import WorldConfig
 from .core.errors import InvalidArgumentError
+from .core.loop import time_reached
+from .core.types import RESET_STATE, RESET_TIME
 from .core.world import World
 
 MODES = ('none', 'position', 'velocity', 'effort', 'kinematic')
@@ -121,33 +130,33 @@ class Simulation:
         """Advance by `dt` seconds (one timestep by default) under a control.
 
         :param ctrl: {joint: value}, or values for :attr:`joint_names` in order.
-        :param mode: 'none' (ctrl ignored), 'position', 'velocity', 'effort', or 'kinematic'
-            (the joints take the commanded positions exactly, with zero velocity: no dynamics
-            for them; everything else is simulated).
+        :param dt: rounded to the nearest whole number of timesteps (halves up); at least
+            half a timestep.
+        :param mode: 'none' (ctrl ignored), 'position', 'velocity', 'effort', or 'kinematic':
+            no physics at all, time advances, the commanded joints take the commanded
+            positions exactly at every step (velocity: the change over the step) and nothing
+            else moves (see ``World.step_kinematic``).
         :returns: the simulation time.
         """
         if mode not in MODES:
             raise InvalidArgumentError(f'unknown mode {mode!r}; use one of {MODES}')
-        n = 1 if dt is None else int(round(dt / self.world.timestep))
-        if n < 1:
-            raise InvalidArgumentError(f'dt must be at least one timestep '
-                                       f'({self.world.timestep} s), got {dt}')
+        n = 1 if dt is None else self.steps_for(dt)
         commands = self._as_dict(ctrl)
         if mode == 'kinematic':
-            for _ in range(n):
-                self._pin(commands)
-                self.world.step(1)
-            self._pin(commands)
+            self.world.step_kinematic(commands, n)
             return self.world.time
         if mode != 'none' and commands:
             self.world.command(list(commands), list(commands.values()), mode)
         self.world.step(n)
         return self.world.time
 
-    def _pin(self, commands: dict) -> None:
-        if commands:
-            self.world.set_joint_positions(commands)
-            self.world.set_joint_velocities({k: 0.0 for k in commands})
+    def steps_for(self, dt: float) -> int:
+        """The number of timesteps ``step(dt=dt)`` runs: the nearest, halves rounded up."""
+        timestep = self.world.timestep
+        if not (math.isfinite(dt) and dt >= 0.5 * timestep):
+            raise InvalidArgumentError(f'dt must be at least half a timestep '
+                                       f'({timestep} s), got {dt}')
+        return int(math.floor(dt / timestep + 0.5))
 
     def _as_dict(self, ctrl) -> dict:
         if ctrl is None:
@@ -166,6 +175,8 @@ class Simulation:
             callback: Optional[Callable[['Simulation'], bool]] = None) -> str:
         """Step until a termination constraint holds; returns why it stopped.
 
+        :param max_time: stop after the first step whose time is >= max_time.
+
         :param callback: called after every step; returning True stops the run.
         """
         if max_steps is None and max_time is None and callback is None:
@@ -175,7 +186,8 @@ class Simulation:
         while True:
             if max_steps is not None and steps >= max_steps:
                 return 'max_steps'
-            if max_time is not None and self.world.time >= max_time - 0.5 * self.world.timestep:
+            if max_time is not None and time_reached(self.world.time, max_time,
+                                                     self.world.timestep):
                 return 'max_time'
             self.step(ctrl, mode=mode)
             steps += 1
@@ -213,4 +225,4 @@ class Simulation:
 
     def reset(self) -> None:
         """Back to the initial (or `home` keyframe) state at time 0, without rebuilding."""
-        self.world.reset(1 | 2)
+        self.world.reset(RESET_TIME | RESET_STATE)

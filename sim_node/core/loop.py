@@ -5,13 +5,15 @@
   stall instead of bursting to catch up.
 * Pause and play; :meth:`SimLoop.step` runs N steps while paused and blocks until done.
   A paused loop waits on a condition: no CPU.
-* Termination constraints (max steps, max simulated time) pause the loop with a reason.
+* Termination constraints (max steps, max simulated time) pause the loop with a reason: the
+  loop stops after the first step whose time is >= max_sim_time (see :func:`time_reached`).
 * Divergence pauses the loop with a report; the world is back at the last good state.
 * Every ``1/snapshot_rate_hz`` wall seconds (and after every change) the loop makes an
   immutable :class:`~sim_node.core.types.Snapshot` that consumers read from any thread.
 """
 
 import logging
+import math
 import threading
 import time
 from typing import Callable, Optional
@@ -29,6 +31,21 @@ STOPPED = 'stopped'
 # Longest the loop holds the world lock per batch when running as fast as possible (s).
 MAX_BATCH_WALL_SEC = 0.002
 MAX_BATCH_STEPS = 1000
+
+# Simulated time is a sum of timesteps, with rounding error: a time within this fraction of a
+# step of a limit counts as having reached it (so T = 100 steps never needs a 101st).
+TIME_TOLERANCE_STEPS = 1e-3
+
+
+def time_reached(time_sec: float, limit_sec: float, timestep: float) -> bool:
+    """True once `time_sec` is at or past `limit_sec` (within a thousandth of a step)."""
+    return time_sec >= limit_sec - TIME_TOLERANCE_STEPS * timestep
+
+
+def steps_until(time_sec: float, limit_sec: float, timestep: float) -> int:
+    """Steps until the first step whose time is >= `limit_sec` (0 if already there)."""
+    return max(0, math.ceil((limit_sec - time_sec) / timestep - TIME_TOLERANCE_STEPS))
+
 
 ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
@@ -183,6 +200,8 @@ class SimLoop:
 
     def _publish(self, snap: Snapshot) -> None:
         with self._snapshot_cv:
+            if snap.seq <= self._snapshot.seq:
+                return  # another thread published a newer one meanwhile
             self._snapshot = snap
             self._snapshot_seq += 1
             self._snapshot_cv.notify_all()
@@ -193,7 +212,7 @@ class SimLoop:
         w = self.world
         if self._max_steps and w.step_count >= self._max_steps:
             return f'max_steps reached ({self._max_steps} steps)'
-        if self._max_sim_time and w.time >= self._max_sim_time - 0.5 * w.timestep:
+        if self._max_sim_time and time_reached(w.time, self._max_sim_time, w.timestep):
             return f'max_sim_time reached ({self._max_sim_time} s)'
         return ''
 
@@ -203,7 +222,7 @@ class SimLoop:
         if self._max_steps:
             n = min(n, self._max_steps - w.step_count)
         if self._max_sim_time:
-            n = min(n, int(round((self._max_sim_time - w.time) / w.timestep)))
+            n = min(n, steps_until(w.time, self._max_sim_time, w.timestep))
         return max(n, 1)
 
     def _run(self) -> None:

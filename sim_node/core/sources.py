@@ -18,6 +18,7 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
+from .config import WorldConfig
 from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError,
                      ResourceParseError, UnsupportedAssetsError, UnsupportedFormatError)
 
@@ -47,6 +48,8 @@ ERR_PRIMITIVE = 'unknown primitive {shape!r}; supported: ' + ', '.join(PRIMITIVE
 ERR_SIZE = '{shape} needs {n} positive finite size values, got {size}'
 ERR_MASS = 'mass must be finite and >= 0, got {mass}'
 ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
+# Default budgets: the configuration's (the node passes its own WorldConfig's).
+_LIMITS = WorldConfig()
 # XML attributes that name files MuJoCo would read.
 _FILE_ATTRIBUTES = ('file', 'filename', 'meshdir', 'texturedir', 'assetdir')
 
@@ -93,9 +96,12 @@ class SpawnSource:
         if self.kind == 'mjcf':
             warn_radian_like_ranges(self.spec, self.description or 'the model')
 
-    @property
-    def root(self) -> mujoco.MjsBody:
-        return self.spec.worldbody.first_body()
+
+def inside_roots(path: str, roots: Sequence[str]) -> bool:
+    """True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
+    real = Path(os.path.realpath(path))
+    return any(real == r or r in real.parents for r in (Path(os.path.realpath(r))
+                                                         for r in roots))
 
 
 def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
@@ -107,12 +113,9 @@ def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
     if '..' in Path(path).parts:
         raise MissingAssetsError(ERR_DOTDOT.format(path=path))
     p = Path(path)
-    if allowed_roots is not None:
-        real = Path(os.path.realpath(p))
-        roots = [Path(os.path.realpath(r)) for r in allowed_roots]
-        if not any(real == r or r in real.parents for r in roots):
-            raise MissingAssetsError(ERR_FILE_OUTSIDE.format(path=path,
-                                                             roots=[str(r) for r in roots]))
+    if allowed_roots is not None and not inside_roots(path, allowed_roots):
+        raise MissingAssetsError(ERR_FILE_OUTSIDE.format(
+            path=path, roots=[os.path.realpath(r) for r in allowed_roots]))
     try:
         st = p.stat()
     except OSError:
@@ -179,7 +182,7 @@ def _finish(spec: mujoco.MjSpec, kind: str, description: str,
 
 def check_model_text(text: str, base_dir: Optional[str] = None,
                      allowed_roots: Optional[Sequence[str]] = None,
-                     max_bytes: int = 20_000_000) -> ET.Element:
+                     max_bytes: int = _LIMITS.max_resource_bytes) -> ET.Element:
     """Check MJCF/URDF text before MuJoCo sees it: size, XML, root tag, and every file it
     names (inside `allowed_roots`, regular, no '..'). Returns the parsed root element."""
     if not text or not text.strip():
@@ -198,7 +201,7 @@ def check_model_text(text: str, base_dir: Optional[str] = None,
 
 def from_model_text(text: str, base_dir: Optional[str] = None,
                     allowed_roots: Optional[Sequence[str]] = None,
-                    max_bytes: int = 20_000_000) -> SpawnSource:
+                    max_bytes: int = _LIMITS.max_resource_bytes) -> SpawnSource:
     """Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
 
     :param base_dir: directory relative file names resolve against (None: only absolute).
@@ -242,8 +245,8 @@ def _from_string_in(text: str, base: Path) -> mujoco.MjSpec:
 
 
 def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
-              max_bytes: int = 20_000_000, max_faces: int = 200_000,
-              **mesh_options) -> SpawnSource:
+              max_bytes: int = _LIMITS.max_resource_bytes,
+              max_faces: int = _LIMITS.max_mesh_faces, **mesh_options) -> SpawnSource:
     """Load an MJCF/URDF file or a mesh file (STL, OBJ, PLY, GLB, DAE) as one entity."""
     p = check_path(path, allowed_roots)
     suffix = p.suffix.lower()
@@ -263,14 +266,14 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
                            max_bytes=max_bytes)
 
 
-def _check_rgba(rgba: Sequence[float]) -> list:
+def check_rgba(rgba: Sequence[float]) -> list:
     vals = [float(v) for v in rgba]
     if len(vals) != 4 or not all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in vals):
         raise InvalidArgumentError(ERR_RGBA.format(rgba=list(rgba)))
     return vals
 
 
-def _check_mass(mass: Optional[float]) -> None:
+def check_mass(mass: Optional[float]) -> None:
     if mass is not None and not (math.isfinite(mass) and mass >= 0):
         raise InvalidArgumentError(ERR_MASS.format(mass=mass))
 
@@ -283,6 +286,21 @@ def _new_body_spec(static: bool) -> tuple:
     return spec, body
 
 
+_PRIMITIVE_SIZES = {'box': 3, 'sphere': 1, 'cylinder': 2, 'capsule': 2}
+
+
+def primitive_size(shape: str, size: Sequence[float]) -> list:
+    """MuJoCo's (3,) geom size for a primitive: box half-sizes x, y, z; sphere radius;
+    cylinder or capsule radius and half-length. Refuses unknown shapes and bad sizes."""
+    n_size = _PRIMITIVE_SIZES.get(shape)
+    if n_size is None:
+        raise UnsupportedFormatError(ERR_PRIMITIVE.format(shape=shape))
+    vals = [float(s) for s in size]
+    if len(vals) != n_size or not all(math.isfinite(s) and s > 0 for s in vals):
+        raise InvalidArgumentError(ERR_SIZE.format(shape=shape, n=n_size, size=list(size)))
+    return vals + [0.0] * (3 - n_size)
+
+
 def primitive(shape: str, size: Sequence[float], mass: Optional[float] = 1.0,
               rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), static: bool = False,
               friction: Optional[Sequence[float]] = None) -> SpawnSource:
@@ -291,28 +309,24 @@ def primitive(shape: str, size: Sequence[float], mass: Optional[float] = 1.0,
     :param mass: kg; a body without mass (0 or None) is welded to the world (static).
     :param static: weld to the world regardless of mass.
     """
-    n_size = {'box': 3, 'sphere': 1, 'cylinder': 2, 'capsule': 2}.get(shape)
-    if n_size is None:
-        raise UnsupportedFormatError(ERR_PRIMITIVE.format(shape=shape))
-    vals = [float(s) for s in size]
-    if len(vals) != n_size or not all(math.isfinite(s) and s > 0 for s in vals):
-        raise InvalidArgumentError(ERR_SIZE.format(shape=shape, n=n_size, size=list(size)))
-    _check_mass(mass)
+    full_size = primitive_size(shape, size)
+    check_mass(mass)
     static = static or not mass
     spec, body = _new_body_spec(static)
     geom = body.add_geom(name='geom', type=getattr(mujoco.mjtGeom, f'mjGEOM_{shape.upper()}'),
-                         size=vals + [0.0] * (3 - n_size), rgba=_check_rgba(rgba))
+                         size=full_size, rgba=check_rgba(rgba))
     if mass:
         geom.mass = float(mass)
     if friction is not None:
         geom.friction = [float(f) for f in friction]
-    return _finish(spec, 'primitive', f'{shape} {vals}')
+    return _finish(spec, 'primitive', f'{shape} {[float(v) for v in size]}')
 
 
 def from_mesh(path: str, mass: Optional[float] = 1.0,
               rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), scale: float = 1.0,
               static: bool = False, allowed_roots: Optional[Sequence[str]] = None,
-              max_bytes: int = 20_000_000, max_faces: int = 200_000) -> SpawnSource:
+              max_bytes: int = _LIMITS.max_resource_bytes,
+              max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
     """A mesh file loaded with trimesh (scenes are merged into one mesh) as one body."""
     import trimesh  # heavy import, only needed here
 
@@ -321,7 +335,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
     if suffix not in MESH_SUFFIXES:
         raise UnsupportedAssetsError(ERR_MESH_SUFFIX.format(suffix=suffix))
     _check_size(p.stat().st_size, max_bytes)
-    _check_mass(mass)
+    check_mass(mass)
     if not (math.isfinite(scale) and scale > 0):
         raise InvalidArgumentError(f'scale must be positive and finite, got {scale}')
     try:
@@ -344,7 +358,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
     spec.assets = {asset_name: data}
     spec.add_mesh(name='mesh', file=asset_name)
     geom = body.add_geom(name='geom', type=mujoco.mjtGeom.mjGEOM_MESH, meshname='mesh',
-                         rgba=_check_rgba(rgba))
+                         rgba=check_rgba(rgba))
     if mass:
         geom.mass = float(mass)
     return _finish(spec, 'mesh', f'mesh {p.name}', assets={asset_name: data})

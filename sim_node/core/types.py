@@ -8,7 +8,6 @@ import numpy as np
 ROBOT = 'robot'
 DYNAMIC = 'dynamic'
 STATIC = 'static'
-CATEGORIES = (ROBOT, DYNAMIC, STATIC)
 
 # Joint command modes.
 POSITION = 'position'
@@ -34,12 +33,9 @@ class EntityRecord:
     category: str
     root_body: int
     body_ids: tuple
-    joint_ids: tuple
     geom_ids: tuple
-    actuator_ids: tuple
     spawned: bool
     description: str = ''
-    namespace: str = ''
     has_free_joint: bool = False
 
 
@@ -71,7 +67,6 @@ class ModelInfo:
     body_local_pos: np.ndarray  # (nbody, 3) pose in the parent frame for welded bodies
     body_local_quat_wxyz: np.ndarray  # (nbody, 4)
     joint_names: tuple  # hinge and slide joints only, in model order
-    joint_ids: np.ndarray  # (njoint,) model joint ids of those
     geoms: tuple  # GeomVisual for every visible geom
     entities: tuple  # EntityRecord
 
@@ -83,6 +78,8 @@ class Snapshot:
     :param joint_position: (njoint,) for ModelInfo.joint_names; likewise velocity and effort.
     :param body_xpos: (nbody, 3) world positions.
     :param body_xquat_wxyz: (nbody, 4) world orientations.
+    :param seq: rises with every snapshot the world makes, so a consumer can drop one older
+        than what it already has (several threads take snapshots).
     """
 
     generation: int
@@ -93,6 +90,8 @@ class Snapshot:
     joint_effort: np.ndarray
     body_xpos: np.ndarray
     body_xquat_wxyz: np.ndarray
+    seq: int = 0
+    info: Optional['ModelInfo'] = None  # names and structure of `generation`
 
 
 @dataclass(frozen=True)

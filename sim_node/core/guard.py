@@ -1,0 +1,90 @@
+"""The divergence guard: MuJoCo's own checks after every batch, and the replay that finds the
+exact bad step.
+
+MuJoCo's whole-world auto-reset on NaN is disabled by the world; divergence is reported
+instead (dm_control's ``check_invalid_state``).
+"""
+
+import logging
+from typing import Callable, Optional
+
+import mujoco
+import numpy as np
+
+from .checks import MAX_ABS_VALUE
+from .index import STATE_SPEC
+
+log = logging.getLogger(__name__)
+
+_BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
+                 int(mujoco.mjtWarning.mjWARN_BADQACC)]
+
+
+def clean(state: np.ndarray) -> bool:
+    """True if a state vector has nothing MuJoCo would call divergent."""
+    return bool(np.all(np.isfinite(state)) and np.max(np.abs(state), initial=0) < MAX_ABS_VALUE)
+
+
+class DivergenceGuard:
+    """Watches one MjData's warning counters. A counter may be set back to 1 by a reset, so
+    changes are detected by comparison with the last seen values, not by "greater than"."""
+
+    def bind(self, data: mujoco.MjData) -> None:
+        """Watch `data` (a new one after every recompile), taking its counters as seen."""
+        self._view = data.warning.number
+        self.note()
+
+    def note(self) -> None:
+        """Take the current counters as seen (new ones are what :meth:`diverged` looks for)."""
+        self._seen = self._view.copy()
+        self._seen_bytes = self._seen.tobytes()
+
+    def diverged(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+        """True if MuJoCo calls the state bad (NaN, inf or beyond 1e10 in qpos, qvel or qacc);
+        logs other new warnings. Runs after every batch: three C calls and one comparison."""
+        # mj_step checks qpos and qvel only at the start of the next step; the integrator may
+        # have just carried a bad acceleration into them. Check them now, as MuJoCo would.
+        mujoco.mj_checkPos(model, data)
+        mujoco.mj_checkVel(model, data)
+        if self._view.tobytes() == self._seen_bytes:
+            return False
+        changed = self._view != self._seen
+        if changed[_BAD_WARNINGS].any():
+            return True
+        for i in np.nonzero(changed)[0]:
+            log.warning('MuJoCo warning %s (info %d)', mujoco.mjtWarning(i).name,
+                        data.warning[i].lastinfo)
+        self.note()
+        return False
+
+    def new_warnings(self, data: mujoco.MjData) -> dict:
+        """{warning name: lastinfo} for the counters that changed since last seen."""
+        return {mujoco.mjtWarning(i).name: int(data.warning[i].lastinfo)
+                for i in np.nonzero(self._view != self._seen)[0]}
+
+    def locate(self, model: mujoco.MjModel, data: mujoco.MjData, before: np.ndarray, n: int,
+               ctrl: Optional[np.ndarray], before_step: Optional[Callable[[], None]]) -> tuple:
+        """Replay a batch that diverged one step at a time from `before`.
+
+        :param ctrl: the batch's controls, if `before` does not hold them yet.
+        :param before_step: per-step control to run before each replayed step, if any.
+        :returns: (k, state before the bad step, report); the bad step is the batch's k+1-th.
+            `data` is left at the bad state.
+        """
+        mujoco.mj_setState(model, data, before, STATE_SPEC)
+        if ctrl is not None:
+            data.ctrl[:] = ctrl
+        mujoco.mj_forward(model, data)
+        self.note()
+        good = np.empty_like(before)
+        for k in range(n):
+            mujoco.mj_getState(model, data, good, STATE_SPEC)
+            if before_step is not None:
+                before_step()
+            mujoco.mj_step(model, data)
+            if self.diverged(model, data) or k == n - 1:
+                break
+        report = {'time': float(data.time), 'warnings': self.new_warnings(data),
+                  'nonfinite_qpos': int(np.count_nonzero(~np.isfinite(data.qpos))),
+                  'nonfinite_qvel': int(np.count_nonzero(~np.isfinite(data.qvel)))}
+        return k, good, report

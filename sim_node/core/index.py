@@ -1,0 +1,185 @@
+"""The per-model index: every name <-> id and address table of one compiled model.
+
+:func:`build` runs once per recompile; the result is frozen. It is the only place in the core
+that turns names into MuJoCo ids and addresses, so nothing can hold an address of an older
+model without holding that model's index too (compare ``index.generation``).
+"""
+
+from dataclasses import dataclass
+from typing import Iterable
+
+import mujoco
+import numpy as np
+
+from .errors import NotFoundError
+from .types import (DYNAMIC, EFFORT, POSITION, ROBOT, STATIC, VELOCITY, EntityRecord,
+                    GeomVisual, ModelInfo)
+
+ERR_UNKNOWN_ENTITY = 'no entity named {name!r}; existing: {names}'
+ERR_UNKNOWN_JOINT = 'no commandable (hinge or slide) joint named {name!r}'
+ERR_UNKNOWN_BODY = 'no body named {name!r}'
+
+# Enum membership must be tested on ints: numpy ints and MuJoCo enums do not hash alike.
+_ONE_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+_JOINT_TRN = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+STATE_SPEC = int(mujoco.mjtState.mjSTATE_INTEGRATION)
+_GEOM_TYPES = {int(mujoco.mjtGeom.mjGEOM_PLANE): 'plane',
+               int(mujoco.mjtGeom.mjGEOM_SPHERE): 'sphere',
+               int(mujoco.mjtGeom.mjGEOM_CAPSULE): 'capsule',
+               int(mujoco.mjtGeom.mjGEOM_ELLIPSOID): 'ellipsoid',
+               int(mujoco.mjtGeom.mjGEOM_CYLINDER): 'cylinder',
+               int(mujoco.mjtGeom.mjGEOM_BOX): 'box', int(mujoco.mjtGeom.mjGEOM_MESH): 'mesh'}
+
+
+@dataclass(frozen=True)
+class ModelIndex:
+    """Names and addresses of one model generation. Arrays are (njoint,) over the
+    commandable (hinge and slide) joints, in model order."""
+
+    generation: int
+    state_size: int
+    body_names: tuple  # (nbody,) body 0 is 'world'
+    body_ids: dict  # name -> id
+    joint_names: tuple
+    joint_index: dict  # name -> position in joint_names
+    joint_qposadr: np.ndarray
+    joint_dofadr: np.ndarray
+    joint_actuators: tuple  # per joint: {mode: actuator id}
+    geom_names: tuple  # (ngeom,) '' for unnamed
+    entities: tuple  # EntityRecord, in model order
+    entity_by_name: dict
+    info: ModelInfo
+
+    def entity(self, name: str) -> EntityRecord:
+        rec = self.entity_by_name.get(name)
+        if rec is None:
+            raise NotFoundError(ERR_UNKNOWN_ENTITY.format(name=name,
+                                                          names=list(self.entity_by_name)))
+        return rec
+
+    def body(self, name: str) -> int:
+        b = self.body_ids.get(name)
+        if b is None:
+            raise NotFoundError(ERR_UNKNOWN_BODY.format(name=name))
+        return b
+
+    def entity_of_body(self, name: str) -> str:
+        """The name of the entity (top-level body) a body belongs to."""
+        return self.body_names[self.info.body_root[self.body(name)]]
+
+    def joints(self, names: Iterable[str]) -> np.ndarray:
+        """Positions of joint names in :attr:`joint_names`; unknown names raise."""
+        idx = []
+        for n in names:
+            i = self.joint_index.get(n)
+            if i is None:
+                raise NotFoundError(ERR_UNKNOWN_JOINT.format(name=n))
+            idx.append(i)
+        return np.asarray(idx, dtype=int)
+
+
+def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
+    """Index a compiled model.
+
+    :param spawned: entity name -> {'description': str} for entities spawned since load.
+    """
+    names = tuple('world' if b == 0 else (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
+                                          or f'body_{b}') for b in range(m.nbody))
+    jids = [j for j in range(m.njnt) if int(m.jnt_type[j]) in _ONE_DOF_JOINTS]
+    jnames = tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'joint_{j}'
+                   for j in jids)
+    parent = m.body_parentid.copy()
+    root_of = np.zeros(m.nbody, dtype=int)
+    for b in range(1, m.nbody):  # parents come before children
+        root_of[b] = b if parent[b] == 0 else root_of[parent[b]]
+    entities = _entity_records(m, names, root_of, spawned)
+    info = ModelInfo(
+        generation=generation, timestep=float(m.opt.timestep), body_names=names,
+        body_parent=parent, body_root=root_of, body_has_joint=m.body_jntnum > 0,
+        body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
+        joint_names=jnames, geoms=_geom_visuals(m), entities=entities)
+    return ModelIndex(
+        generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
+        body_names=names, body_ids={n: b for b, n in enumerate(names)},
+        joint_names=jnames, joint_index={n: i for i, n in enumerate(jnames)},
+        joint_qposadr=m.jnt_qposadr[jids].astype(int) if jids else np.zeros(0, int),
+        joint_dofadr=m.jnt_dofadr[jids].astype(int) if jids else np.zeros(0, int),
+        joint_actuators=_classify_actuators(m, jids),
+        geom_names=tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ''
+                         for g in range(m.ngeom)),
+        entities=entities, entity_by_name={e.name: e for e in entities}, info=info)
+
+
+def _classify_actuators(m: mujoco.MjModel, jids: list) -> tuple:
+    """For each commandable joint: {mode: actuator id} of its single-joint actuators."""
+    by_joint = {j: {} for j in jids}
+    for a in range(m.nu):
+        if m.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT:
+            continue
+        j = int(m.actuator_trnid[a, 0])
+        if j not in by_joint or m.actuator_dyntype[a] != mujoco.mjtDyn.mjDYN_NONE:
+            continue
+        bias = m.actuator_biasprm[a]
+        if m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE:
+            mode = EFFORT
+        elif bias[1] != 0:
+            mode = POSITION
+        elif bias[2] != 0:
+            mode = VELOCITY
+        else:
+            continue
+        by_joint[j].setdefault(mode, a)
+    return tuple(by_joint[j] for j in jids)
+
+
+def _geom_visuals(m: mujoco.MjModel) -> tuple:
+    out = []
+    for g in range(m.ngeom):
+        kind = _GEOM_TYPES.get(int(m.geom_type[g]))
+        rgba = m.geom_rgba[g].copy()
+        if m.geom_matid[g] >= 0:
+            rgba = m.mat_rgba[m.geom_matid[g]].copy()
+        if kind is None or m.geom_group[g] > 2 or rgba[3] <= 0:
+            continue
+        verts = faces = None
+        if kind == 'mesh':
+            mid = m.geom_dataid[g]
+            va, vn = m.mesh_vertadr[mid], m.mesh_vertnum[mid]
+            fa, fn = m.mesh_faceadr[mid], m.mesh_facenum[mid]
+            verts = m.mesh_vert[va:va + vn].copy()
+            faces = m.mesh_face[fa:fa + fn].copy()
+        out.append(GeomVisual(
+            name=mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or f'geom_{g}',
+            body=int(m.geom_bodyid[g]), type=kind, size=tuple(m.geom_size[g]),
+            pos=tuple(m.geom_pos[g]), quat_wxyz=tuple(m.geom_quat[g]), rgba=tuple(rgba),
+            mesh_vertices=verts, mesh_faces=faces))
+    return tuple(out)
+
+
+def _entity_records(m: mujoco.MjModel, names: tuple, root_of: np.ndarray,
+                    spawned: dict) -> tuple:
+    """One record per top-level body, grouped with index arrays (O(n), not O(n^2))."""
+    jroot = root_of[m.jnt_bodyid]
+    groot = root_of[m.geom_bodyid]
+    trn_joint = np.isin(m.actuator_trntype, _JOINT_TRN)
+    aroot = np.where(trn_joint, jroot[np.where(trn_joint, m.actuator_trnid[:, 0], 0)], -1) \
+        if m.nu else np.zeros(0, int)
+    recs = []
+    for root in np.nonzero(m.body_parentid == 0)[0][1:] if m.nbody > 1 else []:
+        root = int(root)
+        joints = np.nonzero(jroot == root)[0]
+        has_free = any(m.jnt_type[j] == _FREE and m.jnt_bodyid[j] == root for j in joints)
+        other_joints = any(m.jnt_type[j] != _FREE for j in joints)
+        has_actuators = bool(np.any(aroot == root))
+        category = ROBOT if other_joints or has_actuators else DYNAMIC if has_free else STATIC
+        name = names[root]
+        meta = spawned.get(name)
+        recs.append(EntityRecord(
+            name=name, category=category, root_body=root,
+            body_ids=tuple(int(b) for b in np.nonzero(root_of == root)[0]),
+            geom_ids=tuple(int(g) for g in np.nonzero(groot == root)[0]),
+            spawned=meta is not None,
+            description=meta['description'] if meta else 'from the scene',
+            has_free_joint=has_free))
+    return tuple(recs)
