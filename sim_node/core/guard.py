@@ -16,6 +16,20 @@ from .index import STATE_SPEC
 
 log = logging.getLogger(__name__)
 
+_MUJOCO_LOG = logging.getLogger('sim_node.mujoco')
+
+
+def _log_mujoco_warning(message: str) -> None:
+    _MUJOCO_LOG.warning('MuJoCo: %s', message)
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warning text to logging (the node forwards it to the ROS log) instead
+    of stderr and a MUJOCO_LOG.TXT in the working directory; unless the application has
+    installed a handler of its own (the handler is process-wide)."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_log_mujoco_warning)
+
 _BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
                  int(mujoco.mjtWarning.mjWARN_BADQACC)]
 

@@ -8,58 +8,37 @@ divergence check to :mod:`.guard`, spec edits to :mod:`.editor`, state reads and
 
 import contextlib
 import logging
-import threading
 from typing import Callable, Iterator, Optional, Sequence
 
 import mujoco
 import numpy as np
 
-from . import checks, editor, index as model_index, quat, sources, state
-from .checks import check_finite, check_pose
+from . import checks, editor, guard, index as model_index, sources, state
+from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
 from .errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
-                     InvalidPoseError, NameNotUniqueError, ResourceParseError)
+                     ResourceParseError)
 from .guard import DivergenceGuard, clean
 from .index import STATE_SPEC, ModelIndex
-from .types import (RESET_ALL, RESET_SPAWNED, RESET_STATE, RESET_TIME, ROBOT, STATIC,
+from .lock import WorldLock
+from .types import (RESET_ALL, RESET_SPAWNED, RESET_STATE, RESET_TIME,
                     EntityRecord, EntityState, ModelInfo, PhysicsState, Snapshot)
+from .world_edits import WorldEdits
+from .world_writes import StateWrites
 
 log = logging.getLogger(__name__)
 
-ERR_DUPLICATE = 'an entity or body named {name!r} exists; pick another name or allow renaming'
-ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it cannot have a '
-                    'velocity (only its pose can be set)')
 ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the world is now at '
                         'generation {now} (an entity was spawned or deleted since)')
-ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth:.4f} m; move '
-                        'it, or allow interpenetration')
-ERR_NOT_SPAWNED = '{name!r} is part of the loaded scene; only spawned entities can be deleted'
 ERR_COMPILE = 'the model does not compile: {err}'
 ERR_SCOPE = ('reset scope {scope} has undefined bits: use 0 (all), 255 (all) or a combination '
              'of 1 (time), 2 (state) and 4 (spawned)')
 ERR_STEPS = 'steps must be >= 1, got {n}'
-ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
-ERR_NO_MASS = '{name!r} has no mass to scale'
 
 _SCOPE_BITS = RESET_TIME | RESET_STATE | RESET_SPAWNED
 _NO_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-_MUJOCO_LOG = logging.getLogger('sim_node.mujoco')
-
-
-def _log_mujoco_warning(message: str) -> None:
-    _MUJOCO_LOG.warning('MuJoCo: %s', message)
-
-
-def route_mujoco_warnings() -> None:
-    """Send MuJoCo's warning text to logging (the node forwards it to the ROS log) instead
-    of stderr and a MUJOCO_LOG.TXT in the working directory; unless the application has
-    installed a handler of its own (the handler is process-wide)."""
-    if mujoco.get_mju_user_warning() is None:
-        mujoco.set_mju_user_warning(_log_mujoco_warning)
-
-
-class World:
+class World(StateWrites, WorldEdits):
     """A MuJoCo world that can change while it runs. Thread-safe; see ``sim_node.core``.
 
     Build with :meth:`from_file` or :meth:`from_string`.
@@ -69,19 +48,15 @@ class World:
                  source: str = ''):
         self.config = config
         self.source = source
-        self._lock = threading.RLock()
-        # Callers waiting for the lock; the loop steps aside for them (a Lock is not fair).
-        self._waiting = 0
-        self._waiting_cv = threading.Condition(threading.Lock())
-        self._loop_waiting = False
-        self._lock_cm = _WorldLock(self)
+        self._lock_cm = WorldLock()
+        self._lock = self._lock_cm.lock
         self._control = Control(config.kp, config.kd)
         self._guard = DivergenceGuard()
         # Disable MuJoCo's whole-world auto-reset on NaN: divergence is ours to report.
         spec.option.disableflags |= _NO_AUTORESET
         if config.timestep > 0:
             spec.option.timestep = float(config.timestep)
-        route_mujoco_warnings()
+        guard.route_mujoco_warnings()
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
         try:
@@ -120,17 +95,13 @@ class World:
 
     # ---------------------------------------------------------------- locking
 
-    def _locked(self) -> '_WorldLock':
+    def _locked(self) -> WorldLock:
         """The world lock, counting waiters so the loop can step aside for them."""
         return self._lock_cm
 
     def wait_for_callers(self, timeout: float = 0.05) -> None:
         """Used by the loop: let callers waiting for the lock go first."""
-        with self._waiting_cv:
-            if self._waiting:
-                self._loop_waiting = True
-                self._waiting_cv.wait_for(lambda: self._waiting == 0, timeout)
-                self._loop_waiting = False
+        self._lock_cm.wait_for_callers(timeout)
 
     @contextlib.contextmanager
     def locked(self) -> Iterator[tuple]:
@@ -241,110 +212,6 @@ class World:
         self._kinematics_locked()
         return state.body_pose(self._data, rec.root_body)
 
-    def set_entity_state(self, name: str, position: Optional[Sequence[float]] = None,
-                         quat_wxyz: Optional[Sequence[float]] = None,
-                         linear_velocity: Optional[Sequence[float]] = None,
-                         angular_velocity: Optional[Sequence[float]] = None,
-                         reference: str = '') -> None:
-        """Set the pose and/or twist of an entity's root body (world frame or `reference`).
-
-        A free body is moved through its free joint. A welded entity (static object or
-        fixed-base robot) can be moved (its model is rebuilt, keeping all state) but its
-        twist must be zero.
-        """
-        with self._locked():
-            self._overwrite_locked({name: (position, quat_wxyz)},
-                                  {name: (linear_velocity, angular_velocity)}, {}, {},
-                                  reference)
-
-    def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
-                  joint_positions: Optional[dict] = None,
-                  joint_velocities: Optional[dict] = None) -> None:
-        """Overwrite any parts of the state at once, in the world frame: ``poses``
-        {entity: (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and
-        {joint: value} for hinge/slide joint positions and velocities.
-
-        Everything is checked before anything changes, so an error changes nothing. An
-        entity without a free joint given its current pose stays put (no rebuild); given
-        another pose it is moved (model rebuilt, state kept), and a non-zero twist for it is
-        refused.
-        """
-        with self._locked():
-            self._overwrite_locked(poses or {}, twists or {}, joint_positions or {},
-                                  joint_velocities or {}, '')
-
-    def _overwrite_locked(self, poses: dict, twists: dict, joint_positions: dict,
-                         joint_velocities: dict, reference: str) -> None:
-        idx, d = self._index, self._data
-        self._kinematics_locked()
-        frame = self._frame_locked(reference) if reference else None
-        targets = {}  # entity -> (record, pos, quat, lin, ang), checked, in the world frame
-        for n in (*poses, *twists):
-            rec = idx.entity(n)
-            targets[n] = (rec, *self._check_target_locked(
-                rec, *poses.get(n, (None, None)), *twists.get(n, (None, None)), frame))
-        q_adr, q_values = self._joint_targets_locked('position', joint_positions, True)
-        v_adr, v_values = self._joint_targets_locked('velocity', joint_velocities, False)
-        welded_moves = []
-        for rec, pos, q, lin, ang in targets.values():
-            if rec.has_free_joint:
-                continue
-            if any(v is not None and np.any(v != 0) for v in (lin, ang)):
-                raise IncorrectStateError(ERR_STATIC_TWIST.format(name=rec.name,
-                                                                  category=rec.category))
-            root = rec.root_body
-            if pos is not None and not (
-                    np.allclose(pos, d.xpos[root], rtol=0, atol=1e-9)
-                    and abs(abs(float(np.dot(q, d.xquat[root]))) - 1.0) < 1e-12):
-                welded_moves.append((rec, pos, q))
-        if welded_moves:  # all moves in one rebuild, before the direct writes
-            self._edit_locked(lambda spec: [editor.place_root(
-                spec, rec.name, self._frame_of(spec, rec.name), pos, q)
-                for rec, pos, q in welded_moves])
-        for rec, pos, q, lin, ang in targets.values():
-            if rec.has_free_joint:
-                state.write_free_body(self._model, self._data, rec, pos, q, lin, ang)
-        self._data.qpos[q_adr] = q_values
-        self._data.qvel[v_adr] = v_values
-        self._forward_locked()
-
-    def _check_target_locked(self, rec: EntityRecord, position, quat_wxyz, linear, angular,
-                             frame: Optional[tuple]) -> tuple:
-        """Checked world-frame (pos, quat, lin, ang), None where not given; a pose given by
-        one half keeps the current other half."""
-        pos = q = lin = ang = None
-        if position is not None or quat_wxyz is not None:
-            cur_pos, cur_q = state.body_pose(self._data, rec.root_body)
-            if frame is not None:
-                cur_pos, cur_q = quat.to_frame(*frame, cur_pos, cur_q)
-            pos, q = check_pose(cur_pos if position is None else position,
-                                cur_q if quat_wxyz is None else quat_wxyz)
-            if frame is not None:
-                pos, q = quat.from_frame(*frame, pos, q)
-        if linear is not None:
-            lin = check_finite('linear velocity', linear, 3)
-        if angular is not None:
-            ang = check_finite('angular velocity', angular, 3)
-        if frame is not None:
-            lin = None if lin is None else quat.rotate(frame[1], lin)
-            ang = None if ang is None else quat.rotate(frame[1], ang)
-        return pos, q, lin, ang
-
-    def set_joint_positions(self, positions: dict) -> None:
-        """Set hinge/slide joint positions by name (velocities are kept)."""
-        with self._locked():
-            self._overwrite_locked({}, {}, positions, {}, '')
-
-    def set_joint_velocities(self, velocities: dict) -> None:
-        with self._locked():
-            self._overwrite_locked({}, {}, {}, velocities, '')
-
-    def _joint_targets_locked(self, what: str, values: dict, use_qpos: bool) -> tuple:
-        """Checked (qpos or qvel addresses, values) for {joint: value}."""
-        i = self._index.joints(values.keys())
-        vals = check_finite(f'joint {what}s', list(values.values()))
-        return (self._index.joint_qposadr if use_qpos else self._index.joint_dofadr)[i], vals
-
     def get_joint_states(self) -> dict:
         """name -> (position, velocity, effort) for every hinge and slide joint."""
         snap = self.snapshot()
@@ -383,7 +250,7 @@ class World:
         """
         if n < 1:
             raise InvalidArgumentError(ERR_STEPS.format(n=n))
-        # Once per Gym step and per loop batch: take a free lock directly. It is _WorldLock's
+        # Once per Gym step and per loop batch: take a free lock directly. It is WorldLock's
         # own fast path without the context-manager calls, 0.25 us a step (1% of a
         # Reacher-v5 step); a contended lock goes through _WorldLock as usual.
         if self._lock.acquire(blocking=False):
@@ -564,257 +431,3 @@ class World:
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         self._guard.bind(data)
         self._forward_locked()
-
-    def _frame_of(self, spec: mujoco.MjSpec, name: str):
-        meta = self._spawned.get(name)
-        return spec.frame(meta['frame']) if meta else None
-
-    def unique_name(self, base: str) -> str:
-        """`base`, or `base_<n>` with the smallest n not taken by an entity or body."""
-        with self._locked():
-            return self._unique_name_locked(base)
-
-    def _unique_name_locked(self, base: str) -> str:
-        taken = self._index.body_ids
-        base = base if checks.NAME_RE.match(base or '') else 'entity'
-        name, i = base, 0
-        while name in taken:
-            i += 1
-            name = f'{base}_{i}'
-        return name
-
-    def spawn(self, name: str, source: sources.SpawnSource,
-              position: Sequence[float] = (0.0, 0.0, 0.0),
-              quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), reference: str = '',
-              allow_renaming: bool = False, namespace: str = '',
-              allow_interpenetration: Optional[bool] = None) -> str:
-        """Add an entity at a pose (world frame, or `reference` entity's frame) while running.
-
-        Its root body is named `name`; every other element ``name/<original>`` (unnamed ones
-        get ``name/<kind>_<i>``). All or nothing: on any error the world is exactly as
-        before. The namespace is checked but not used: the node's topics are per world.
-
-        :returns: the entity's name (differs from `name` only when renaming was allowed).
-        """
-        pos, q = check_pose(position, quat_wxyz)
-        checks.check_namespace(namespace)
-        if not allow_renaming:
-            checks.check_name(name)
-        overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
-                      else allow_interpenetration)
-        with self._locked():
-            if not name or name in self._index.body_ids:
-                if not allow_renaming:
-                    raise NameNotUniqueError(ERR_DUPLICATE.format(name=name))
-                name = self._unique_name_locked(name or source.kind)
-            if reference:
-                pos, q = quat.from_frame(*self._frame_locked(reference), pos, q)
-            meta = {'frame': f'{name}/__spawn_frame', 'assets': tuple(source.assets),
-                    'description': source.description}
-
-            def edit(spec: mujoco.MjSpec) -> None:
-                frame, _ = editor.attach(spec, name, source, pos, q)
-                frame.name = meta['frame']
-                if self._default_friction is not None or self._default_restitution is not None:
-                    geoms = [g.name for g in spec.body(name).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
-                    editor.apply_contact(spec, geoms, *self._contact_of({}))
-
-            def check(model: mujoco.MjModel, data: mujoco.MjData) -> None:
-                hit = editor.find_overlap(model, data, name,
-                                          self.config.interpenetration_tolerance)
-                if hit is not None:
-                    raise InvalidPoseError(ERR_INTERPENETRATION.format(
-                        name=name, other=hit[0], depth=hit[1]))
-
-            self._edit_locked(edit, None if overlap_ok else check,
-                              spawned={**self._spawned, name: meta})
-            return name
-
-    def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
-                 position: Sequence[float] = (0.0, 0.0, 0.0),
-                 quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), mass: float = 0.0,
-                 joint: Optional[str] = None, axis: Sequence[float] = (0.0, 0.0, 1.0),
-                 rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> str:
-        """Add a body with one geom under an existing body of a spawned entity, while running.
-
-        :param parent: name of the parent body (an entity or one of its bodies).
-        :param position: in the parent's frame.
-        :param joint: None (welded: the body becomes part of its parent), 'hinge' or 'slide'
-            about/along `axis` (in the body frame).
-        :param mass: kg; 0 uses the geom's default density.
-        """
-        pos, q = check_pose(position, quat_wxyz)
-        ax = check_finite('axis', axis, 3)
-        checks.check_name(name)
-        if joint not in (None, 'hinge', 'slide'):
-            raise InvalidArgumentError(f"joint must be None, 'hinge' or 'slide', got {joint!r}")
-        full_size = sources.primitive_size(shape, size)
-        colour = sources.check_rgba(rgba)
-        sources.check_mass(mass)
-        with self._locked():
-            root = self._index.entity_of_body(parent)
-            if root not in self._spawned:
-                raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
-            full = f'{root}/{name}'
-            if full in self._index.body_ids:
-                raise NameNotUniqueError(ERR_DUPLICATE.format(name=full))
-            self._edit_locked(lambda spec: editor.add_child(
-                spec, parent, full, shape, full_size, pos, q, mass, joint, ax, colour))
-            return full
-
-    def delete(self, name: str) -> None:
-        """Remove a spawned entity with its joints, geoms, actuators, sensors, equality
-        constraints, contact pairs, excludes and joint commands; everything else keeps its
-        state exactly."""
-        with self._locked():
-            self._index.entity(name)
-            meta = self._spawned.get(name)
-            if meta is None:
-                raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
-            self._edit_locked(
-                lambda spec: editor.remove(spec, name, spec.frame(meta['frame']),
-                                           meta['assets']),
-                spawned={k: v for k, v in self._spawned.items() if k != name},
-                overrides={k: v for k, v in self._overrides.items() if k != name})
-
-    # ---------------------------------------------------------------- physics parameters
-
-    def set_gravity(self, gravity: Sequence[float]) -> None:
-        g = check_finite('gravity', gravity, 3)
-        with self._locked():
-            self._edit_locked(lambda spec: setattr(spec.option, 'gravity', g.tolist()))
-
-    def set_timestep(self, timestep: float) -> None:
-        (dt,) = check_finite('timestep', [timestep], 1)
-        if not 0 < dt <= 0.1:
-            raise InvalidArgumentError(f'timestep must be in (0, 0.1] s, got {timestep}')
-        with self._locked():
-            self._edit_locked(lambda spec: setattr(spec.option, 'timestep', float(dt)))
-
-    def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
-                     rolling: Optional[float] = None) -> None:
-        """Friction of every geom of an entity (MuJoCo's three coefficients); it wins over
-        surfaces without friction of their own (see :func:`editor.apply_contact`)."""
-        with self._locked():
-            rec = self._index.entity(name)
-            cur = (self._model.geom_friction[rec.geom_ids[0]] if rec.geom_ids
-                   else np.array([1.0, 0.005, 0.0001]))
-            f = check_finite('friction', [sliding, cur[1] if torsional is None else torsional,
-                                          cur[2] if rolling is None else rolling], 3)
-            if np.any(f < 0):
-                raise InvalidArgumentError(f'friction must be >= 0, got {f.tolist()}')
-            self._set_override_locked(name, 'friction', f)
-
-    def set_restitution(self, name: str, restitution: float) -> None:
-        """Bounciness in [0, 0.8] of an entity's geoms: a bounce off any surface without a
-        restitution of its own has that coefficient (see :func:`editor.apply_contact`)."""
-        e = self._check_restitution(restitution)
-        with self._locked():
-            self._index.entity(name)
-            self._set_override_locked(name, 'restitution', e)
-
-    def _set_override_locked(self, name: str, key: str, value) -> None:
-        own = {**self._overrides.get(name, {}), key: value}
-        geoms = [self._index.geom_names[g] for g in self._index.entity(name).geom_ids]
-        self._edit_locked(lambda spec: editor.apply_contact(
-            spec, geoms, *self._contact_of(own)), overrides={**self._overrides, name: own})
-
-    def _contact_of(self, own: dict) -> tuple:
-        """(friction, restitution, priority) for geoms with settings `own` (maybe none)."""
-        return (own.get('friction', self._default_friction),
-                own.get('restitution', self._default_restitution),
-                editor.OWN_CONTACT_PRIORITY if own else 0)
-
-    def set_default_contact(self, friction: Optional[Sequence[float]] = None,
-                            restitution: Optional[float] = None) -> None:
-        """Global friction (3 values) and/or restitution for every geom without its own."""
-        f = None if friction is None else check_finite('friction', friction, 3)
-        e = None if restitution is None else self._check_restitution(restitution)
-        with self._locked():
-            old = self._default_friction, self._default_restitution
-            self._default_friction = old[0] if f is None else f
-            self._default_restitution = old[1] if e is None else e
-            idx = self._index
-            groups = [([idx.geom_names[g] for g in r.geom_ids], self._overrides.get(r.name, {}))
-                      for r in idx.entities]
-            groups.append(([n for g, n in enumerate(idx.geom_names)
-                            if self._model.geom_bodyid[g] == 0], {}))
-            try:
-                self._edit_locked(lambda spec: [editor.apply_contact(
-                    spec, geoms, *self._contact_of(own)) for geoms, own in groups])
-            except Exception:
-                self._default_friction, self._default_restitution = old
-                raise
-
-    @staticmethod
-    def _check_restitution(restitution: float) -> float:
-        (e,) = check_finite('restitution', [restitution], 1)
-        if not 0.0 <= e <= editor.MAX_RESTITUTION:
-            raise InvalidArgumentError(
-                f'restitution must be in [0, {editor.MAX_RESTITUTION}], got {restitution}')
-        return float(e)
-
-    def set_mass(self, name: str, mass: float) -> None:
-        """Total mass of an entity (kg); each body's mass and inertia scale by one factor.
-
-        A body without mass is static: giving a static (jointless) entity a mass frees it
-        where it is (it gets a free joint and falls), and a mass of 0 welds a free object to
-        the world where it is now.
-        """
-        (m_new,) = check_finite('mass', [mass], 1)
-        if m_new < 0:
-            raise InvalidArgumentError(f'mass must be >= 0, got {mass}')
-        with self._locked():
-            rec = self._index.entity(name)
-            if m_new == 0:
-                if rec.category == ROBOT:
-                    raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
-                if rec.has_free_joint:
-                    self._kinematics_locked()
-                    pos, q = state.body_pose(self._data, rec.root_body)
-                    self._edit_locked(lambda spec: (
-                        editor.place_root(spec, name, self._frame_of(spec, name), pos, q),
-                        editor.weld(spec, rec)))
-                return
-            total = float(sum(self._model.body_mass[b] for b in rec.body_ids))
-            if total <= 0:
-                raise IncorrectStateError(ERR_NO_MASS.format(name=name))
-            model, index = self._model, self._index
-            self._edit_locked(lambda spec: (
-                editor.free(spec, rec) if rec.category == STATIC else None,
-                editor.scale_mass(spec, model, index, rec, m_new / total)))
-
-
-class _WorldLock:
-    """Context manager for the world lock (a class: cheaper than a generator per step).
-
-    The lock is reentrant; each acquisition records whether it had to wait (and so was
-    counted as a waiter), innermost last. Only the thread holding the lock touches the record.
-    """
-
-    __slots__ = ('_w', '_counted')
-
-    def __init__(self, world: 'World'):
-        self._w = world
-        self._counted: list = []
-
-    def __enter__(self) -> None:
-        w = self._w
-        if w._lock.acquire(blocking=False):
-            self._counted.append(False)  # never waited: nobody needs to step aside for us
-            return
-        with w._waiting_cv:
-            w._waiting += 1
-        w._lock.acquire()
-        self._counted.append(True)
-
-    def __exit__(self, *exc) -> None:
-        w = self._w
-        counted = self._counted.pop()
-        w._lock.release()
-        if not counted:
-            return
-        with w._waiting_cv:
-            w._waiting -= 1
-            if w._loop_waiting and not w._waiting:
-                w._waiting_cv.notify_all()

@@ -1,0 +1,246 @@
+"""World model edits: spawn, add a body, delete, and physics parameters (contact, mass,
+gravity, timestep). A mixin of :class:`~sim_node.core.world.World`, split out only to keep
+one file per job: each method locks, validates, and hands a spec edit to
+``World._edit_locked`` (the recompile and generation stay in ``world.py``).
+"""
+
+from typing import Optional, Sequence
+
+import mujoco
+import numpy as np
+
+from . import checks, editor, quat, sources, state
+from .checks import check_finite, check_pose
+from .errors import (IncorrectStateError, InvalidArgumentError, InvalidPoseError,
+                     NameNotUniqueError)
+from .types import ROBOT, STATIC
+
+ERR_DUPLICATE = 'an entity or body named {name!r} exists; pick another name or allow renaming'
+ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth:.4f} m; move '
+                        'it, or allow interpenetration')
+ERR_NOT_SPAWNED = '{name!r} is part of the loaded scene; only spawned entities can be deleted'
+ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
+ERR_NO_MASS = '{name!r} has no mass to scale'
+
+
+class WorldEdits:
+    """Structural and physics-parameter changes of a :class:`World` (see its docstring)."""
+
+    def _frame_of(self, spec: mujoco.MjSpec, name: str):
+        meta = self._spawned.get(name)
+        return spec.frame(meta['frame']) if meta else None
+
+    def unique_name(self, base: str) -> str:
+        """`base`, or `base_<n>` with the smallest n not taken by an entity or body."""
+        with self._locked():
+            return self._unique_name_locked(base)
+
+    def _unique_name_locked(self, base: str) -> str:
+        taken = self._index.body_ids
+        base = base if checks.NAME_RE.match(base or '') else 'entity'
+        name, i = base, 0
+        while name in taken:
+            i += 1
+            name = f'{base}_{i}'
+        return name
+
+    def spawn(self, name: str, source: sources.SpawnSource,
+              position: Sequence[float] = (0.0, 0.0, 0.0),
+              quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), reference: str = '',
+              allow_renaming: bool = False, namespace: str = '',
+              allow_interpenetration: Optional[bool] = None) -> str:
+        """Add an entity at a pose (world frame, or `reference` entity's frame) while running.
+
+        Its root body is named `name`; every other element ``name/<original>`` (unnamed ones
+        get ``name/<kind>_<i>``). All or nothing: on any error the world is exactly as
+        before. The namespace is checked but not used: the node's topics are per world.
+
+        :returns: the entity's name (differs from `name` only when renaming was allowed).
+        """
+        pos, q = check_pose(position, quat_wxyz)
+        checks.check_namespace(namespace)
+        if not allow_renaming:
+            checks.check_name(name)
+        overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
+                      else allow_interpenetration)
+        with self._locked():
+            if not name or name in self._index.body_ids:
+                if not allow_renaming:
+                    raise NameNotUniqueError(ERR_DUPLICATE.format(name=name))
+                name = self._unique_name_locked(name or source.kind)
+            if reference:
+                pos, q = quat.from_frame(*self._frame_locked(reference), pos, q)
+            meta = {'frame': f'{name}/__spawn_frame', 'assets': tuple(source.assets),
+                    'description': source.description}
+
+            def edit(spec: mujoco.MjSpec) -> None:
+                frame, _ = editor.attach(spec, name, source, pos, q)
+                frame.name = meta['frame']
+                if self._default_friction is not None or self._default_restitution is not None:
+                    geoms = [g.name for g in spec.body(name).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
+                    editor.apply_contact(spec, geoms, *self._contact_of({}))
+
+            def check(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+                hit = editor.find_overlap(model, data, name,
+                                          self.config.interpenetration_tolerance)
+                if hit is not None:
+                    raise InvalidPoseError(ERR_INTERPENETRATION.format(
+                        name=name, other=hit[0], depth=hit[1]))
+
+            self._edit_locked(edit, None if overlap_ok else check,
+                              spawned={**self._spawned, name: meta})
+            return name
+
+    def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
+                 position: Sequence[float] = (0.0, 0.0, 0.0),
+                 quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), mass: float = 0.0,
+                 joint: Optional[str] = None, axis: Sequence[float] = (0.0, 0.0, 1.0),
+                 rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> str:
+        """Add a body with one geom under an existing body of a spawned entity, while running.
+
+        :param parent: name of the parent body (an entity or one of its bodies).
+        :param position: in the parent's frame.
+        :param joint: None (welded: the body becomes part of its parent), 'hinge' or 'slide'
+            about/along `axis` (in the body frame).
+        :param mass: kg; 0 uses the geom's default density.
+        """
+        pos, q = check_pose(position, quat_wxyz)
+        ax = check_finite('axis', axis, 3)
+        checks.check_name(name)
+        if joint not in (None, 'hinge', 'slide'):
+            raise InvalidArgumentError(f"joint must be None, 'hinge' or 'slide', got {joint!r}")
+        full_size = sources.primitive_size(shape, size)
+        colour = sources.check_rgba(rgba)
+        sources.check_mass(mass)
+        with self._locked():
+            root = self._index.entity_of_body(parent)
+            if root not in self._spawned:
+                raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
+            full = f'{root}/{name}'
+            if full in self._index.body_ids:
+                raise NameNotUniqueError(ERR_DUPLICATE.format(name=full))
+            self._edit_locked(lambda spec: editor.add_child(
+                spec, parent, full, shape, full_size, pos, q, mass, joint, ax, colour))
+            return full
+
+    def delete(self, name: str) -> None:
+        """Remove a spawned entity with its joints, geoms, actuators, sensors, equality
+        constraints, contact pairs, excludes and joint commands; everything else keeps its
+        state exactly."""
+        with self._locked():
+            self._index.entity(name)
+            meta = self._spawned.get(name)
+            if meta is None:
+                raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
+            self._edit_locked(
+                lambda spec: editor.remove(spec, name, spec.frame(meta['frame']),
+                                           meta['assets']),
+                spawned={k: v for k, v in self._spawned.items() if k != name},
+                overrides={k: v for k, v in self._overrides.items() if k != name})
+
+    # ---------------------------------------------------------------- physics parameters
+
+    def set_gravity(self, gravity: Sequence[float]) -> None:
+        g = check_finite('gravity', gravity, 3)
+        with self._locked():
+            self._edit_locked(lambda spec: setattr(spec.option, 'gravity', g.tolist()))
+
+    def set_timestep(self, timestep: float) -> None:
+        (dt,) = check_finite('timestep', [timestep], 1)
+        if not 0 < dt <= 0.1:
+            raise InvalidArgumentError(f'timestep must be in (0, 0.1] s, got {timestep}')
+        with self._locked():
+            self._edit_locked(lambda spec: setattr(spec.option, 'timestep', float(dt)))
+
+    def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
+                     rolling: Optional[float] = None) -> None:
+        """Friction of every geom of an entity (MuJoCo's three coefficients); it wins over
+        surfaces without friction of their own (see :func:`editor.apply_contact`)."""
+        with self._locked():
+            rec = self._index.entity(name)
+            cur = (self._model.geom_friction[rec.geom_ids[0]] if rec.geom_ids
+                   else np.array([1.0, 0.005, 0.0001]))
+            f = check_finite('friction', [sliding, cur[1] if torsional is None else torsional,
+                                          cur[2] if rolling is None else rolling], 3)
+            if np.any(f < 0):
+                raise InvalidArgumentError(f'friction must be >= 0, got {f.tolist()}')
+            self._set_override_locked(name, 'friction', f)
+
+    def set_restitution(self, name: str, restitution: float) -> None:
+        """Bounciness in [0, 0.8] of an entity's geoms: a bounce off any surface without a
+        restitution of its own has that coefficient (see :func:`editor.apply_contact`)."""
+        e = self._check_restitution(restitution)
+        with self._locked():
+            self._index.entity(name)
+            self._set_override_locked(name, 'restitution', e)
+
+    def _set_override_locked(self, name: str, key: str, value) -> None:
+        own = {**self._overrides.get(name, {}), key: value}
+        geoms = [self._index.geom_names[g] for g in self._index.entity(name).geom_ids]
+        self._edit_locked(lambda spec: editor.apply_contact(
+            spec, geoms, *self._contact_of(own)), overrides={**self._overrides, name: own})
+
+    def _contact_of(self, own: dict) -> tuple:
+        """(friction, restitution, priority) for geoms with settings `own` (maybe none)."""
+        return (own.get('friction', self._default_friction),
+                own.get('restitution', self._default_restitution),
+                editor.OWN_CONTACT_PRIORITY if own else 0)
+
+    def set_default_contact(self, friction: Optional[Sequence[float]] = None,
+                            restitution: Optional[float] = None) -> None:
+        """Global friction (3 values) and/or restitution for every geom without its own."""
+        f = None if friction is None else check_finite('friction', friction, 3)
+        e = None if restitution is None else self._check_restitution(restitution)
+        with self._locked():
+            old = self._default_friction, self._default_restitution
+            self._default_friction = old[0] if f is None else f
+            self._default_restitution = old[1] if e is None else e
+            idx = self._index
+            groups = [([idx.geom_names[g] for g in r.geom_ids], self._overrides.get(r.name, {}))
+                      for r in idx.entities]
+            groups.append(([n for g, n in enumerate(idx.geom_names)
+                            if self._model.geom_bodyid[g] == 0], {}))
+            try:
+                self._edit_locked(lambda spec: [editor.apply_contact(
+                    spec, geoms, *self._contact_of(own)) for geoms, own in groups])
+            except Exception:
+                self._default_friction, self._default_restitution = old
+                raise
+
+    @staticmethod
+    def _check_restitution(restitution: float) -> float:
+        (e,) = check_finite('restitution', [restitution], 1)
+        if not 0.0 <= e <= editor.MAX_RESTITUTION:
+            raise InvalidArgumentError(
+                f'restitution must be in [0, {editor.MAX_RESTITUTION}], got {restitution}')
+        return float(e)
+
+    def set_mass(self, name: str, mass: float) -> None:
+        """Total mass of an entity (kg); each body's mass and inertia scale by one factor.
+
+        A body without mass is static: giving a static (jointless) entity a mass frees it
+        where it is (it gets a free joint and falls), and a mass of 0 welds a free object to
+        the world where it is now.
+        """
+        (m_new,) = check_finite('mass', [mass], 1)
+        if m_new < 0:
+            raise InvalidArgumentError(f'mass must be >= 0, got {mass}')
+        with self._locked():
+            rec = self._index.entity(name)
+            if m_new == 0:
+                if rec.category == ROBOT:
+                    raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
+                if rec.has_free_joint:
+                    self._kinematics_locked()
+                    pos, q = state.body_pose(self._data, rec.root_body)
+                    self._edit_locked(lambda spec: (
+                        editor.place_root(spec, name, self._frame_of(spec, name), pos, q),
+                        editor.weld(spec, rec)))
+                return
+            total = float(sum(self._model.body_mass[b] for b in rec.body_ids))
+            if total <= 0:
+                raise IncorrectStateError(ERR_NO_MASS.format(name=name))
+            model, index = self._model, self._index
+            self._edit_locked(lambda spec: (
+                editor.free(spec, rec) if rec.category == STATIC else None,
+                editor.scale_mass(spec, model, index, rec, m_new / total)))

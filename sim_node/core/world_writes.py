@@ -1,0 +1,124 @@
+"""Writing the state of a world: entity poses and twists, joint positions and velocities.
+A mixin of :class:`~sim_node.core.world.World`, split out only to keep one file per job: each
+method locks, checks everything, then writes (see :mod:`.state`).
+"""
+
+from typing import Optional, Sequence
+
+import numpy as np
+
+from . import editor, quat, state
+from .checks import check_finite, check_pose
+from .errors import IncorrectStateError
+from .types import EntityRecord
+
+ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it cannot have a '
+                    'velocity (only its pose can be set)')
+
+
+class StateWrites:
+    """State overwrite of a :class:`World` (see its docstring)."""
+
+    def set_entity_state(self, name: str, position: Optional[Sequence[float]] = None,
+                         quat_wxyz: Optional[Sequence[float]] = None,
+                         linear_velocity: Optional[Sequence[float]] = None,
+                         angular_velocity: Optional[Sequence[float]] = None,
+                         reference: str = '') -> None:
+        """Set the pose and/or twist of an entity's root body (world frame or `reference`).
+
+        A free body is moved through its free joint. A welded entity (static object or
+        fixed-base robot) can be moved (its model is rebuilt, keeping all state) but its
+        twist must be zero.
+        """
+        with self._locked():
+            self._overwrite_locked({name: (position, quat_wxyz)},
+                                  {name: (linear_velocity, angular_velocity)}, {}, {},
+                                  reference)
+
+    def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
+                  joint_positions: Optional[dict] = None,
+                  joint_velocities: Optional[dict] = None) -> None:
+        """Overwrite any parts of the state at once, in the world frame: ``poses``
+        {entity: (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and
+        {joint: value} for hinge/slide joint positions and velocities.
+
+        Everything is checked before anything changes, so an error changes nothing. An
+        entity without a free joint given its current pose stays put (no rebuild); given
+        another pose it is moved (model rebuilt, state kept), and a non-zero twist for it is
+        refused.
+        """
+        with self._locked():
+            self._overwrite_locked(poses or {}, twists or {}, joint_positions or {},
+                                  joint_velocities or {}, '')
+
+    def _overwrite_locked(self, poses: dict, twists: dict, joint_positions: dict,
+                         joint_velocities: dict, reference: str) -> None:
+        idx, d = self._index, self._data
+        self._kinematics_locked()
+        frame = self._frame_locked(reference) if reference else None
+        targets = {}  # entity -> (record, pos, quat, lin, ang), checked, in the world frame
+        for n in (*poses, *twists):
+            rec = idx.entity(n)
+            targets[n] = (rec, *self._check_target_locked(
+                rec, *poses.get(n, (None, None)), *twists.get(n, (None, None)), frame))
+        q_adr, q_values = self._joint_targets_locked('position', joint_positions, True)
+        v_adr, v_values = self._joint_targets_locked('velocity', joint_velocities, False)
+        welded_moves = []
+        for rec, pos, q, lin, ang in targets.values():
+            if rec.has_free_joint:
+                continue
+            if any(v is not None and np.any(v != 0) for v in (lin, ang)):
+                raise IncorrectStateError(ERR_STATIC_TWIST.format(name=rec.name,
+                                                                  category=rec.category))
+            root = rec.root_body
+            if pos is not None and not (
+                    np.allclose(pos, d.xpos[root], rtol=0, atol=1e-9)
+                    and abs(abs(float(np.dot(q, d.xquat[root]))) - 1.0) < 1e-12):
+                welded_moves.append((rec, pos, q))
+        if welded_moves:  # all moves in one rebuild, before the direct writes
+            self._edit_locked(lambda spec: [editor.place_root(
+                spec, rec.name, self._frame_of(spec, rec.name), pos, q)
+                for rec, pos, q in welded_moves])
+        for rec, pos, q, lin, ang in targets.values():
+            if rec.has_free_joint:
+                state.write_free_body(self._model, self._data, rec, pos, q, lin, ang)
+        self._data.qpos[q_adr] = q_values
+        self._data.qvel[v_adr] = v_values
+        self._forward_locked()
+
+    def _check_target_locked(self, rec: EntityRecord, position, quat_wxyz, linear, angular,
+                             frame: Optional[tuple]) -> tuple:
+        """Checked world-frame (pos, quat, lin, ang), None where not given; a pose given by
+        one half keeps the current other half."""
+        pos = q = lin = ang = None
+        if position is not None or quat_wxyz is not None:
+            cur_pos, cur_q = state.body_pose(self._data, rec.root_body)
+            if frame is not None:
+                cur_pos, cur_q = quat.to_frame(*frame, cur_pos, cur_q)
+            pos, q = check_pose(cur_pos if position is None else position,
+                                cur_q if quat_wxyz is None else quat_wxyz)
+            if frame is not None:
+                pos, q = quat.from_frame(*frame, pos, q)
+        if linear is not None:
+            lin = check_finite('linear velocity', linear, 3)
+        if angular is not None:
+            ang = check_finite('angular velocity', angular, 3)
+        if frame is not None:
+            lin = None if lin is None else quat.rotate(frame[1], lin)
+            ang = None if ang is None else quat.rotate(frame[1], ang)
+        return pos, q, lin, ang
+
+    def set_joint_positions(self, positions: dict) -> None:
+        """Set hinge/slide joint positions by name (velocities are kept)."""
+        with self._locked():
+            self._overwrite_locked({}, {}, positions, {}, '')
+
+    def set_joint_velocities(self, velocities: dict) -> None:
+        with self._locked():
+            self._overwrite_locked({}, {}, {}, velocities, '')
+
+    def _joint_targets_locked(self, what: str, values: dict, use_qpos: bool) -> tuple:
+        """Checked (qpos or qvel addresses, values) for {joint: value}."""
+        i = self._index.joints(values.keys())
+        vals = check_finite(f'joint {what}s', list(values.values()))
+        return (self._index.joint_qposadr if use_qpos else self._index.joint_dofadr)[i], vals
