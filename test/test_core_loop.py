@@ -43,11 +43,9 @@ def test_step_while_playing_is_refused(make_loop):
 def test_paused_loop_uses_no_cpu(make_loop):
     loop = make_loop(paused=True)
     time.sleep(0.1)
-    c0 = time.thread_time()  # this thread only; measure the process instead:
     p0 = time.process_time()
     time.sleep(0.5)
     assert time.process_time() - p0 < 0.05
-    assert c0 >= 0
 
 
 def test_max_steps_stops_the_loop_and_says_why(make_loop):

@@ -12,7 +12,8 @@ from sim_node.core import sources
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
                                   InvalidPoseError, MissingAssetsError, NameNotUniqueError,
-                                  NotFoundError, ResourceParseError, UnsupportedFormatError)
+                                  NotFoundError, ResourceParseError, UnsupportedAssetsError,
+                                  UnsupportedFormatError)
 from sim_node.core.types import RESET_SPAWNED, RESET_STATE, RESET_TIME
 from sim_node.core.world import World
 
@@ -364,7 +365,7 @@ def test_fifo_and_dotdot_paths_are_refused(tmp_path):
     import os
     fifo = tmp_path / 'pipe.xml'
     os.mkfifo(fifo)
-    with pytest.raises(Exception) as info:
+    with pytest.raises(UnsupportedAssetsError) as info:
         sources.from_file(str(fifo))
     assert 'regular file' in str(info.value)
     with pytest.raises(MissingAssetsError):
@@ -381,7 +382,7 @@ def test_mesh_spawn(world, tmp_path):
     world.delete('pyr')
     bad = tmp_path / 'bad.stl'
     bad.write_text('this is not a mesh')
-    with pytest.raises(Exception):
+    with pytest.raises(UnsupportedAssetsError):
         sources.from_file(str(bad))
 
 
