@@ -19,6 +19,7 @@ from tf2_msgs.msg import TFMessage
 
 from sim_node.core import errors, quat
 from sim_node.core.types import DYNAMIC, ROBOT, STATIC, ModelInfo, Snapshot
+from sim_node.entity_query import Region
 
 # Core exceptions -> simulation_interfaces Result codes, in one table. Service-specific codes
 # (SpawnEntity.Response.NAME_NOT_UNIQUE, ...) are looked up by name on the response type.
@@ -117,6 +118,29 @@ def entity_state_to_msg(state, frame_id: str) -> EntityState:
 
 def bounds_box(lo: Sequence[float], hi: Sequence[float]) -> Bounds:
     return Bounds(type=Bounds.TYPE_BOX, points=[vec(lo), vec(hi)])
+
+
+MSG_TO_CATEGORY = {v: k for k, v in CATEGORY_TO_MSG.items()}
+
+
+def entity_filters(filters) -> dict:
+    """An EntityFilters message as keyword arguments of ``sim_node.entity_query.query``."""
+    out = {'pattern': filters.filter, 'tags': tuple(filters.tags.tags), 'region': None,
+           'categories': ({MSG_TO_CATEGORY.get(c.category) for c in filters.categories}
+                          if len(filters.categories) else None)}
+    b = filters.bounds
+    if b.type == Bounds.TYPE_BOX:
+        if len(b.points) != 2:
+            raise errors.InvalidArgumentError('box bounds need 2 points: min and max corners')
+        out['region'] = Region('box', vec_from_msg(b.points[0]), vec_from_msg(b.points[1]))
+    elif b.type == Bounds.TYPE_SPHERE:
+        if len(b.points) != 2:
+            raise errors.InvalidArgumentError('sphere bounds need 2 points: center and '
+                                              '(radius, 0, 0)')
+        out['region'] = Region('sphere', vec_from_msg(b.points[0]), vec_from_msg(b.points[1]))
+    elif b.type == Bounds.TYPE_CONVEX_HULL:
+        raise errors.UnsupportedFormatError('convex hull bounds filters are not supported')
+    return out
 
 
 def simulation_state(loop_state: str) -> SimulationState:

@@ -1,0 +1,64 @@
+"""The node's ROS parameters, declared from :class:`~sim_node.core.config.WorldConfig` with
+descriptors (description, range, read-only where a change needs a restart)."""
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+
+from .core.config import WorldConfig
+
+
+def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
+                imin=None, imax=None) -> ParameterDescriptor:
+    d = ParameterDescriptor(description=description, read_only=read_only)
+    if fmin is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(fmin),
+                                                     to_value=float(fmax), step=0.0)]
+    if imin is not None:
+        d.integer_range = [IntegerRange(from_value=int(imin), to_value=int(imax), step=0)]
+    return d
+
+
+def declare(node: Node, scenes_dir: str) -> None:
+    """Declare every parameter of the node with its default."""
+    c = WorldConfig()
+    d = _descriptor
+    node.declare_parameter('scene', 'default', d(
+        'MJCF/URDF scene: a file path or an installed scene name', read_only=True))
+    node.declare_parameter('real_time_factor', c.real_time_factor, d(
+        'simulated seconds per wall second; 0 = as fast as possible', fmin=0, fmax=1000))
+    node.declare_parameter('paused', c.paused, d('pause or play the simulation'))
+    node.declare_parameter('timestep', c.timestep, d(
+        'physics step in seconds; 0 keeps the scene\'s own', fmin=0, fmax=0.1))
+    node.declare_parameter('max_steps', c.max_steps, d(
+        'pause after this many steps since the last time reset; 0 = unbounded',
+        imin=0, imax=2 ** 62))
+    node.declare_parameter('max_sim_time', c.max_sim_time, d(
+        'pause after the first step at or past this simulated time (s); 0 = unbounded',
+        fmin=0, fmax=1e9))
+    node.declare_parameter('tf_rate_hz', 100.0, d(
+        'rate of /clock and /tf (wall Hz)', read_only=True, fmin=1, fmax=1000))
+    node.declare_parameter('joint_states_rate_hz', 50.0, d(
+        'rate of joint_states (wall Hz)', read_only=True, fmin=1, fmax=1000))
+    node.declare_parameter('world_frame', 'world', d(
+        'TF frame of the MuJoCo world body', read_only=True))
+    node.declare_parameter('resource_paths', [scenes_dir], d(
+        'directories that spawn and load_world may read files from', read_only=True))
+    node.declare_parameter('kp', c.kp, d(
+        'PD stiffness for position commands on joints without a position actuator',
+        fmin=0, fmax=1e6))
+    node.declare_parameter('kd', c.kd, d(
+        'PD damping for position/velocity commands without a matching actuator',
+        fmin=0, fmax=1e6))
+    node.declare_parameter('allow_interpenetration', c.allow_interpenetration, d(
+        'allow spawning into overlapping geometry', read_only=True))
+
+
+def world_config(node: Node) -> WorldConfig:
+    """The configuration the node's current parameters describe."""
+    def p(name: str):
+        return node.get_parameter(name).value
+    return WorldConfig(
+        real_time_factor=p('real_time_factor'), paused=p('paused'), timestep=p('timestep'),
+        max_steps=p('max_steps'), max_sim_time=p('max_sim_time'),
+        snapshot_rate_hz=max(p('tf_rate_hz'), p('joint_states_rate_hz')),
+        kp=p('kp'), kd=p('kd'), allow_interpenetration=p('allow_interpenetration'))

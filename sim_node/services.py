@@ -1,0 +1,387 @@
+"""The node's simulation_interfaces services and the simulate_steps action: each callback
+converts the request, calls the core, converts the answer (``msg_adapters``). A mixin of
+:class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameters and lifecycle.
+"""
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from simulation_interfaces import srv as si_srv
+from simulation_interfaces.action import SimulateSteps
+from simulation_interfaces.msg import EntityCategory, EntityInfo, Resource, Result, \
+    SimulationState, SimulatorFeatures, Spawnable, TagsFilter, WorldResource
+from tf2_msgs.msg import TFMessage
+
+from msg_adapters import convert, markers
+from . import entity_query, resources
+from .core import sources
+from .core.errors import InvalidArgumentError, NotFoundError, SimError
+from .core.loop import SimLoop
+from .core.types import RESET_ALL
+from .core.world import World
+
+MAX_RESOURCE_STRING_BYTES = 5_000_000
+ERR_NO_WORLD = 'no world is loaded; call load_world first'
+
+
+class Sim:
+    """A loaded world with its loop and where it came from."""
+
+    def __init__(self, world: World, loop: SimLoop, name: str, uri: str):
+        self.world, self.loop, self.name, self.uri = world, loop, name, uri
+
+
+class SimServices:
+    """Service and action callbacks of the sim node (see the module docstring)."""
+
+    # ------------------------------------------------------------------ services
+
+    def _make_services(self) -> None:
+        g = self._srv_group
+        table = {
+            'get_simulator_features': (si_srv.GetSimulatorFeatures, self._srv_features),
+            'spawn_entity': (si_srv.SpawnEntity, self._srv_spawn),
+            'delete_entity': (si_srv.DeleteEntity, self._srv_delete),
+            'get_entities': (si_srv.GetEntities, self._srv_get_entities),
+            'get_entity_state': (si_srv.GetEntityState, self._srv_get_state),
+            'get_entities_states': (si_srv.GetEntitiesStates, self._srv_get_states),
+            'set_entity_state': (si_srv.SetEntityState, self._srv_set_state),
+            'get_entity_info': (si_srv.GetEntityInfo, self._srv_get_info),
+            'get_entity_bounds': (si_srv.GetEntityBounds, self._srv_get_bounds),
+            'get_spawnables': (si_srv.GetSpawnables, self._srv_spawnables),
+            'reset_simulation': (si_srv.ResetSimulation, self._srv_reset),
+            'step_simulation': (si_srv.StepSimulation, self._srv_step),
+            'get_simulation_state': (si_srv.GetSimulationState, self._srv_get_sim_state),
+            'set_simulation_state': (si_srv.SetSimulationState, self._srv_set_sim_state),
+            'get_available_worlds': (si_srv.GetAvailableWorlds, self._srv_worlds),
+            'load_world': (si_srv.LoadWorld, self._srv_load_world),
+            'unload_world': (si_srv.UnloadWorld, self._srv_unload_world),
+            'get_current_world': (si_srv.GetCurrentWorld, self._srv_current_world),
+        }
+        if hasattr(si_srv, 'SpawnEntities'):
+            table['spawn_entities'] = (si_srv.SpawnEntities, self._srv_spawn_many)
+        for name, (srv_type, handler) in table.items():
+            self.create_service(srv_type, name, self._guard(srv_type, handler),
+                                callback_group=g)
+        self._action = ActionServer(
+            self, SimulateSteps, 'simulate_steps', execute_callback=self._act_simulate,
+            goal_callback=lambda goal: GoalResponse.ACCEPT,
+            cancel_callback=lambda handle: CancelResponse.ACCEPT, callback_group=g)
+
+    def _guard(self, srv_type, handler):
+        """Every core error becomes a Result; nothing escapes to kill spin()."""
+        def callback(request, response):
+            try:
+                return handler(request, response)
+            except SimError as exc:
+                response.result = convert.result_for(exc, srv_type.Response)
+            except Exception as exc:  # a bug must not take the node down: report it
+                self.get_logger().error(f'{handler.__name__} failed: {exc!r}')
+                response.result = Result(result=Result.RESULT_OPERATION_FAILED,
+                                         error_message=f'internal error: {exc!r}')
+            return response
+        return callback
+
+    def _srv_features(self, request, response):
+        f = SimulatorFeatures
+        response.features.features = [
+            f.SPAWNING, f.DELETING, f.ENTITY_BOUNDS, f.ENTITY_BOUNDS_BOX, f.ENTITY_CATEGORIES,
+            f.SPAWNING_RESOURCE_STRING, f.ENTITY_STATE_GETTING, f.ENTITY_STATE_SETTING,
+            f.ENTITY_INFO_GETTING, f.SPAWNABLES, f.SIMULATION_RESET, f.SIMULATION_RESET_TIME,
+            f.SIMULATION_RESET_STATE, f.SIMULATION_RESET_SPAWNED, f.SIMULATION_STATE_GETTING,
+            f.SIMULATION_STATE_SETTING, f.SIMULATION_STATE_PAUSE, f.STEP_SIMULATION_SINGLE,
+            f.STEP_SIMULATION_MULTIPLE, f.STEP_SIMULATION_ACTION, f.WORLD_LOADING,
+            f.WORLD_RESOURCE_STRING, f.WORLD_UNLOADING, f.WORLD_INFO_GETTING,
+            f.AVAILABLE_WORLDS]
+        if hasattr(si_srv, 'SpawnEntities'):
+            response.features.features.append(f.SPAWNING_ENTITIES)
+        response.features.spawn_formats = ['mjcf', 'urdf'] + [
+            s[1:] for s in sources.MESH_SUFFIXES]
+        response.features.custom_info = (
+            'MuJoCo simulator. Spawn: uri = spawnable name, package://sim/..., file:// inside '
+            'resource_paths (MJCF, URDF, STL, OBJ, PLY, GLB, DAE) or resource_string (MJCF or '
+            'URDF text). initial_pose.header.frame_id: empty or the world frame, or an entity.')
+        return response
+
+    # ---- spawning
+
+    def _source_for(self, uri: str, resource_string: str) -> sources.SpawnSource:
+        roots = self._resource_paths
+        if resource_string:
+            # from_model_text refuses text over max_bytes (UNSUPPORTED_ASSETS) before parsing.
+            return sources.from_model_text(resource_string, base_dir=None,
+                                           allowed_roots=roots,
+                                           max_bytes=MAX_RESOURCE_STRING_BYTES)
+        path = resources.resolve_uri(uri, roots, self._scenes_dir)
+        return sources.from_file(str(path), allowed_roots=roots)
+
+    def _reference_frame(self, frame_id: str) -> str:
+        """'' for the world frame, else the entity whose frame the pose is given in."""
+        if frame_id in ('', self._world_frame, '/' + self._world_frame):
+            return ''
+        return frame_id
+
+    def _spawn_one(self, sim: Sim, name: str, allow_renaming: bool, uri: str,
+                   resource_string: str, namespace: str, initial_pose) -> str:
+        src = self._source_for(uri, resource_string)  # parse outside the world lock
+        pos, quat = convert.pose_from_msg(initial_pose.pose)
+        return sim.world.spawn(name, src, pos, quat,
+                               reference=self._reference_frame(initial_pose.header.frame_id),
+                               allow_renaming=allow_renaming, namespace=namespace)
+
+    def _srv_spawn(self, request, response):
+        sim = self._require()
+        response.entity_name = self._spawn_one(
+            sim, request.name, request.allow_renaming, request.uri, request.resource_string,
+            request.entity_namespace, request.initial_pose)
+        self._after_change(sim)
+        response.result = convert.ok()
+        return response
+
+    def _srv_spawn_many(self, request, response):
+        from simulation_interfaces.msg import SpawnResult  # only in releases that have it
+        sim = self._require()
+        failed = 0
+        for req in request.spawn_requests:
+            res = SpawnResult()
+            try:
+                res.entity_name = self._spawn_one(
+                    sim, req.name, req.allow_renaming, req.entity_resource.uri,
+                    req.entity_resource.resource_string, req.entity_namespace, req.initial_pose)
+                res.result = convert.ok()
+            except SimError as exc:
+                failed += 1
+                res.result = convert.result_for(exc, SpawnResult)
+            response.results.append(res)
+        self._after_change(sim)
+        if failed:
+            response.result = Result(result=si_srv.SpawnEntities.Response.ENTITIES_SPAWN_FAILED,
+                                     error_message=f'{failed} of {len(request.spawn_requests)} '
+                                     'spawns failed; see results')
+        else:
+            response.result = convert.ok()
+        return response
+
+    def _srv_delete(self, request, response):
+        sim = self._require()
+        sim.world.delete(request.entity)
+        self._after_change(sim)
+        response.result = convert.ok()
+        return response
+
+    # ---- entities
+
+    @staticmethod
+    def _filtered(sim: Sim, filters) -> list:
+        return entity_query.query(sim.world, **convert.entity_filters(filters))
+
+    def _srv_get_entities(self, request, response):
+        response.entities = [r.name for r in self._filtered(self._require(), request.filters)]
+        response.result = convert.ok()
+        return response
+
+    def _srv_get_state(self, request, response):
+        state = self._require().world.get_entity_state(request.entity)
+        response.state = convert.entity_state_to_msg(state, self._world_frame)
+        response.result = convert.ok()
+        return response
+
+    def _srv_get_states(self, request, response):
+        sim = self._require()
+        for rec in self._filtered(sim, request.filters):
+            try:
+                state = sim.world.get_entity_state(rec.name)
+            except NotFoundError:
+                continue  # deleted meanwhile
+            response.entities.append(rec.name)
+            response.states.append(convert.entity_state_to_msg(state, self._world_frame))
+        response.result = convert.ok()
+        return response
+
+    def _srv_set_state(self, request, response):
+        sim = self._require()
+        st = request.state
+        pos, quat = convert.pose_from_msg(st.pose)
+        sim.world.set_entity_state(
+            request.entity, position=pos, quat_wxyz=quat,
+            linear_velocity=convert.vec_from_msg(st.twist.linear),
+            angular_velocity=convert.vec_from_msg(st.twist.angular),
+            reference=self._reference_frame(st.header.frame_id))
+        self._after_change(sim)
+        response.result = convert.ok()
+        return response
+
+    def _srv_get_info(self, request, response):
+        rec = self._require().world.entity(request.entity)
+        response.info = EntityInfo(category=EntityCategory(
+            category=convert.CATEGORY_TO_MSG[rec.category]), description=rec.description,
+            tags=[])
+        response.result = convert.ok()
+        return response
+
+    def _srv_get_bounds(self, request, response):
+        lo, hi = self._require().world.entity_bounds(request.entity)
+        response.bounds = convert.bounds_box(lo, hi)
+        response.result = convert.ok()
+        return response
+
+    def _srv_spawnables(self, request, response):
+        for uri, desc in resources.list_spawnables(self._resource_paths, self._scenes_dir,
+                                                   list(request.sources)):
+            response.spawnables.append(Spawnable(uri=uri, description=desc))
+        response.result = convert.ok()
+        return response
+
+    # ---- simulation control
+
+    def _srv_reset(self, request, response):
+        sim = self._require()
+        sim.world.reset(int(request.scope))
+        self._after_change(sim)
+        response.result = convert.ok()
+        return response
+
+    def _srv_step(self, request, response):
+        sim = self._require()
+        if request.steps < 1:
+            raise InvalidArgumentError('steps must be >= 1')
+        sim.loop.step(int(request.steps))
+        response.result = convert.ok()
+        return response
+
+    def _sim_state(self) -> str:
+        sim = self._sim
+        if sim is None:
+            return 'no_world'
+        if self._stopped:
+            return 'stopped'
+        return 'paused' if sim.loop.paused else 'playing'
+
+    def _srv_get_sim_state(self, request, response):
+        response.state = convert.simulation_state(self._sim_state())
+        response.result = convert.ok()
+        return response
+
+    def _srv_set_sim_state(self, request, response):
+        target = request.state.state
+        s = SimulationState
+        resp = si_srv.SetSimulationState.Response
+        if target == s.STATE_QUITTING or target not in (s.STATE_PLAYING, s.STATE_PAUSED,
+                                                        s.STATE_STOPPED):
+            response.result = Result(result=resp.INCORRECT_TRANSITION, error_message=(
+                f'cannot set state {target}: use PLAYING ({s.STATE_PLAYING}), PAUSED '
+                f'({s.STATE_PAUSED}) or STOPPED ({s.STATE_STOPPED})'))
+            return response
+        sim = self._require()
+        current = convert.simulation_state(self._sim_state()).state
+        if current == target:
+            response.result = Result(result=resp.ALREADY_IN_TARGET_STATE,
+                                     error_message='already in that state')
+            return response
+        if target == s.STATE_PLAYING:
+            self._stopped = False
+            sim.loop.play()
+        elif target == s.STATE_PAUSED:
+            self._stopped = False
+            sim.loop.pause()
+        else:
+            sim.loop.pause()
+            sim.world.reset(RESET_ALL)
+            self._stopped = True
+            self._after_change(sim)
+        self._sync_paused_parameter()
+        response.result = convert.ok()
+        return response
+
+    def _act_simulate(self, goal_handle):
+        sim = self._sim
+        total = int(goal_handle.request.steps)
+        result = SimulateSteps.Result()
+        if sim is None or total < 1:
+            goal_handle.abort()
+            result.result = Result(result=Result.RESULT_INCORRECT_STATE if sim is None else
+                                   Result.RESULT_OPERATION_FAILED,
+                                   error_message=ERR_NO_WORLD if sim is None else
+                                   'steps must be >= 1')
+            return result
+        chunk = max(1, total // 100)
+        done = 0
+        try:
+            while done < total:
+                if goal_handle.is_cancel_requested:
+                    goal_handle.canceled()
+                    result.result = Result(result=Result.RESULT_OK,
+                                           error_message=f'canceled after {done} steps')
+                    return result
+                done += sim.loop.step(min(chunk, total - done))
+                fb = SimulateSteps.Feedback(completed_steps=done, remaining_steps=total - done)
+                goal_handle.publish_feedback(fb)
+        except SimError as exc:
+            goal_handle.abort()
+            result.result = convert.result_for(exc)
+            return result
+        goal_handle.succeed()
+        result.result = convert.ok()
+        return result
+
+    # ---- worlds
+
+    def _srv_worlds(self, request, response):
+        for name, uri in resources.list_worlds(self._scenes_dir):
+            response.worlds.append(WorldResource(name=name, description=f'scene {name}',
+                                                 world_resource=_resource(uri)))
+        for src in request.additional_sources:
+            folder = resources.check_folder(src, self._resource_paths)
+            for f in sorted(folder.glob('*.xml')):
+                response.worlds.append(WorldResource(name=f.stem, description=str(f),
+                                                     world_resource=_resource(f.as_uri())))
+        if request.filter.tags and request.filter.filter_mode in (TagsFilter.FILTER_MODE_ANY,
+                                                                  TagsFilter.FILTER_MODE_ALL):
+            response.worlds = []  # worlds carry no tags
+        response.result = convert.ok()
+        return response
+
+    def _srv_load_world(self, request, response):
+        cfg = self.world_config()
+        if request.resource_string:
+            src = request.resource_string
+            # Size, XML, and files only inside the resource paths: the same checks as a spawn.
+            sources.check_model_text(src, None, self._resource_paths, MAX_RESOURCE_STRING_BYTES)
+            world = World.from_string(src, cfg)
+            name, uri = 'resource_string', ''
+        else:
+            path = resources.resolve_uri(request.uri, self._resource_paths, self._scenes_dir)
+            sources.check_model_text(path.read_text(), str(path.parent), self._resource_paths)
+            world = World.from_file(str(path), cfg)
+            name, uri = path.stem, request.uri
+        self._stopped = False
+        self._install(world, name, uri)
+        response.world = WorldResource(name=name, world_resource=_resource(uri))
+        response.result = convert.ok()
+        return response
+
+    def _srv_unload_world(self, request, response):
+        with self._sim_lock:
+            sim, self._sim = self._sim, None
+        if sim is None:
+            response.result = Result(result=si_srv.UnloadWorld.Response.NO_WORLD_LOADED,
+                                     error_message=ERR_NO_WORLD)
+            return response
+        sim.loop.stop()
+        self._published_generation = None
+        self._marker_pub.publish(markers.clear_markers(sim.world.time, self._world_frame))
+        self._tf_static_pub.publish(TFMessage())
+        response.result = convert.ok()
+        return response
+
+    def _srv_current_world(self, request, response):
+        sim = self._sim
+        if sim is None:
+            response.result = Result(result=si_srv.GetCurrentWorld.Response.NO_WORLD_LOADED,
+                                     error_message=ERR_NO_WORLD)
+            return response
+        response.world = WorldResource(name=sim.name, world_resource=_resource(sim.uri))
+        response.result = convert.ok()
+        return response
+
+
+def _resource(uri: str) -> Resource:
+    return Resource(uri=uri, resource_string='')

@@ -1,0 +1,48 @@
+"""The entity query behind get_entities / get_entities_states, ROS-free, and the conversion of
+an EntityFilters message into it."""
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Vector3
+from simulation_interfaces.msg import Bounds, EntityCategory, EntityFilters
+
+from conftest import DEFAULT_SCENE
+from msg_adapters import convert
+from sim_node.core.errors import InvalidArgumentError
+from sim_node.core.world import World
+from sim_node.entity_query import Region, query
+
+
+@pytest.fixture(scope='module')
+def world():
+    return World.from_file(str(DEFAULT_SCENE))
+
+
+def names(recs):
+    return [r.name for r in recs]
+
+
+def test_pattern_category_and_region(world):
+    assert names(query(world, pattern='^box_')) == ['box_a', 'box_b']
+    assert names(query(world, categories={'robot'})) == ['robot']
+    assert names(query(world, categories={'dynamic'}, tags=('red',))) == []
+    near_table = Region('box', np.array([0.6, -0.2, 0.1]), np.array([0.8, 0.2, 1.0]))
+    assert names(query(world, region=near_table)) == ['box_a']  # table at z 0, box_b x 0.9
+    ball = Region('sphere', np.zeros(3), np.array([0.5, 0, 0]))
+    assert names(query(world, region=ball)) == ['robot']
+    with pytest.raises(InvalidArgumentError):
+        query(world, pattern='(')
+
+
+def test_entity_filters_message_becomes_the_same_query(world):
+    static = EntityFilters(categories=[EntityCategory(
+        category=EntityCategory.CATEGORY_STATIC_OBJECT)])
+    assert names(query(world, **convert.entity_filters(static))) == ['table']
+    msg = EntityFilters(filter='box')
+    msg.categories = [EntityCategory(category=EntityCategory.CATEGORY_DYNAMIC_OBJECT)]
+    msg.bounds = Bounds(type=Bounds.TYPE_SPHERE, points=[Vector3(x=0.9, y=0.0, z=0.7),
+                                                         Vector3(x=0.05)])
+    assert names(query(world, **convert.entity_filters(msg))) == ['box_b']
+    msg.bounds = Bounds(type=Bounds.TYPE_BOX, points=[Vector3()])
+    with pytest.raises(InvalidArgumentError):
+        convert.entity_filters(msg)
