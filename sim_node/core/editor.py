@@ -3,15 +3,23 @@ mass, moving welded bodies). Functions of a spec (and, to read current values, a
 compiles the live spec or touches MjData: the world validates, applies and recompiles.
 """
 
+import logging
 import math
+import warnings
 from typing import Optional, Sequence
 
 import mujoco
 import numpy as np
 
-from . import sources
+from . import quat, sources
 from .index import ModelIndex
+from .errors import ResourceParseError
 from .types import EntityRecord
+
+log = logging.getLogger(__name__)
+
+ERR_NO_BODY = ('the model has no body besides ground planes: put its geoms in a body to spawn '
+               'them')
 
 # Contact time constant used with a restitution (s): long enough that a 1-5 ms step resolves
 # the bounce without gaining energy (shorter ones do, above e = 0.5).
@@ -26,6 +34,13 @@ _RESTITUTION_CORRECTION = 0.12
 OWN_CONTACT_PRIORITY = 1
 
 _BODY_TYPES = (int(mujoco.mjtObj.mjOBJ_BODY), int(mujoco.mjtObj.mjOBJ_XBODY))
+# The frame a spawned entity is attached through: ``<entity>/__spawn_frame``.
+SPAWN_FRAME = '__spawn_frame'
+# Spec element lists swept by name prefix when an entity is removed (what its frame does not
+# take with it).
+_NAMED_KINDS = ('meshes', 'skins', 'hfields', 'textures', 'materials', 'tendons', 'actuators',
+                'sensors', 'equalities', 'excludes', 'pairs', 'numerics', 'texts', 'tuples',
+                'keys', 'flexes', 'frames')
 
 
 def restitution_to_solref(restitution: float) -> list:
@@ -61,26 +76,58 @@ def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
 
 def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.ndarray,
            quat_wxyz: np.ndarray) -> tuple:
-    """Attach a copy of `source` to `spec` at a world pose: its root body is named `name`,
-    its other elements ``name/<original>``. Returns (frame, asset names)."""
+    """Attach a copy of a whole model to `spec` through a frame at a world pose.
+
+    Every element comes along under the prefix ``name/``; the first top-level body is renamed
+    `name` and is the entity's root. Whole-world furniture follows one rule: ground planes
+    directly in the model's <worldbody> are dropped (logged); its other static geometry was
+    gathered into a welded body by :mod:`.sources`; its lights, cameras and assets come along;
+    its keyframes are dropped (the world's keep working: the entity's part of them is its
+    spawn state); its <option>, <size> and <visual> give way to the world's (MuJoCo logs each
+    difference). Its <compiler> settings (angle units, asset folders) apply to it alone.
+
+    :returns: (frame name, names of the entity's top-level bodies, root first).
+    """
     child = source.spec.copy()
+    planes = [g for g in child.worldbody.geoms if g.type == mujoco.mjtGeom.mjGEOM_PLANE]
+    for g in planes:
+        child.delete(g)
+    if planes:
+        log.info('spawning %r: dropped its ground plane(s) %s; the world has its own floor',
+                 name, ', '.join(repr(g.name or '(unnamed)') for g in planes))
+    for key in list(child.keys):
+        child.delete(key)
     name_unnamed(child)
-    root = child.worldbody.first_body()
-    old_root = f'{name}/{root.name}'
+    tops = [b.name for b in child.worldbody.bodies]
+    if not tops:  # MJCF text has its static geometry gathered into a body; a spec built in
+        raise ResourceParseError(ERR_NO_BODY)  # code must do that itself
     frame = spec.worldbody.add_frame(pos=pos.tolist(), quat=quat_wxyz.tolist())
-    body = frame.attach_body(root, f'{name}/', '')
-    body.name = name
+    frame.name = f'{name}/{SPAWN_FRAME}'
+    with warnings.catch_warnings(record=True) as conflicts:
+        warnings.simplefilter('always')
+        spec.attach(child, prefix=f'{name}/', frame=frame)
+    for w in conflicts:  # "Attach conflict ... keeping parent value", one per setting
+        log.info('spawning %r: the world keeps its own settings: %s', name,
+                 ' '.join(str(w.message).split()))
+    old_root = f'{name}/{tops[0]}'
+    spec.body(old_root).name = name
     _rename_body_references(spec, old_root, name)
     if source.assets:
         spec.assets = {**spec.assets, **source.assets}
-    return frame, tuple(source.assets)
+    return frame.name, (name,) + tuple(f'{name}/{t}' for t in tops[1:])
 
 
-def remove(spec: mujoco.MjSpec, name: str, frame, assets: Sequence[str]) -> None:
-    """Remove an attached entity's body tree (joints, geoms, actuators, sensors, equality
-    constraints, contact pairs and excludes go with it), its frame and its assets."""
-    spec.delete(spec.body(name))
-    spec.delete(frame)
+def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str]) -> None:
+    """Remove an attached entity: its frame with everything attached through it (bodies,
+    joints, geoms, lights, cameras; actuators, sensors, tendons, equality constraints, contact
+    pairs and excludes that refer to them), every other element under its prefix (assets),
+    and its in-memory assets."""
+    spec.delete(spec.frame(frame))
+    prefix = f'{name}/'
+    for kind in _NAMED_KINDS:
+        for e in list(getattr(spec, kind, ())):
+            if e.name.startswith(prefix):
+                spec.delete(e)
     if assets:
         spec.assets = {k: v for k, v in spec.assets.items() if k not in assets}
 
@@ -141,21 +188,44 @@ def apply_contact(spec: mujoco.MjSpec, geom_names: Sequence[str],
         geom.priority = priority
 
 
-def place_root(spec: mujoco.MjSpec, body_name: str, frame, pos: np.ndarray,
-               quat_wxyz: np.ndarray) -> None:
-    """Put an entity's root body at a world pose in the spec (its attachment frame, if any,
-    becomes the identity)."""
-    if frame is not None:
-        frame.pos, frame.quat = [0, 0, 0], [1, 0, 0, 0]
-    body = spec.body(body_name)
-    body.pos, body.quat = pos.tolist(), quat_wxyz.tolist()
+def move_group(spec: mujoco.MjSpec, frame: Optional[str], body_name: str,
+               model_pose: tuple, pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
+    """Move a welded entity so that its root body is at a world pose: a spawned entity by its
+    frame (the welded bodies it came with move along), a scene entity by its body.
+
+    :param model_pose: (pos (3,), quat (4,)): the root's compiled pose in the world
+        (``model.body_pos``/``body_quat`` of a top-level body).
+    """
+    if frame is None:
+        set_body_pose(spec.body(body_name), pos, quat_wxyz)
+        return
+    f = spec.frame(frame)
+    # The root's pose in its frame, local = F^-1 * model_pose; the new frame is then
+    # F' = target * local^-1.
+    lpos, lquat = quat.to_frame(np.array(f.pos), np.array(f.quat), *model_pose)
+    fquat = quat.mul(quat_wxyz, quat.conj(lquat))
+    f.quat = fquat.tolist()
+    f.pos = (pos - quat.rotate(fquat, lpos)).tolist()
 
 
-def weld(spec: mujoco.MjSpec, rec: EntityRecord) -> None:
-    """Remove an entity's free joint: it becomes part of the world where the spec puts it."""
+def weld_in_place(spec: mujoco.MjSpec, frame: Optional[str], rec: EntityRecord,
+                  pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
+    """Remove an entity's free joint; its root body stays at the given world pose (where it
+    is now), relative to its frame if it has one."""
     body = spec.body(rec.name)
+    if frame is not None:
+        f = spec.frame(frame)
+        pos, quat_wxyz = quat.to_frame(np.array(f.pos), np.array(f.quat), pos, quat_wxyz)
+    set_body_pose(body, pos, quat_wxyz)
     for j in list(body.joints):
         spec.delete(j)
+
+
+def set_body_pose(body, pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
+    """A body's pose in its parent frame, as a quaternion (any other orientation form the
+    file used is replaced)."""
+    body.pos, body.quat = list(map(float, pos)), list(map(float, quat_wxyz))
+    body.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
 
 
 def free(spec: mujoco.MjSpec, rec: EntityRecord) -> None:

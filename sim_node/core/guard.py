@@ -20,7 +20,12 @@ _MUJOCO_LOG = logging.getLogger('sim_node.mujoco')
 
 
 def _log_mujoco_warning(message: str) -> None:
-    _MUJOCO_LOG.warning('MuJoCo: %s', message)
+    if message.startswith('Attach conflict'):
+        # A spawned model's own <option>/<size>/<visual> differ from the world's, which are
+        # kept (the documented rule): information, not a fault.
+        _MUJOCO_LOG.info('MuJoCo: %s (the world keeps its own settings)', message)
+    else:
+        _MUJOCO_LOG.warning('MuJoCo: %s', message)
 
 
 def route_mujoco_warnings() -> None:
@@ -29,6 +34,7 @@ def route_mujoco_warnings() -> None:
     installed a handler of its own (the handler is process-wide)."""
     if mujoco.get_mju_user_warning() is None:
         mujoco.set_mju_user_warning(_log_mujoco_warning)
+
 
 _BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
                  int(mujoco.mjtWarning.mjWARN_BADQACC)]

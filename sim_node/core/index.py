@@ -82,7 +82,9 @@ class ModelIndex:
 def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
     """Index a compiled model.
 
-    :param spawned: entity name -> {'description': str} for entities spawned since load.
+    :param spawned: entity name -> {'description': str, 'bodies': top-level body names, root
+        first} for entities spawned since load. Every other top-level body is an entity of
+        its own.
     """
     names = tuple('world' if b == 0 else (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
                                           or f'body_{b}') for b in range(m.nbody))
@@ -90,9 +92,17 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
     jnames = tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'joint_{j}'
                    for j in jids)
     parent = m.body_parentid.copy()
-    root_of = np.zeros(m.nbody, dtype=int)
+    top_of = np.zeros(m.nbody, dtype=int)
     for b in range(1, m.nbody):  # parents come before children
-        root_of[b] = b if parent[b] == 0 else root_of[parent[b]]
+        top_of[b] = b if parent[b] == 0 else top_of[parent[b]]
+    # A spawned model may bring several top-level bodies: all belong to its root's entity.
+    entity_root = np.arange(m.nbody)
+    ids = {n: b for b, n in enumerate(names)}
+    for meta in spawned.values():
+        group = [ids[n] for n in meta['bodies'] if n in ids]
+        entity_root[group] = group[0] if group else 0
+    root_of = entity_root[top_of]
+    root_of[0] = 0
     entities = _entity_records(m, names, root_of, spawned)
     info = ModelInfo(
         generation=generation, timestep=float(m.opt.timestep), body_names=names,
@@ -101,7 +111,7 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
         joint_names=jnames, geoms=_geom_visuals(m), entities=entities)
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
-        body_names=names, body_ids={n: b for b, n in enumerate(names)},
+        body_names=names, body_ids=ids,
         joint_names=jnames, joint_index={n: i for i, n in enumerate(jnames)},
         joint_qposadr=m.jnt_qposadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_dofadr=m.jnt_dofadr[jids].astype(int) if jids else np.zeros(0, int),
@@ -159,14 +169,14 @@ def _geom_visuals(m: mujoco.MjModel) -> tuple:
 
 def _entity_records(m: mujoco.MjModel, names: tuple, root_of: np.ndarray,
                     spawned: dict) -> tuple:
-    """One record per top-level body, grouped with index arrays (O(n), not O(n^2))."""
+    """One record per entity root, grouped with index arrays (O(n), not O(n^2))."""
     jroot = root_of[m.jnt_bodyid]
     groot = root_of[m.geom_bodyid]
     trn_joint = np.isin(m.actuator_trntype, _JOINT_TRN)
     aroot = np.where(trn_joint, jroot[np.where(trn_joint, m.actuator_trnid[:, 0], 0)], -1) \
         if m.nu else np.zeros(0, int)
     recs = []
-    for root in np.nonzero(m.body_parentid == 0)[0][1:] if m.nbody > 1 else []:
+    for root in np.nonzero(root_of == np.arange(m.nbody))[0][1:] if m.nbody > 1 else []:
         root = int(root)
         joints = np.nonzero(jroot == root)[0]
         has_free = any(m.jnt_type[j] == _FREE and m.jnt_bodyid[j] == root for j in joints)

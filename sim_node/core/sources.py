@@ -1,7 +1,7 @@
 """What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
 
-Each builder returns a :class:`SpawnSource`: a small, compiled-once MjSpec with exactly one
-top-level body, plus the in-memory assets it needs. Parsing, file checks and mesh loading all
+Each builder returns a :class:`SpawnSource`: a compiled-once MjSpec (one or more top-level
+bodies: a standalone model file works as it is), plus the in-memory assets it needs. Parsing, file checks and mesh loading all
 happen here, outside the world lock. Nothing here touches a live world.
 """
 
@@ -31,10 +31,7 @@ ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
 ERR_NOT_XML = 'resource does not parse as XML: {err}'
 ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
                 '<robot> (URDF)')
-ERR_ONE_BODY = ('a spawned model must have exactly one top-level body (found {n}); wrap the '
-                'bodies in one, or spawn them separately')
-ERR_WORLD_ELEMENTS = ('a spawned model may not put {what} directly in <worldbody>; put them in '
-                      'its body')
+ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
 ERR_COMPILE = 'the model does not compile: {err}'
 ERR_FILE_MISSING = 'file not found: {path}'
 ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
@@ -81,7 +78,7 @@ def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
 class SpawnSource:
     """A parsed, compiled-once description of one entity, ready to attach to a world.
 
-    :param spec: MjSpec whose worldbody has exactly one body.
+    :param spec: MjSpec with at least one top-level body or worldbody geom.
     :param assets: file name -> bytes for meshes kept in memory.
     :param kind: 'mjcf', 'urdf', 'primitive' or 'mesh'.
     :param description: short text for entity info.
@@ -165,14 +162,8 @@ def _compile_error(exc: Exception) -> Exception:
 
 def _finish(spec: mujoco.MjSpec, kind: str, description: str,
             assets: Optional[dict] = None) -> SpawnSource:
-    bodies = list(spec.worldbody.bodies)
-    if len(bodies) != 1:
-        raise ResourceParseError(ERR_ONE_BODY.format(n=len(bodies)))
-    loose = [what for what, items in (('geoms', spec.worldbody.geoms),
-                                      ('sites', spec.worldbody.sites),
-                                      ('joints', spec.worldbody.joints)) if len(items)]
-    if loose:
-        raise ResourceParseError(ERR_WORLD_ELEMENTS.format(what=' and '.join(loose)))
+    if not len(spec.worldbody.bodies) and not len(spec.worldbody.geoms):
+        raise ResourceParseError(ERR_NO_BODY)
     try:
         spec.compile()
     except ValueError as exc:
@@ -212,6 +203,8 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     base = Path(base_dir) if base_dir else None
     if is_urdf:
         text = _urdf_keep_root_link(root)
+    else:
+        text = _mjcf_gather_world_geoms(root, text)
     try:
         spec = mujoco.MjSpec.from_string(text) if base is None else _from_string_in(text, base)
     except ValueError as exc:
@@ -219,6 +212,32 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     kind = 'urdf' if is_urdf else 'mjcf'
     name = root.attrib.get('name') or root.attrib.get('model') or ''
     return _finish(spec, kind, f'{kind.upper()} model {name}'.strip())
+
+
+#: The body that a standalone model's static <worldbody> geoms and sites are gathered into.
+WORLD_GEOMS_BODY = 'world_geoms'
+
+
+def _mjcf_gather_world_geoms(root: ET.Element, text: str) -> str:
+    """A standalone model's static geometry (geoms and sites directly in <worldbody>, except
+    ground planes, which the world drops when it attaches the model) moves into one welded
+    body, appended after the model's own top-level bodies, so it becomes part of the entity.
+    Returns `text` unchanged when there is nothing to gather."""
+    wb = root.find('worldbody')
+    loose = [] if wb is None else [e for e in wb if e.tag in ('geom', 'site')
+                                   and e.get('type') != 'plane']
+    if not loose:
+        return text
+    taken = {e.get('name') for e in root.iter('body')}
+    name, i = WORLD_GEOMS_BODY, 0
+    while name in taken:
+        i += 1
+        name = f'{WORLD_GEOMS_BODY}_{i}'
+    holder = ET.SubElement(wb, 'body', name=name)
+    for e in loose:
+        wb.remove(e)
+        holder.append(e)
+    return ET.tostring(root, encoding='unicode')
 
 
 def _urdf_keep_root_link(root: ET.Element) -> str:

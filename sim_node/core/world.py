@@ -64,7 +64,8 @@ class World(StateWrites, WorldEdits):
         except ValueError as exc:
             raise ResourceParseError(f'the scene does not compile: {exc}') from None
         self._spec = spec
-        self._spawned: dict = {}  # name -> {'frame': name, 'assets': tuple, 'description'}
+        # name -> {'frame': name, 'bodies': top-level body names, 'assets', 'description'}
+        self._spawned: dict = {}
         self._overrides: dict = {}  # entity -> {'friction': (3,), 'restitution': float}
         self._default_friction: Optional[np.ndarray] = None
         self._default_restitution: Optional[float] = None
@@ -367,7 +368,7 @@ class World(StateWrites, WorldEdits):
             if scope & RESET_SPAWNED and self._spawned:
                 doomed = dict(self._spawned)
                 self._edit_locked(lambda spec: [editor.remove(
-                    spec, n, spec.frame(meta['frame']), meta['assets'])
+                    spec, n, meta['frame'], meta['assets'])
                     for n, meta in doomed.items()], spawned={}, overrides={
                     k: v for k, v in self._overrides.items() if k not in doomed})
             if scope & RESET_STATE:

@@ -26,9 +26,10 @@ ERR_NO_MASS = '{name!r} has no mass to scale'
 class WorldEdits:
     """Structural and physics-parameter changes of a :class:`World` (see its docstring)."""
 
-    def _frame_of(self, spec: mujoco.MjSpec, name: str):
+    def _frame_of(self, name: str) -> Optional[str]:
+        """The name of the frame a spawned entity hangs from (None: a scene entity)."""
         meta = self._spawned.get(name)
-        return spec.frame(meta['frame']) if meta else None
+        return meta['frame'] if meta else None
 
     def unique_name(self, base: str) -> str:
         """`base`, or `base_<n>` with the smallest n not taken by an entity or body."""
@@ -70,12 +71,10 @@ class WorldEdits:
                 name = self._unique_name_locked(name or source.kind)
             if reference:
                 pos, q = quat.from_frame(*self._frame_locked(reference), pos, q)
-            meta = {'frame': f'{name}/__spawn_frame', 'assets': tuple(source.assets),
-                    'description': source.description}
+            meta = {'assets': tuple(source.assets), 'description': source.description}
 
             def edit(spec: mujoco.MjSpec) -> None:
-                frame, _ = editor.attach(spec, name, source, pos, q)
-                frame.name = meta['frame']
+                meta['frame'], meta['bodies'] = editor.attach(spec, name, source, pos, q)
                 if self._default_friction is not None or self._default_restitution is not None:
                     geoms = [g.name for g in spec.body(name).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
                     editor.apply_contact(spec, geoms, *self._contact_of({}))
@@ -133,8 +132,7 @@ class WorldEdits:
             if meta is None:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
             self._edit_locked(
-                lambda spec: editor.remove(spec, name, spec.frame(meta['frame']),
-                                           meta['assets']),
+                lambda spec: editor.remove(spec, name, meta['frame'], meta['assets']),
                 spawned={k: v for k, v in self._spawned.items() if k != name},
                 overrides={k: v for k, v in self._overrides.items() if k != name})
 
@@ -233,9 +231,8 @@ class WorldEdits:
                 if rec.has_free_joint:
                     self._kinematics_locked()
                     pos, q = state.body_pose(self._data, rec.root_body)
-                    self._edit_locked(lambda spec: (
-                        editor.place_root(spec, name, self._frame_of(spec, name), pos, q),
-                        editor.weld(spec, rec)))
+                    self._edit_locked(lambda spec: editor.weld_in_place(
+                        spec, self._frame_of(name), rec, pos, q))
                 return
             total = float(sum(self._model.body_mass[b] for b in rec.body_ids))
             if total <= 0:

@@ -76,8 +76,10 @@ class StateWrites:
                     and abs(abs(float(np.dot(q, d.xquat[root]))) - 1.0) < 1e-12):
                 welded_moves.append((rec, pos, q))
         if welded_moves:  # all moves in one rebuild, before the direct writes
-            self._edit_locked(lambda spec: [editor.place_root(
-                spec, rec.name, self._frame_of(spec, rec.name), pos, q)
+            m = self._model
+            self._edit_locked(lambda spec: [editor.move_group(
+                spec, self._frame_of(rec.name), rec.name,
+                (m.body_pos[rec.root_body], m.body_quat[rec.root_body]), pos, q)
                 for rec, pos, q in welded_moves])
         for rec, pos, q, lin, ang in targets.values():
             if rec.has_free_joint:

@@ -1,0 +1,217 @@
+"""Spawning the standalone model files people already have: every Gymnasium MuJoCo asset spawns
+into the running default scene beside its entities, runs, obeys commands, honours its own
+angle units, and deletes cleanly. Real files, real MuJoCo."""
+
+import glob
+import os
+import xml.etree.ElementTree as ET
+
+import gymnasium
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import DEFAULT_SCENE
+from sim_node.core import sources
+from sim_node.core.types import RESET_STATE
+from sim_node.core.world import World
+from sim_node.simulation import Simulation
+
+GYM_ASSETS = os.path.join(os.path.dirname(gymnasium.__file__), 'envs', 'mujoco', 'assets')
+MODELS = sorted(os.path.basename(f)[:-4] for f in glob.glob(os.path.join(GYM_ASSETS, '*.xml')))
+SPAWN_AT = [2.5, 2.5, 1.0]  # clear of the scene's robot, table and boxes
+
+
+def gym_file(name: str) -> str:
+    return os.path.join(GYM_ASSETS, f'{name}.xml')
+
+
+def others(w: World, name: str) -> dict:
+    """qpos and qvel of every joint not in entity `name`, by joint name."""
+    out = {}
+    with w.locked() as (m, d):
+        for j in range(m.njnt):
+            jn = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+            if jn.startswith(f'{name}/'):
+                continue
+            nq = {0: 7, 1: 4}.get(int(m.jnt_type[j]), 1)
+            nv = {0: 6, 1: 3}.get(int(m.jnt_type[j]), 1)
+            out[jn] = (d.qpos[m.jnt_qposadr[j]:m.jnt_qposadr[j] + nq].copy(),
+                       d.qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + nv].copy())
+        out['time'] = d.time
+    return out
+
+
+def actuated_joints(w: World, name: str) -> list:
+    """Hinge/slide joints of the entity driven by a motor of their own."""
+    with w.locked() as (m, d):
+        out = []
+        for a in range(m.nu):
+            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT:
+                jn = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, m.actuator_trnid[a, 0])
+                if jn.startswith(f'{name}/') and jn in w.joint_names():
+                    out.append((jn, float(m.actuator_ctrlrange[a, 1]) or 1.0))
+    return out
+
+
+def test_all_fourteen_gymnasium_models_are_here():
+    assert len(MODELS) == 14, MODELS
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_a_gymnasium_model_spawns_runs_obeys_and_deletes_cleanly(model):
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.step(20)
+    scene = [e.name for e in w.entities()]
+    w.spawn(model, sources.from_file(gym_file(model)), position=SPAWN_AT)
+    assert [e.name for e in w.entities()] == scene + [model]
+    rec = w.entity(model)
+    info = w.model_info
+    # Every body of the file is in the entity, named under its prefix; no infinite plane came.
+    assert all(info.body_names[b] == model or info.body_names[b].startswith(f'{model}/')
+               for b in rec.body_ids)
+    with w.locked() as (m, d):
+        assert [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE] \
+            == [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, 'floor')]
+    w.step(500)  # 1 s, no DivergenceError
+    assert np.all(np.isfinite(w.snapshot().body_xpos))
+    joints = actuated_joints(w, model)
+    assert joints, 'every Gymnasium model has motors'
+    # Commands reach its actuators by its prefixed joint names: compared with the same world
+    # left alone, the commanded joint moves.
+    twin = World.from_file(str(DEFAULT_SCENE))
+    twin.step(20)
+    twin.spawn(model, sources.from_file(gym_file(model)), position=SPAWN_AT)
+    twin.step(500)
+    joint, effort = joints[0]
+    w.command([joint], [effort], 'effort')
+    w.step(100)
+    twin.step(100)
+    assert abs(w.get_joint_states()[joint][0] - twin.get_joint_states()[joint][0]) > 1e-4
+    before = others(w, model)
+    w.delete(model)
+    assert [e.name for e in w.entities()] == scene
+    after = others(w, model)
+    assert after.keys() == before.keys()
+    for k in before:
+        if k != 'time':
+            assert np.array_equal(before[k][0], after[k][0]) and np.array_equal(
+                before[k][1], after[k][1]), k
+    with w.locked() as (m, d):
+        names = [mujoco.mj_id2name(m, obj, i) or '' for obj, n in (
+            (mujoco.mjtObj.mjOBJ_ACTUATOR, m.nu), (mujoco.mjtObj.mjOBJ_SENSOR, m.nsensor),
+            (mujoco.mjtObj.mjOBJ_TENDON, m.ntendon), (mujoco.mjtObj.mjOBJ_TEXTURE, m.ntex),
+            (mujoco.mjtObj.mjOBJ_MATERIAL, m.nmat), (mujoco.mjtObj.mjOBJ_MESH, m.nmesh),
+            (mujoco.mjtObj.mjOBJ_LIGHT, m.nlight), (mujoco.mjtObj.mjOBJ_CAMERA, m.ncam),
+            (mujoco.mjtObj.mjOBJ_GEOM, m.ngeom)) for i in range(n)]
+    assert not [n for n in names if n.startswith(f'{model}/')]
+    w.spawn(model, sources.from_file(gym_file(model)), position=SPAWN_AT)  # and again
+
+
+@pytest.mark.parametrize('model', ['ant', 'humanoid', 'half_cheetah'])
+def test_a_spawned_model_keeps_its_own_angle_units(model):
+    alone = mujoco.MjModel.from_xml_path(gym_file(model))
+    w = World.from_file(str(DEFAULT_SCENE))  # the scene reads radians
+    w.spawn(model, sources.from_file(gym_file(model)), position=SPAWN_AT)
+    with w.locked() as (m, d):
+        for j in range(alone.njnt):
+            jn = mujoco.mj_id2name(alone, mujoco.mjtObj.mjOBJ_JOINT, j)
+            here = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f'{model}/{jn}')
+            assert here >= 0, jn
+            np.testing.assert_allclose(m.jnt_range[here], alone.jnt_range[j], err_msg=jn)
+
+
+def test_the_worlds_home_keyframe_still_works_and_holds_the_spawn_state():
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('ant', sources.from_file(gym_file('ant')), position=SPAWN_AT)
+    start = w.get_entity_state('ant').position.copy()
+    home_shoulder = w.get_joint_states()['left_shoulder'][0]
+    w.command(['left_shoulder'], [1.0], 'position')
+    w.step(500)
+    assert not np.allclose(w.get_entity_state('ant').position, start, atol=1e-3)
+    w.reset(RESET_STATE)
+    np.testing.assert_allclose(w.get_entity_state('ant').position, start, atol=1e-9)
+    assert w.get_joint_states()['left_shoulder'][0] == home_shoulder
+
+
+def test_a_models_own_keyframes_do_not_replace_the_worlds():
+    own = ('<mujoco><worldbody><body name="ball" pos="0 0 .5"><freejoint/><geom size=".1"/>'
+           '</body></worldbody><keyframe><key name="home" qpos="5 5 5 1 0 0 0"/></keyframe>'
+           '</mujoco>')
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('ball', sources.from_model_text(own), position=SPAWN_AT)
+    with w.locked() as (m, d):
+        assert m.nkey == 1  # the world's home only
+    spawned_at = w.get_entity_state('ball').position.copy()
+    w.step(300)
+    w.reset(RESET_STATE)
+    np.testing.assert_allclose(w.get_entity_state('ball').position, spawned_at, atol=1e-9)
+
+
+def test_worldbody_geometry_follows_the_documented_rule():
+    """Ground planes are dropped; other static worldbody geoms become a welded part of the
+    entity (reacher's arena walls and base); lights come along and go with it."""
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('reacher', sources.from_file(gym_file('reacher')), position=SPAWN_AT)
+    rec = w.entity('reacher')
+    info = w.model_info
+    assert f'reacher/{sources.WORLD_GEOMS_BODY}' in [info.body_names[b] for b in rec.body_ids]
+    geoms = {g.name for g in info.geoms if info.body_root[g.body] == rec.root_body}
+    assert {'reacher/sideS', 'reacher/root'} <= geoms and 'reacher/ground' not in geoms
+    lo, hi = w.entity_bounds('reacher')
+    assert hi[0] - lo[0] > 0.4  # the arena's walls are part of it
+    with w.locked() as (m, d):
+        n_light = m.nlight
+    w.spawn('ant', sources.from_file(gym_file('ant')), position=[-2.5, 2.5, 1.0])
+    with w.locked() as (m, d):
+        assert m.nlight == n_light + 1  # ant's light came along
+    w.delete('ant')
+    with w.locked() as (m, d):
+        assert m.nlight == n_light
+
+
+def test_a_whole_model_moves_as_a_group_and_a_welded_one_by_its_frame():
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('reacher', sources.from_file(gym_file('reacher')), position=SPAWN_AT)
+    target = np.array([-2.5, 2.5, 0.5])
+    q = np.array([np.cos(0.3), 0, 0, np.sin(0.3)])
+    w.set_entity_state('reacher', position=target, quat_wxyz=q)
+    st = w.get_entity_state('reacher')
+    np.testing.assert_allclose(st.position, target, atol=1e-9)
+    np.testing.assert_allclose(abs(np.dot(st.quat_wxyz, q)), 1.0, atol=1e-9)
+    lo, hi = w.entity_bounds('reacher')
+    assert lo[0] < target[0] < hi[0] and lo[1] < target[1] < hi[1]  # the walls came along
+
+
+def test_a_urdf_with_a_world_link_spawns_as_one_fixed_base_robot(tmp_path):
+    urdf = tmp_path / 'arm.urdf'
+    inertial = ('<inertial><mass value="{m}"/><inertia ixx=".01" iyy=".01" izz=".01" ixy="0" '
+                'ixz="0" iyz="0"/></inertial>')
+    urdf.write_text(
+        '<robot name="arm"><link name="world"/>'
+        '<joint name="fix" type="fixed"><parent link="world"/><child link="base"/>'
+        '<origin xyz="0 0 0.1"/></joint>'
+        f'<link name="base">{inertial.format(m=1)}<collision><geometry><box size=".1 .1 .1"/>'
+        '</geometry></collision></link>'
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>'
+        '<origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>'
+        '<limit lower="-1" upper="1" effort="10" velocity="1"/></joint>'
+        f'<link name="l1">{inertial.format(m=0.5)}</link></robot>')
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('arm', sources.from_file(str(urdf)), position=[2, 2, 0])
+    rec = w.entity('arm')
+    assert rec.category == 'robot' and not rec.has_free_joint
+    np.testing.assert_allclose(w.get_entity_state('arm').position, [2, 2, 0.1], atol=1e-9)
+    w.command(['arm/j1'], [0.5], 'position')
+    w.step(1000)
+    assert w.get_joint_states()['arm/j1'][0] == pytest.approx(0.5, abs=1e-3)
+
+
+def test_simulation_add_model_takes_a_whole_model_file_text():
+    sim = Simulation.from_file(str(DEFAULT_SCENE))
+    with open(gym_file('half_cheetah')) as f:
+        text = f.read()
+    sim.add_model('cheetah', text, position=SPAWN_AT)
+    sim.step(dt=0.5)
+    assert 'cheetah/bthigh' in sim.joint_names
+    assert ET.fromstring(text).find('worldbody') is not None
