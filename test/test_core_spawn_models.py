@@ -215,3 +215,10 @@ def test_simulation_add_model_takes_a_whole_model_file_text():
     sim.step(dt=0.5)
     assert 'cheetah/bthigh' in sim.joint_names
     assert ET.fromstring(text).find('worldbody') is not None
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_a_gymnasium_model_loads_as_a_whole_world_too(model):
+    w = World.from_file(gym_file(model))
+    w.step(100)
+    assert w.entities() and np.all(np.isfinite(w.snapshot().body_xpos))
