@@ -21,6 +21,8 @@ from sim_node.core import errors, quat
 from sim_node.core.types import DYNAMIC, ROBOT, STATIC, ModelInfo, Snapshot
 from sim_node.entity_query import Region
 
+from .cdr import TfTemplate
+
 # Core exceptions -> simulation_interfaces Result codes, in one table. Service-specific codes
 # (SpawnEntity.Response.NAME_NOT_UNIQUE, ...) are looked up by name on the response type.
 RESULT_CODES = (
@@ -195,15 +197,16 @@ def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> t
     return quat.rotate(inv, cp - pp), quat.mul(inv, cq)
 
 
-def moving_transforms(info: ModelInfo, snap: Snapshot, bodies: np.ndarray,
-                      world_frame: str) -> TFMessage:
-    """Bodies with joints: parent body -> body (free bodies from the world frame), all with
-    the snapshot's simulation time as the stamp."""
-    if not len(bodies):
-        return TFMessage()
-    parents = info.body_parent[bodies]
-    pos, rot = relative_poses(snap, bodies, parents)
-    t = stamp(snap.time)
-    return TFMessage(transforms=[
-        _transform(_frame(info, int(p), world_frame), info.body_names[b], pos[i], rot[i], t)
-        for i, (b, p) in enumerate(zip(bodies, parents))])
+def moving_tf_template(info: ModelInfo, bodies: np.ndarray, world_frame: str) -> TfTemplate:
+    """The /tf message layout of one model generation: parent body -> body for each of
+    `bodies` (free bodies from the world frame)."""
+    return TfTemplate([_frame(info, int(p), world_frame) for p in info.body_parent[bodies]],
+                      [info.body_names[b] for b in bodies])
+
+
+def moving_tf(template: TfTemplate, info: ModelInfo, snap: Snapshot,
+              bodies: np.ndarray) -> bytes:
+    """The serialized /tf message of a snapshot: every transform stamped with its simulation
+    time, built from numpy arrays in one pass."""
+    pos, rot = relative_poses(snap, bodies, info.body_parent[bodies])
+    return template.fill(snap.time, pos, rot[:, [1, 2, 3, 0]])

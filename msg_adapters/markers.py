@@ -1,84 +1,102 @@
-"""RViz markers for every visible geom, locked to its body's TF frame."""
+"""RViz markers for every visible geom, locked to its body's TF frame: one MarkerArray per
+model generation, written straight to its wire form (:mod:`.cdr`) from the model info."""
 
-from geometry_msgs.msg import Point
-from std_msgs.msg import ColorRGBA
-from visualization_msgs.msg import Marker, MarkerArray
+import numpy as np
 
 from sim_node.core.types import GeomVisual, ModelInfo
 
-from .convert import pose_to_msg, stamp
+from .cdr import CdrWriter, split_time
 
 NAMESPACE_PREFIX = 'sim/'
 # A plane of size 0 is infinite in MuJoCo; draw it this big (m).
 INFINITE_PLANE_HALF = 10.0
+# visualization_msgs/Marker constants.
+CUBE, SPHERE, CYLINDER, TRIANGLE_LIST = 1, 2, 3, 11
+ADD, DELETEALL = 0, 3
 
 
-def _marker_ns(info: ModelInfo, geom: GeomVisual) -> str:
-    """Markers are grouped by entity, so deleting an entity deletes one namespace."""
+def marker_ns(info: ModelInfo, geom: GeomVisual) -> str:
+    """Markers are grouped by entity: namespace ``sim/<entity>``."""
     root = int(info.body_root[geom.body])
     return NAMESPACE_PREFIX + (info.body_names[root] if root else 'world')
 
 
-def _shape(marker: Marker, geom: GeomVisual) -> None:
+def shape(geom: GeomVisual) -> tuple:
+    """(marker type, scale (3,), triangle-list points (k, 3) or None) for a geom."""
     sx, sy, sz = geom.size
     if geom.type == 'box':
-        marker.type = Marker.CUBE
-        marker.scale.x, marker.scale.y, marker.scale.z = 2 * sx, 2 * sy, 2 * sz
-    elif geom.type == 'sphere':
-        marker.type = Marker.SPHERE
-        marker.scale.x = marker.scale.y = marker.scale.z = 2 * sx
-    elif geom.type == 'ellipsoid':
-        marker.type = Marker.SPHERE
-        marker.scale.x, marker.scale.y, marker.scale.z = 2 * sx, 2 * sy, 2 * sz
-    elif geom.type == 'cylinder':
-        marker.type = Marker.CYLINDER
-        marker.scale.x = marker.scale.y = 2 * sx
-        marker.scale.z = 2 * sy
-    elif geom.type == 'capsule':
+        return CUBE, (2 * sx, 2 * sy, 2 * sz), None
+    if geom.type == 'sphere':
+        return SPHERE, (2 * sx,) * 3, None
+    if geom.type == 'ellipsoid':
+        return SPHERE, (2 * sx, 2 * sy, 2 * sz), None
+    if geom.type == 'cylinder':
+        return CYLINDER, (2 * sx, 2 * sx, 2 * sy), None
+    if geom.type == 'capsule':
         # RViz has no capsule: a cylinder spanning the full length is close enough.
-        marker.type = Marker.CYLINDER
-        marker.scale.x = marker.scale.y = 2 * sx
-        marker.scale.z = 2 * sy + 2 * sx
-    elif geom.type == 'plane':
-        marker.type = Marker.CUBE
-        marker.scale.x = 2 * (sx or INFINITE_PLANE_HALF)
-        marker.scale.y = 2 * (sy or INFINITE_PLANE_HALF)
-        marker.scale.z = 0.001
-    elif geom.type == 'mesh':
-        marker.type = Marker.TRIANGLE_LIST
-        marker.scale.x = marker.scale.y = marker.scale.z = 1.0
-        v = geom.mesh_vertices
-        marker.points = [Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
-                         for p in v[geom.mesh_faces.reshape(-1)]]
+        return CYLINDER, (2 * sx, 2 * sx, 2 * sy + 2 * sx), None
+    if geom.type == 'plane':
+        return CUBE, (2 * (sx or INFINITE_PLANE_HALF), 2 * (sy or INFINITE_PLANE_HALF),
+                      0.001), None
+    return TRIANGLE_LIST, (1.0, 1.0, 1.0), geom.mesh_vertices[geom.mesh_faces.reshape(-1)]
 
 
-def clear_markers(sim_time: float, world_frame: str) -> MarkerArray:
-    """One DELETEALL marker: RViz drops every marker it has from this topic."""
-    m = Marker(action=Marker.DELETEALL)
-    m.header.stamp = stamp(sim_time)
-    m.header.frame_id = world_frame
-    return MarkerArray(markers=[m])
+def _marker(w: CdrWriter, sec: int, nsec: int, frame: str, ns: str, mid: int, mtype: int,
+            action: int, pose: tuple = (0, 0, 0, 0, 0, 0, 1), scale=(0, 0, 0),
+            rgba=(0, 0, 0, 0), frame_locked: bool = False, points=None) -> None:
+    """One visualization_msgs/Marker."""
+    w.stamp(sec, nsec)
+    w.string(frame)
+    w.string(ns)
+    w.i32(mid)
+    w.i32(mtype)
+    w.i32(action)
+    w.f64s(pose)  # position x y z, orientation x y z w
+    w.f64s(scale)
+    w.f32s(rgba)
+    w.stamp(0, 0)  # lifetime: forever
+    w.boolean(frame_locked)
+    w.u32(0 if points is None else len(points))
+    if points is not None and len(points):
+        w.f64s(np.asarray(points, dtype=float).reshape(-1))
+    w.u32(0)  # colors
+    w.string('')  # texture_resource
+    w.stamp(0, 0)  # texture: header, format, data
+    w.string('')
+    w.string('')
+    w.u32(0)
+    w.u32(0)  # uv_coordinates
+    w.string('')  # text
+    w.string('')  # mesh_resource
+    w.string('')  # mesh_file: filename, data
+    w.u32(0)
+    w.boolean(False)  # mesh_use_embedded_materials
 
 
-def markers(info: ModelInfo, sim_time: float, world_frame: str) -> MarkerArray:
-    """The markers of one model generation: a DELETEALL first (so nothing of an earlier
-    generation survives, whatever was respawned under which name), then one marker per
-    visible geom, in its body's frame."""
-    out = clear_markers(sim_time, world_frame)
-    t = out.markers[0].header.stamp
+def clear_markers(sim_time: float, world_frame: str) -> bytes:
+    """A serialized MarkerArray of one DELETEALL: RViz drops every marker of this topic."""
+    w = CdrWriter()
+    w.u32(1)
+    _marker(w, *split_time(sim_time), world_frame, '', 0, 0, DELETEALL)
+    return bytes(w.buf)
+
+
+def markers(info: ModelInfo, sim_time: float, world_frame: str) -> bytes:
+    """The serialized MarkerArray of one model generation: a DELETEALL first (so nothing of an
+    earlier generation survives, whatever was respawned under which name), then one marker
+    per visible geom, in its body's frame."""
+    sec, nsec = split_time(sim_time)
+    w = CdrWriter()
+    w.u32(1 + len(info.geoms))
+    _marker(w, sec, nsec, world_frame, '', 0, 0, DELETEALL)
     counters: dict = {}
     for geom in info.geoms:
-        m = Marker()
-        m.header.stamp = t
-        m.header.frame_id = world_frame if geom.body == 0 else info.body_names[geom.body]
-        m.ns = _marker_ns(info, geom)
-        m.id = counters.get(m.ns, 0)
-        counters[m.ns] = m.id + 1
-        m.action = Marker.ADD
-        m.frame_locked = True
-        m.pose = pose_to_msg(geom.pos, geom.quat_wxyz)
-        m.color = ColorRGBA(r=float(geom.rgba[0]), g=float(geom.rgba[1]),
-                            b=float(geom.rgba[2]), a=float(geom.rgba[3]))
-        _shape(m, geom)
-        out.markers.append(m)
-    return out
+        ns = marker_ns(info, geom)
+        mid = counters.get(ns, 0)
+        counters[ns] = mid + 1
+        mtype, scale, points = shape(geom)
+        q = geom.quat_wxyz
+        _marker(w, sec, nsec, world_frame if geom.body == 0 else info.body_names[geom.body],
+                ns, mid, mtype, ADD, (*geom.pos, q[1], q[2], q[3], q[0]), scale, geom.rgba,
+                True, points)
+    return bytes(w.buf)

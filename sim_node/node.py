@@ -169,13 +169,15 @@ class SimNode(SimServices, Node):
             return
         self._published_seq = seq
         self._clock_pub.publish(convert.clock(snap.time))
-        self._tf_pub.publish(convert.moving_transforms(info, snap, self._moving,
-                                                       self._world_frame))
+        if len(self._moving):
+            self._tf_pub.publish(convert.moving_tf(self._tf_template, info, snap,
+                                                   self._moving))
 
     def _publish_model(self, info, sim_time: float) -> None:
         """On a new model generation: /tf_static for welded bodies, and every marker anew."""
         self._published_generation = info.generation
         self._moving = convert.moving_body_ids(info)
+        self._tf_template = convert.moving_tf_template(info, self._moving, self._world_frame)
         self._tf_static_pub.publish(convert.static_transforms(info, sim_time,
                                                               self._world_frame))
         self._marker_pub.publish(markers.markers(info, sim_time, self._world_frame))

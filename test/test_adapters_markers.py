@@ -1,8 +1,11 @@
 """Markers follow the model generation: what RViz shows after each message is exactly the
 geoms of the model that message came from, whatever was deleted or respawned under which
-name in between."""
+name in between. The messages are written as bytes: read back by rclpy's own deserializer."""
 
-from visualization_msgs.msg import Marker
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message
+from visualization_msgs.msg import Marker, MarkerArray
 
 from conftest import DEFAULT_SCENE
 from msg_adapters import markers
@@ -14,9 +17,9 @@ THREE_GEOMS = '''<mujoco><worldbody><body name="b"><freejoint/>
   <geom type="capsule" size=".02" fromto="0 0 .15 0 0 .3"/></body></worldbody></mujoco>'''
 
 
-def apply(shown: dict, msg) -> dict:
-    """What an RViz MarkerArray display holds after receiving `msg`."""
-    for m in msg.markers:
+def apply(shown: dict, data: bytes) -> dict:
+    """What an RViz MarkerArray display holds after receiving `data`."""
+    for m in deserialize_message(data, MarkerArray).markers:
         if m.action == Marker.DELETEALL:
             shown.clear()
         elif m.action == Marker.DELETE:
@@ -45,3 +48,31 @@ def test_cleared_markers_leave_nothing():
     shown = apply({}, markers.markers(w.model_info, w.time, 'world'))
     assert shown
     assert apply(shown, markers.clear_markers(w.time, 'world')) == {}
+
+
+def test_every_geom_has_a_marker_with_its_shape_pose_colour_and_frame():
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('pyr', sources.from_file(str(DEFAULT_SCENE.parent / 'objects' / 'pyramid.obj')),
+            position=[2, 0, 0.5])
+    info = w.model_info
+    msg = deserialize_message(markers.markers(info, 12.5, 'world'), MarkerArray)
+    assert msg.markers[0].action == Marker.DELETEALL
+    got = msg.markers[1:]
+    assert len(got) == len(info.geoms)
+    by_name = {g.name: g for g in info.geoms}
+    box = got[[i for i, g in enumerate(info.geoms) if g.name == 'table_top'][0]]
+    g = by_name['table_top']
+    assert (box.type, box.ns, box.header.frame_id) == (Marker.CUBE, 'sim/table', 'table')
+    assert (box.header.stamp.sec, box.header.stamp.nanosec) == (12, 500_000_000)
+    assert [box.scale.x, box.scale.y, box.scale.z] == pytest.approx([2 * s for s in g.size])
+    assert [box.pose.position.x, box.pose.position.y, box.pose.position.z] == \
+        pytest.approx(g.pos)
+    q = box.pose.orientation
+    assert [q.w, q.x, q.y, q.z] == pytest.approx(g.quat_wxyz)  # ROS order on the wire
+    assert [box.color.r, box.color.g, box.color.b, box.color.a] == pytest.approx(g.rgba)
+    assert box.frame_locked
+    mesh = [m for m in got if m.ns == 'sim/pyr'][0]
+    pg = [g for g in info.geoms if g.name == 'pyr/geom'][0]
+    assert mesh.type == Marker.TRIANGLE_LIST and len(mesh.points) == 3 * len(pg.mesh_faces)
+    np.testing.assert_allclose([mesh.points[0].x, mesh.points[0].y, mesh.points[0].z],
+                               pg.mesh_vertices[pg.mesh_faces[0, 0]])
