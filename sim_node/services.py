@@ -258,6 +258,9 @@ class SimServices:
     def _srv_get_sim_state(self, request, response):
         response.state = convert.simulation_state(self._sim_state())
         response.result = convert.ok()
+        sim = self._sim
+        if sim is not None:  # OK, with a word when the physics lags the requested rate
+            response.result.error_message = sim.loop.status().lag
         return response
 
     def _srv_set_sim_state(self, request, response):

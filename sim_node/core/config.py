@@ -37,3 +37,8 @@ class WorldConfig:
     max_mesh_faces: int = 200_000
     #: Wall seconds behind schedule after which pacing re-syncs instead of bursting.
     resync_after_sec: float = 0.25
+    #: MuJoCo's arena (contacts and constraints) for scenes without <size memory>: this much
+    #: plus `arena_bytes_per_body` per body, resized on every recompile. MuJoCo's own default
+    #: grows with the square of the bodies (1.8 GB at 1,000); a resting box needs about 7 kB.
+    arena_base_bytes: int = 16 * 2 ** 20
+    arena_bytes_per_body: int = 64 * 2 ** 10

@@ -47,6 +47,13 @@ def steps_until(time_sec: float, limit_sec: float, timestep: float) -> int:
     return max(0, math.ceil((limit_sec - time_sec) / timestep - TIME_TOLERANCE_STEPS))
 
 
+# The achieved real-time factor is measured over windows of this many wall seconds; falling
+# below this fraction of the requested factor for a window is reported (once per episode).
+RATE_WINDOW_SEC = 2.0
+LAG_FRACTION = 0.95
+ERR_LAG = ('the physics cannot keep real_time_factor {rtf:g}: achieved {achieved:.3g} over the '
+           'last {window:g} s ({ms:.2f} ms of wall time per {dt:g} s step)')
+
 ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
 
@@ -76,6 +83,11 @@ class SimLoop:
         self._batch = 1
         self._deadline = time.perf_counter()
         self._last_snapshot = 0.0
+        self._window_start: Optional[float] = None  # achieved-rate window (wall time)
+        self._window_steps = 0
+        self._window_rtf = 0.0
+        self._achieved_rtf = 0.0
+        self._lag_message = ''
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -183,7 +195,9 @@ class SimLoop:
                 state = STOPPED
             return LoopStatus(state=state, step=snap.step, time=snap.time,
                               real_time_factor=self._rtf, stop_reason=self._stop_reason,
-                              divergence=self._divergence)
+                              divergence=self._divergence,
+                              achieved_real_time_factor=self._achieved_rtf,
+                              lag=self._lag_message if state == PLAYING else '')
 
     def latest_snapshot(self) -> Snapshot:
         return self._snapshot
@@ -207,6 +221,29 @@ class SimLoop:
             self._snapshot_cv.notify_all()
 
     # ------------------------------------------------------------------ the loop
+
+    def _track_rate(self, now: float, n: int, rtf: float, wall_per_step: float) -> None:
+        """Measure the achieved real-time factor over windows; say once, when the physics
+        cannot keep the requested one, by how much (log and status), instead of lagging
+        silently."""
+        if self._window_start is None or rtf != self._window_rtf:
+            self._window_start, self._window_steps, self._window_rtf = now, 0, rtf
+            return
+        self._window_steps += n
+        span = now - self._window_start
+        if span < RATE_WINDOW_SEC:
+            return
+        dt = self.world.timestep
+        self._achieved_rtf = self._window_steps * dt / span
+        self._window_start, self._window_steps = now, 0
+        if rtf > 0 and self._achieved_rtf < LAG_FRACTION * rtf:
+            if not self._lag_message:
+                self._lag_message = ERR_LAG.format(rtf=rtf, achieved=self._achieved_rtf,
+                                                   window=RATE_WINDOW_SEC,
+                                                   ms=wall_per_step * 1e3, dt=dt)
+                log.warning(self._lag_message)
+        else:
+            self._lag_message = ''
 
     def _limit_reason(self) -> str:
         w = self.world
@@ -248,6 +285,7 @@ class SimLoop:
             while not self._stopping and self._paused and not self._pending_steps:
                 self._cv.wait()
                 self._deadline = time.perf_counter()
+                self._window_start = None  # a pause is not lag
             if self._stopping:
                 return
             stepping_request = self._paused
@@ -304,6 +342,8 @@ class SimLoop:
             per_step = (now - t0) / n
             self._batch = max(1, min(MAX_BATCH_STEPS,
                                      int(MAX_BATCH_WALL_SEC / max(per_step, 1e-7))))
+        if not stepping_request:
+            self._track_rate(now, n, rtf, (now - t0) / n)
         if now - self._last_snapshot >= self._snapshot_period:
             self._last_snapshot = now
             self._publish(self.world.snapshot())

@@ -133,3 +133,7 @@ class LoopStatus:
     real_time_factor: float
     stop_reason: str = ''
     divergence: Optional[dict] = None
+    #: Simulated seconds per wall second over the last measuring window while playing.
+    achieved_real_time_factor: float = 0.0
+    #: Set while playing slower than the requested factor: by how much, and why.
+    lag: str = ''

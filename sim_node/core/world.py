@@ -59,6 +59,8 @@ class World(StateWrites, WorldEdits):
         guard.route_mujoco_warnings()
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
+        self._auto_arena = spec.memory == -1  # the scene left it to MuJoCo's default
+        self._size_arena(spec)
         try:
             model = spec.compile()
         except ValueError as exc:
@@ -407,6 +409,7 @@ class World(StateWrites, WorldEdits):
         """
         trial = self._spec.copy()
         edit(trial)
+        self._size_arena(trial)
         try:
             model, data = trial.recompile(self._model, self._data)
         except ValueError as exc:
@@ -420,6 +423,13 @@ class World(StateWrites, WorldEdits):
             self._overrides = overrides
         self._generation += 1
         self._adopt_locked(model, data)
+
+    def _size_arena(self, spec: mujoco.MjSpec) -> None:
+        """Give a spec whose scene did not size MuJoCo's arena one proportional to its bodies
+        (see ``WorldConfig.arena_bytes_per_body``)."""
+        if self._auto_arena:
+            spec.memory = (self.config.arena_base_bytes
+                           + self.config.arena_bytes_per_body * len(spec.bodies))
 
     def _adopt_locked(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Switch everything to a new model and data together (index, control, guard)."""
