@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test bench bench-gym clean
+.PHONY: setup run test bench bench-gym bench-scale clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -22,6 +22,9 @@ bench: setup
 
 bench-gym: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/gym_step.py
+
+bench-scale: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/scale.py
 
 clean:
 	rm -rf .venv .build .pytest_cache

@@ -7,6 +7,8 @@
 3. Real-time tracking at factor 1.0: simulated time over wall time.
 4. Gym env.step throughput over Gymnasium's own Pusher-v5 and Reacher-v5 on the same model
    files, and over a MujocoEnv subclass running the same Task code (gym_step.py).
+5. Scale: the node free-running on 1,000 boxes and on the default scene over bare mj_step,
+   /tf and marker costs, spawn latency at 1,000 bodies, peak RSS (scale.py).
 
 Run with `make bench`; set SIM_BENCH_RT_SEC to shorten the real-time run (default 20 s).
 """
@@ -157,6 +159,8 @@ def main() -> None:
     bench_realtime(float(os.environ.get('SIM_BENCH_RT_SEC', '20')))
     import gym_step
     gym_step.main()
+    import scale
+    scale.main()
 
 
 if __name__ == '__main__':

@@ -60,5 +60,6 @@ def world_config(node: Node) -> WorldConfig:
     return WorldConfig(
         real_time_factor=p('real_time_factor'), paused=p('paused'), timestep=p('timestep'),
         max_steps=p('max_steps'), max_sim_time=p('max_sim_time'),
-        snapshot_rate_hz=max(p('tf_rate_hz'), p('joint_states_rate_hz')),
+        # Twice the fastest publisher, so that every publishing tick finds a new snapshot.
+        snapshot_rate_hz=2 * max(p('tf_rate_hz'), p('joint_states_rate_hz')),
         kp=p('kp'), kd=p('kd'), allow_interpenetration=p('allow_interpenetration'))

@@ -29,7 +29,7 @@ PLAYING = 'playing'
 PAUSED = 'paused'
 STOPPED = 'stopped'
 # Longest the loop holds the world lock per batch when running as fast as possible (s).
-MAX_BATCH_WALL_SEC = 0.002
+MAX_BATCH_WALL_SEC = 0.005
 MAX_BATCH_STEPS = 1000
 
 # Simulated time is a sum of timesteps, with rounding error: a time within this fraction of a
