@@ -297,7 +297,7 @@ class SimLoop:
                 log.info('loop paused: %s', reason)
                 return
             if stepping_request:
-                n = min(self._pending_steps, MAX_BATCH_STEPS)
+                n = min(self._pending_steps, self._batch)
             elif rtf > 0:
                 period = self.world.timestep / rtf
                 lag = time.perf_counter() - self._deadline
@@ -309,7 +309,7 @@ class SimLoop:
                 if lag > self._resync:
                     self._deadline = time.perf_counter()  # stalled: re-sync, don't burst
                     lag = 0.0
-                n = min(MAX_BATCH_STEPS, int(lag / period) + 1)
+                n = min(self._batch, int(lag / period) + 1)
             else:
                 n = self._batch
             if not stepping_request:
@@ -337,11 +337,12 @@ class SimLoop:
                 self._steps_done_cv.notify_all()
         elif rtf > 0:
             self._deadline += n * self.world.timestep / rtf
-        else:
-            # Batch so that one batch holds the lock for about MAX_BATCH_WALL_SEC.
-            per_step = (now - t0) / n
-            self._batch = max(1, min(MAX_BATCH_STEPS,
-                                     int(MAX_BATCH_WALL_SEC / max(per_step, 1e-7))))
+        # Every batch holds the lock for about MAX_BATCH_WALL_SEC at most, whatever asked
+        # for it (full speed, catching up with a high factor, a step request), so snapshots
+        # and callers are never held off longer.
+        per_step = (now - t0) / n
+        self._batch = max(1, min(MAX_BATCH_STEPS,
+                                 int(MAX_BATCH_WALL_SEC / max(per_step, 1e-7))))
         if not stepping_request:
             self._track_rate(now, n, rtf, (now - t0) / n)
         if now - self._last_snapshot >= self._snapshot_period:
