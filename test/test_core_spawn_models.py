@@ -222,3 +222,13 @@ def test_a_gymnasium_model_loads_as_a_whole_world_too(model):
     w = World.from_file(gym_file(model))
     w.step(100)
     assert w.entities() and np.all(np.isfinite(w.snapshot().body_xpos))
+
+
+def test_world_contact_defaults_reach_every_body_of_a_spawned_model():
+    sim = Simulation.from_file(str(DEFAULT_SCENE))
+    sim.set_defaults(friction=[0.3, 0.005, 0.0001])
+    sim.add_model('reacher', open(gym_file('reacher')).read(), position=SPAWN_AT)
+    with sim.world.locked() as (m, d):
+        for name in ('reacher/target', 'reacher/fingertip', 'reacher/sideS'):
+            g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name)
+            assert m.geom_friction[g][0] == pytest.approx(0.3), name

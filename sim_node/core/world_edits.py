@@ -76,7 +76,8 @@ class WorldEdits:
             def edit(spec: mujoco.MjSpec) -> None:
                 meta['frame'], meta['bodies'] = editor.attach(spec, name, source, pos, q)
                 if self._default_friction is not None or self._default_restitution is not None:
-                    geoms = [g.name for g in spec.body(name).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
+                    geoms = [g.name for b in meta['bodies']
+                             for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
                     editor.apply_contact(spec, geoms, *self._contact_of({}))
 
             def check(model: mujoco.MjModel, data: mujoco.MjData) -> None:
