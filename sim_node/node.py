@@ -205,10 +205,12 @@ class SimNode(SimServices, Node):
         info = snap.info
         if info.generation != self._published_generation:
             self._publish_model(info, snap.time)
+        # /clock goes on while paused (the same time), as Gazebo's does: nodes started with
+        # use_sim_time then still start their timers, and RViz shows the time.
+        self._clock_pub.publish(convert.clock(snap.time))
         if seq == self._published_seq:
             return
         self._published_seq = seq
-        self._clock_pub.publish(convert.clock(snap.time))
         if len(self._moving):
             self._tf_pub.publish(convert.moving_tf(self._tf_template, info, snap,
                                                    self._moving))

@@ -1,8 +1,11 @@
 """The node's ROS parameters, declared from :class:`~sim_node.core.config.WorldConfig` with
 descriptors (description, range, read-only where a change needs a restart)."""
 
+from typing import List
+
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from .core.config import WorldConfig
 
@@ -18,8 +21,26 @@ def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
     return d
 
 
+#: Parameters of type double: an integer given for one (``real_time_factor:=0``, ``ros2 param
+#: set /sim real_time_factor 1``) is taken as that number, as users type them.
+DOUBLES = ('real_time_factor', 'timestep', 'max_sim_time', 'tf_rate_hz', 'joint_states_rate_hz',
+           'kp', 'kd')
+
+
+def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
+    """An integer value for a double parameter becomes that double; nothing else changes (a
+    string stays a string, and is refused as the wrong type)."""
+    return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+            if p.name in DOUBLES and p.type_ == Parameter.Type.INTEGER else p for p in params]
+
+
 def declare(node: Node, scenes_dir: str) -> None:
-    """Declare every parameter of the node with its default."""
+    """Declare every parameter of the node with its default. Integers given on the command
+    line for double parameters are taken as doubles, at start-up and at run time."""
+    overrides = getattr(node, '_parameter_overrides', {})  # rclpy keeps --ros-args -p here
+    for p in integers_as_doubles(list(overrides.values())):
+        overrides[p.name] = p
+    node.add_pre_set_parameters_callback(integers_as_doubles)
     c = WorldConfig()
     d = _descriptor
     node.declare_parameter('scene', 'default', d(
