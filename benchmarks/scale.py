@@ -154,7 +154,8 @@ def bench_message_costs(n: int = 1000) -> None:
     snap = w.snapshot()
     info = snap.info
     bodies = convert.moving_body_ids(info)
-    template = convert.moving_tf_template(info, bodies, 'world')
+    frames = convert.frame_names(info, 'world')
+    template = convert.moving_tf_template(info, bodies, frames)
     reps = 200
     t0 = time.perf_counter()
     for _ in range(reps):
@@ -170,7 +171,7 @@ def bench_message_costs(n: int = 1000) -> None:
             for b, p, q in zip(bodies, pos, rot)])
     objects = (time.perf_counter() - t0) / 5 / len(bodies) * 1e6
     t0 = time.perf_counter()
-    data = markers.markers(info, snap.time, 'world')
+    data = markers.markers(info, snap.time, frames)
     marker_ms = (time.perf_counter() - t0) * 1e3
     print(f'  /tf for {len(bodies)} bodies: {ours:.3f} us per transform (target <= 1 us); '
           f'from Python objects {objects:.1f} us ({objects / ours:.0f}x)')

@@ -171,15 +171,20 @@ def _transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStampe
     return ts
 
 
-def _frame(info: ModelInfo, body: int, world_frame: str) -> str:
-    return world_frame if body == 0 else info.body_names[body]
+def frame_names(info: ModelInfo, world_frame: str, prefix: str = '') -> tuple:
+    """The TF frame of every body, (nbody,): `world_frame` for the world body, the body's name
+    for the others, each after `prefix` (like robot_state_publisher's frame_prefix)."""
+    return (prefix + world_frame,) + tuple(prefix + n for n in info.body_names[1:])
 
 
-def static_transforms(info: ModelInfo, sim_time: float, world_frame: str) -> TFMessage:
-    """Welded bodies: their fixed pose in the parent body's frame, for /tf_static."""
+def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str]) -> TFMessage:
+    """Welded bodies: their fixed pose in the parent body's frame, for /tf_static.
+
+    :param frames: (nbody,) frame names from :func:`frame_names`.
+    """
     t = stamp(sim_time)
     return TFMessage(transforms=[
-        _transform(_frame(info, info.body_parent[b], world_frame), info.body_names[b],
+        _transform(frames[info.body_parent[b]], frames[b],
                    info.body_local_pos[b], info.body_local_quat_wxyz[b], t)
         for b in range(1, len(info.body_names)) if not info.body_has_joint[b]])
 
@@ -197,11 +202,12 @@ def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> t
     return quat.rotate(inv, cp - pp), quat.mul(inv, cq)
 
 
-def moving_tf_template(info: ModelInfo, bodies: np.ndarray, world_frame: str) -> TfTemplate:
+def moving_tf_template(info: ModelInfo, bodies: np.ndarray,
+                       frames: Sequence[str]) -> TfTemplate:
     """The /tf message layout of one model generation: parent body -> body for each of
-    `bodies` (free bodies from the world frame)."""
-    return TfTemplate([_frame(info, int(p), world_frame) for p in info.body_parent[bodies]],
-                      [info.body_names[b] for b in bodies])
+    `bodies` (free bodies from the world frame); `frames` from :func:`frame_names`."""
+    return TfTemplate([frames[p] for p in info.body_parent[bodies]],
+                      [frames[b] for b in bodies])
 
 
 def moving_tf(template: TfTemplate, info: ModelInfo, snap: Snapshot,

@@ -1,6 +1,8 @@
 """RViz markers for every visible geom, locked to its body's TF frame: one MarkerArray per
 model generation, written straight to its wire form (:mod:`.cdr`) from the model info."""
 
+from typing import Sequence
+
 import numpy as np
 
 from sim_node.core.types import GeomVisual, ModelInfo
@@ -81,14 +83,17 @@ def clear_markers(sim_time: float, world_frame: str) -> bytes:
     return bytes(w.buf)
 
 
-def markers(info: ModelInfo, sim_time: float, world_frame: str) -> bytes:
+def markers(info: ModelInfo, sim_time: float, frames: Sequence[str]) -> bytes:
     """The serialized MarkerArray of one model generation: a DELETEALL first (so nothing of an
     earlier generation survives, whatever was respawned under which name), then one marker
-    per visible geom, in its body's frame."""
+    per visible geom, in its body's frame.
+
+    :param frames: (nbody,) TF frame of each body (``convert.frame_names``).
+    """
     sec, nsec = split_time(sim_time)
     w = CdrWriter()
     w.u32(1 + len(info.geoms))
-    _marker(w, sec, nsec, world_frame, '', 0, 0, DELETEALL)
+    _marker(w, sec, nsec, frames[0], '', 0, 0, DELETEALL)
     counters: dict = {}
     for geom in info.geoms:
         ns = marker_ns(info, geom)
@@ -96,7 +101,6 @@ def markers(info: ModelInfo, sim_time: float, world_frame: str) -> bytes:
         counters[ns] = mid + 1
         mtype, scale, points = shape(geom)
         q = geom.quat_wxyz
-        _marker(w, sec, nsec, world_frame if geom.body == 0 else info.body_names[geom.body],
-                ns, mid, mtype, ADD, (*geom.pos, q[1], q[2], q[3], q[0]), scale, geom.rgba,
-                True, points)
+        _marker(w, sec, nsec, frames[geom.body], ns, mid, mtype, ADD,
+                (*geom.pos, q[1], q[2], q[3], q[0]), scale, geom.rgba, True, points)
     return bytes(w.buf)

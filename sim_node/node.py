@@ -62,6 +62,9 @@ class SimNode(SimServices, Node):
         params.declare(self, str(self._scenes_dir))
         p = self._param
         self._world_frame = p('world_frame')
+        self._frame_prefix = p('frame_prefix')
+        self._out_world_frame = self._frame_prefix + self._world_frame  # as published
+        self._frames: tuple = ()  # TF frame of each body of the published generation
         self._resource_paths = [str(Path(r).resolve()) for r in p('resource_paths') if r]
         self._sim: Optional[Sim] = None
         self._syncing_thread: Optional[int] = None  # set while we mirror `paused` ourselves
@@ -78,7 +81,8 @@ class SimNode(SimServices, Node):
         self._srv_group = ReentrantCallbackGroup()
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
-        self._clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self._clock_pub = (self.create_publisher(Clock, '/clock', 10)
+                           if p('publish_clock') else None)
         self._tf_pub = self.create_publisher(TFMessage, '/tf', 100)
         self._tf_static_pub = self.create_publisher(TFMessage, '/tf_static', latched)
         self._marker_pub = self.create_publisher(MarkerArray, 'markers', latched)
@@ -207,7 +211,8 @@ class SimNode(SimServices, Node):
             self._publish_model(info, snap.time)
         # /clock goes on while paused (the same time), as Gazebo's does: nodes started with
         # use_sim_time then still start their timers, and RViz shows the time.
-        self._clock_pub.publish(convert.clock(snap.time))
+        if self._clock_pub is not None:
+            self._clock_pub.publish(convert.clock(snap.time))
         if seq == self._published_seq:
             return
         self._published_seq = seq
@@ -219,10 +224,10 @@ class SimNode(SimServices, Node):
         """On a new model generation: /tf_static for welded bodies, and every marker anew."""
         self._published_generation = info.generation
         self._moving = convert.moving_body_ids(info)
-        self._tf_template = convert.moving_tf_template(info, self._moving, self._world_frame)
-        self._tf_static_pub.publish(convert.static_transforms(info, sim_time,
-                                                              self._world_frame))
-        self._marker_pub.publish(markers.markers(info, sim_time, self._world_frame))
+        self._frames = convert.frame_names(info, self._world_frame, self._frame_prefix)
+        self._tf_template = convert.moving_tf_template(info, self._moving, self._frames)
+        self._tf_static_pub.publish(convert.static_transforms(info, sim_time, self._frames))
+        self._marker_pub.publish(markers.markers(info, sim_time, self._frames))
 
     def _publish_joint_states(self) -> None:
         sim = self._sim

@@ -62,6 +62,11 @@ def declare(node: Node, scenes_dir: str) -> None:
         'rate of joint_states (wall Hz)', read_only=True, fmin=1, fmax=1000))
     node.declare_parameter('world_frame', 'world', d(
         'TF frame of the MuJoCo world body', read_only=True))
+    node.declare_parameter('frame_prefix', '', d(
+        'prepended to every frame id the node publishes (e.g. robot2/), for several worlds '
+        'in one domain', read_only=True))
+    node.declare_parameter('publish_clock', True, d(
+        'publish /clock (one world per domain should)', read_only=True))
     node.declare_parameter('resource_paths', [scenes_dir], d(
         'directories that spawn and load_world may read files from', read_only=True))
     node.declare_parameter('kp', c.kp, d(

@@ -115,7 +115,7 @@ class SimServices:
 
     def _reference_frame(self, frame_id: str) -> str:
         """'' for the world frame, else the entity whose frame the pose is given in."""
-        if frame_id in ('', self._world_frame, '/' + self._world_frame):
+        if frame_id in ('', self._world_frame, '/' + self._world_frame, self._out_world_frame):
             return ''
         return frame_id
 
@@ -180,7 +180,7 @@ class SimServices:
 
     def _srv_get_state(self, request, response):
         state = self._require().world.get_entity_state(request.entity)
-        response.state = convert.entity_state_to_msg(state, self._world_frame)
+        response.state = convert.entity_state_to_msg(state, self._out_world_frame)
         response.result = convert.ok()
         return response
 
@@ -192,7 +192,7 @@ class SimServices:
             except NotFoundError:
                 continue  # deleted meanwhile
             response.entities.append(rec.name)
-            response.states.append(convert.entity_state_to_msg(state, self._world_frame))
+            response.states.append(convert.entity_state_to_msg(state, self._out_world_frame))
         response.result = convert.ok()
         return response
 
@@ -370,7 +370,7 @@ class SimServices:
             return response
         sim.loop.stop()
         self._published_generation = None
-        self._marker_pub.publish(markers.clear_markers(sim.world.time, self._world_frame))
+        self._marker_pub.publish(markers.clear_markers(sim.world.time, self._out_world_frame))
         self._tf_static_pub.publish(TFMessage())
         response.result = convert.ok()
         return response

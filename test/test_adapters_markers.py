@@ -8,13 +8,18 @@ from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
 from conftest import DEFAULT_SCENE
-from msg_adapters import markers
+from msg_adapters import convert, markers
 from sim_node.core import sources
 from sim_node.core.world import World
 
 THREE_GEOMS = '''<mujoco><worldbody><body name="b"><freejoint/>
   <geom type="box" size=".05 .05 .05"/><geom type="sphere" size=".04" pos="0 0 .1"/>
   <geom type="capsule" size=".02" fromto="0 0 .15 0 0 .3"/></body></worldbody></mujoco>'''
+
+
+def marker_bytes(w: World, t: float = 0.0) -> bytes:
+    info = w.model_info
+    return markers.markers(info, t, convert.frame_names(info, 'world'))
 
 
 def apply(shown: dict, data: bytes) -> dict:
@@ -32,20 +37,20 @@ def apply(shown: dict, data: bytes) -> dict:
 def test_a_respawn_with_fewer_geoms_leaves_no_stale_markers():
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('thing', sources.from_model_text(THREE_GEOMS), position=[2, 0, 0.5])
-    shown = apply({}, markers.markers(w.model_info, w.time, 'world'))
+    shown = apply({}, marker_bytes(w))
     assert len([k for k in shown if k[0] == 'sim/thing']) == 3
     # Within one publishing tick: deleted, and respawned under the same name with one geom.
     w.delete('thing')
     w.spawn('thing', sources.primitive('sphere', [0.05]), position=[2, 0, 0.5])
     info = w.model_info
-    shown = apply(shown, markers.markers(info, w.time, 'world'))
+    shown = apply(shown, marker_bytes(w))
     assert len([k for k in shown if k[0] == 'sim/thing']) == 1
     assert len(shown) == len(info.geoms)
 
 
 def test_cleared_markers_leave_nothing():
     w = World.from_file(str(DEFAULT_SCENE))
-    shown = apply({}, markers.markers(w.model_info, w.time, 'world'))
+    shown = apply({}, marker_bytes(w))
     assert shown
     assert apply(shown, markers.clear_markers(w.time, 'world')) == {}
 
@@ -55,7 +60,7 @@ def test_every_geom_has_a_marker_with_its_shape_pose_colour_and_frame():
     w.spawn('pyr', sources.from_file(str(DEFAULT_SCENE.parent / 'objects' / 'pyramid.obj')),
             position=[2, 0, 0.5])
     info = w.model_info
-    msg = deserialize_message(markers.markers(info, 12.5, 'world'), MarkerArray)
+    msg = deserialize_message(marker_bytes(w, 12.5), MarkerArray)
     assert msg.markers[0].action == Marker.DELETEALL
     got = msg.markers[1:]
     assert len(got) == len(info.geoms)

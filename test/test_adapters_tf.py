@@ -23,8 +23,8 @@ def test_published_tf_bytes_are_the_worlds_poses():
     snap = w.snapshot()
     info = snap.info
     bodies = convert.moving_body_ids(info)
-    data = convert.moving_tf(convert.moving_tf_template(info, bodies, 'world'), info, snap,
-                             bodies)
+    template = convert.moving_tf_template(info, bodies, convert.frame_names(info, 'world'))
+    data = convert.moving_tf(template, info, snap, bodies)
     msg = deserialize_message(data, TFMessage)
     # The same length as rclpy's own serialization (padding bytes are unspecified on the wire).
     assert len(serialize_message(msg)) == len(data)

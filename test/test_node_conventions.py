@@ -45,3 +45,31 @@ def test_integers_for_doubles_and_clock_while_paused(rclpy_context):
         watch.close()
         sim.close()
         node.close()
+
+
+def test_two_worlds_in_one_domain_do_not_collide(rclpy_context):
+    """The second world: its own namespace, no /clock, every frame under 'robot2/'."""
+    first = NodeProcess()
+    watch = Watcher()
+    wait_for(watch.latest_clock)  # the first world runs ahead
+    time.sleep(1.0)
+    second = NodeProcess('publish_clock:=false', 'frame_prefix:=robot2/', namespace='/robot2')
+    watch2 = Watcher(namespace='/robot2')
+    try:
+        wait_for(lambda: 'robot2/box_a' in watch.tf and 'box_a' in watch.tf, timeout=15)
+        assert watch.tf['robot2/box_a'][1] == 'robot2/world'
+        assert watch.tf['robot2/left_link1'][1] == 'robot2/robot'
+        assert watch.tf['box_a'][1] == 'world'
+        wait_for(lambda: watch2.markers, timeout=10)
+        frames = {m.header.frame_id for m in watch2.markers.values()}
+        assert frames and all(f.startswith('robot2/') for f in frames), frames
+        n0 = len(watch.clock)
+        time.sleep(1.5)
+        with watch.lock:
+            clock = watch.clock[n0:]
+        assert len(clock) > 50 and all(b >= a for a, b in zip(clock, clock[1:]))
+    finally:
+        watch2.close()
+        watch.close()
+        second.close()
+        first.close()
