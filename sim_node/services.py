@@ -235,6 +235,7 @@ class SimServices:
     def _srv_reset(self, request, response):
         sim = self._require()
         sim.world.reset(int(request.scope))
+        sim.loop.recover()  # a failed loop comes back, paused, after a reset
         self._after_change(sim)
         response.result = convert.ok()
         return response
@@ -251,7 +252,7 @@ class SimServices:
         sim = self._sim
         if sim is None:
             return 'no_world'
-        if self._stopped:
+        if self._stopped or sim.loop.failure:
             return 'stopped'
         return 'paused' if sim.loop.paused else 'playing'
 
@@ -259,8 +260,9 @@ class SimServices:
         response.state = convert.simulation_state(self._sim_state())
         response.result = convert.ok()
         sim = self._sim
-        if sim is not None:  # OK, with a word when the physics lags the requested rate
-            response.result.error_message = sim.loop.status().lag
+        if sim is not None:  # OK, with why it stopped or a word when the physics lags
+            status = sim.loop.status()
+            response.result.error_message = status.stop_reason or status.lag
         return response
 
     def _srv_set_sim_state(self, request, response):
@@ -275,9 +277,13 @@ class SimServices:
             return response
         sim = self._require()
         current = convert.simulation_state(self._sim_state()).state
-        if current == target:
+        if current == target and not sim.loop.failure:  # STOPPED after a failure: reset
             response.result = Result(result=resp.ALREADY_IN_TARGET_STATE,
                                      error_message='already in that state')
+            return response
+        if sim.loop.failure and target != s.STATE_STOPPED:
+            response.result = Result(result=resp.STATE_TRANSITION_ERROR,
+                                     error_message=sim.loop.failure)
             return response
         if target == s.STATE_PLAYING:
             self._stopped = False
@@ -288,6 +294,7 @@ class SimServices:
         else:
             sim.loop.pause()
             sim.world.reset(RESET_ALL)
+            sim.loop.recover()
             self._stopped = True
             self._after_change(sim)
         self._sync_paused_parameter()

@@ -122,3 +122,36 @@ def test_pacing_resyncs_after_a_stall_instead_of_bursting(make_loop):
     gained = loop.world.time - t_stall
     # Catching up would add the missed second at once; re-syncing continues at real time.
     assert gained < 0.6, f'burst: {gained:.2f} s of simulated time in 0.3 s of wall time'
+
+
+def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_loop):
+    """An injected fault in the stepping loop: the loop stops with the reason, play and step
+    are refused with it (nothing reports success while time stands still), and a reset plus
+    recover() brings it back, paused."""
+    loop = make_loop(real_time_factor=0)
+    world = loop.world
+    real_step = world.step
+
+    def broken(*args, **kwargs):
+        world.step = real_step
+        raise RuntimeError('injected fault')
+    world.step = broken
+    deadline = time.monotonic() + 5
+    while not loop.failure and time.monotonic() < deadline:
+        time.sleep(0.01)
+    st = loop.status()
+    assert st.state == 'stopped' and 'injected fault' in st.stop_reason
+    with pytest.raises(IncorrectStateError, match='injected fault'):
+        loop.play()
+    with pytest.raises(IncorrectStateError, match='injected fault'):
+        loop.step(10)
+    t0 = world.time
+    time.sleep(0.2)
+    assert world.time == t0
+    world.reset()
+    loop.recover()
+    assert loop.status().state == 'paused'
+    assert loop.step(10) == 10 and world.step_count == 10
+    loop.play()
+    time.sleep(0.2)
+    assert world.step_count > 10

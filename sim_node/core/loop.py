@@ -54,6 +54,8 @@ LAG_FRACTION = 0.95
 ERR_LAG = ('the physics cannot keep real_time_factor {rtf:g}: achieved {achieved:.3g} over the '
            'last {window:g} s ({ms:.2f} ms of wall time per {dt:g} s step)')
 
+ERR_FAILED = ('the stepping loop failed ({error}); reset the simulation or load a world to '
+              'recover')
 ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
 
@@ -75,6 +77,7 @@ class SimLoop:
         self._pending_steps = 0
         self._steps_done_cv = threading.Condition(self._cv)
         self._stop_reason = ''
+        self._failure = ''  # set when the loop caught an internal error: see recover()
         self._divergence: Optional[dict] = None
         self._thread: Optional[threading.Thread] = None
         self._snapshot = world.snapshot()
@@ -118,8 +121,13 @@ class SimLoop:
             self._cv.notify_all()
 
     def play(self) -> None:
-        """Resume; clears a termination or divergence report (limits still apply)."""
+        """Resume; clears a termination or divergence report (limits still apply).
+
+        :raises IncorrectStateError: the loop failed; :meth:`recover` first.
+        """
         with self._cv:
+            if self._failure:
+                raise IncorrectStateError(self._failure)
             self._paused = False
             self._stop_reason = ''
             self._divergence = None
@@ -128,6 +136,19 @@ class SimLoop:
     @property
     def paused(self) -> bool:
         return self._paused
+
+    @property
+    def failure(self) -> str:
+        """Why the loop stopped on an internal error ('' if it did not)."""
+        return self._failure
+
+    def recover(self) -> None:
+        """After the world was reset or replaced: clear a failure; the loop stays paused."""
+        with self._cv:
+            if self._failure:
+                log.info('the stepping loop recovers (paused): %s', self._failure)
+            self._failure = ''
+            self._stop_reason = ''
 
     def set_real_time_factor(self, rtf: float) -> None:
         if not (rtf >= 0 and rtf < float('inf')):
@@ -159,6 +180,8 @@ class SimLoop:
             raise InvalidArgumentError(f'steps must be >= 1, got {n}')
         deadline = None if timeout is None else time.monotonic() + timeout
         with self._cv:
+            if self._failure:
+                raise IncorrectStateError(self._failure)
             if not self._paused:
                 raise IncorrectStateError(ERR_STEP_WHILE_PLAYING)
             if not self.running:
@@ -191,7 +214,7 @@ class SimLoop:
         snap = self._snapshot
         with self._cv:
             state = PAUSED if self._paused else PLAYING
-            if not self.running:
+            if not self.running or self._failure:
                 state = STOPPED
             return LoopStatus(state=state, step=snap.step, time=snap.time,
                               real_time_factor=self._rtf, stop_reason=self._stop_reason,
@@ -266,11 +289,11 @@ class SimLoop:
         while not self._stopping:
             try:
                 self._iterate()
-            except Exception:  # the loop must never die silently: pause and say why
+            except Exception as exc:  # never die silently: stop, say why, refuse to step
                 log.exception('the stepping loop failed')
                 with self._cv:
                     self._paused = True
-                    self._stop_reason = 'internal error in the stepping loop (see the log)'
+                    self._failure = self._stop_reason = ERR_FAILED.format(error=repr(exc))
                     self._pending_steps = 0
                     self._steps_done_cv.notify_all()
 
