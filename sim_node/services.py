@@ -13,7 +13,7 @@ from tf2_msgs.msg import TFMessage
 from msg_adapters import convert, markers
 from . import entity_query, resources
 from .core import sources
-from .core.errors import InvalidArgumentError, NotFoundError, SimError
+from .core.errors import NotFoundError, SimError
 from .core.loop import SimLoop
 from .core.types import RESET_ALL
 from .core.world import World
@@ -242,9 +242,8 @@ class SimServices:
 
     def _srv_step(self, request, response):
         sim = self._require()
-        if request.steps < 1:
-            raise InvalidArgumentError('steps must be >= 1')
-        sim.loop.step(int(request.steps))
+        if request.steps > 0:  # 0 steps: nothing to do, answered OK
+            sim.loop.step(int(request.steps))
         response.result = convert.ok()
         return response
 
@@ -276,6 +275,7 @@ class SimServices:
                 f'({s.STATE_PAUSED}) or STOPPED ({s.STATE_STOPPED})'))
             return response
         sim = self._require()
+        sim.loop.cancel_steps()  # any state request ends a step request in progress
         current = convert.simulation_state(self._sim_state()).state
         if current == target and not sim.loop.failure:  # STOPPED after a failure: reset
             response.result = Result(result=resp.ALREADY_IN_TARGET_STATE,

@@ -1,5 +1,6 @@
 """The stepping loop: pause costs nothing, step N while paused, limits, divergence, pacing."""
 
+import threading
 import time
 
 import pytest
@@ -155,3 +156,22 @@ def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_l
     loop.play()
     time.sleep(0.2)
     assert world.step_count > 10
+
+
+def test_an_endless_step_request_is_ended_by_a_state_request(make_loop):
+    loop = make_loop(paused=True)
+    outcome = []
+
+    def endless():
+        try:
+            loop.step(2 ** 63 - 1)
+        except IncorrectStateError as exc:
+            outcome.append(str(exc))
+    t = threading.Thread(target=endless)
+    t.start()
+    time.sleep(0.3)
+    assert loop.world.step_count > 0
+    loop.pause()  # already paused: the request still ends
+    t.join(2)
+    assert not t.is_alive() and 'ended by a state request' in outcome[0]
+    assert loop.step(10) == 10  # no "another step request is still running"

@@ -355,3 +355,30 @@ def test_paused_and_real_time_factor_parameters_change_at_run_time(sim, watch):
     finally:
         set_param('real_time_factor', 1.0)
         set_param('paused', False)
+
+
+def test_an_endless_step_request_ends_on_a_state_request_and_zero_steps_is_a_no_op(sim):
+    from simulation_interfaces.srv import StepSimulation
+    sim.pause()
+    other = SimClient(timeout_sec=30)
+    answers = []
+
+    def endless():
+        answers.append(other.call('step_simulation', StepSimulation,
+                                  StepSimulation.Request(steps=2 ** 63 - 1), check=False))
+    t = threading.Thread(target=endless)
+    t.start()
+    try:
+        time.sleep(1.0)
+        assert not answers  # still stepping
+        with pytest.raises(SimServiceError):
+            sim.pause()  # already paused (ALREADY_IN_TARGET_STATE), but it ends the request
+        t.join(10)
+        assert answers and answers[0].result.result == Result.RESULT_INCORRECT_STATE
+        assert 'ended by a state request' in answers[0].result.error_message
+        sim.step(10)  # no "another step request is still running"
+        zero = sim.call('step_simulation', StepSimulation, StepSimulation.Request(steps=0))
+        assert zero.result.result == Result.RESULT_OK
+    finally:
+        t.join(10)
+        other.close()

@@ -56,6 +56,8 @@ ERR_LAG = ('the physics cannot keep real_time_factor {rtf:g}: achieved {achieved
 
 ERR_FAILED = ('the stepping loop failed ({error}); reset the simulation or load a world to '
               'recover')
+ERR_INTERRUPTED = ('the step request was ended by a state request after {done} of {n} '
+                   'steps')
 ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
 
@@ -78,6 +80,7 @@ class SimLoop:
         self._steps_done_cv = threading.Condition(self._cv)
         self._stop_reason = ''
         self._failure = ''  # set when the loop caught an internal error: see recover()
+        self._cancelled_left: Optional[int] = None  # steps a cancelled request had left
         self._divergence: Optional[dict] = None
         self._thread: Optional[threading.Thread] = None
         self._snapshot = world.snapshot()
@@ -116,9 +119,22 @@ class SimLoop:
     # ------------------------------------------------------------------ control
 
     def pause(self) -> None:
+        """Pause; a step request in progress ends (see :meth:`cancel_steps`)."""
         with self._cv:
+            self._cancel_steps_locked()
             self._paused = True
             self._cv.notify_all()
+
+    def cancel_steps(self) -> None:
+        """End a step request in progress: its caller gets an IncorrectStateError saying how
+        many steps were done. A simulator must never be held by one request for ever."""
+        with self._cv:
+            self._cancel_steps_locked()
+
+    def _cancel_steps_locked(self) -> None:
+        if self._pending_steps:
+            self._cancelled_left, self._pending_steps = self._pending_steps, 0
+            self._steps_done_cv.notify_all()
 
     def play(self) -> None:
         """Resume; clears a termination or divergence report (limits still apply).
@@ -128,6 +144,7 @@ class SimLoop:
         with self._cv:
             if self._failure:
                 raise IncorrectStateError(self._failure)
+            self._cancel_steps_locked()
             self._paused = False
             self._stop_reason = ''
             self._divergence = None
@@ -189,6 +206,7 @@ class SimLoop:
             if self._pending_steps:
                 raise IncorrectStateError('another step request is still running')
             self._pending_steps = n
+            self._cancelled_left = None
             self._divergence = None
             self._cv.notify_all()
             last = n
@@ -202,6 +220,9 @@ class SimLoop:
                     feedback(n - last, last)
             remaining = self._pending_steps
             self._pending_steps = 0
+            if self._cancelled_left is not None:
+                done, self._cancelled_left = n - self._cancelled_left, None
+                raise IncorrectStateError(ERR_INTERRUPTED.format(done=done, n=n))
             if self._divergence is not None:
                 div = self._divergence
                 raise DivergenceError(f'physics diverged at step {div["step"]}', div['step'],
