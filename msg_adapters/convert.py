@@ -100,11 +100,10 @@ def pose_to_msg(pos: Sequence[float], q_wxyz: Sequence[float]) -> Pose:
 
 
 def pose_from_msg(pose: Pose) -> tuple:
-    """(position (3,), quat_wxyz (4,)) from a Pose; an all-zero quaternion means identity."""
-    q = quat_from_msg(pose.orientation)
-    if not np.any(q):
-        q = np.array([1.0, 0.0, 0.0, 0.0])
-    return vec_from_msg(pose.position), q
+    """(position (3,), quat_wxyz (4,)) from a Pose, as given: an all-zero quaternion is no
+    rotation at all and is refused by the core as an invalid pose (a message's default
+    orientation is already the identity, w = 1)."""
+    return vec_from_msg(pose.position), quat_from_msg(pose.orientation)
 
 
 def entity_state_to_msg(state, frame_id: str) -> EntityState:

@@ -10,7 +10,7 @@ import time
 
 import pytest
 from simulation_interfaces.msg import EntityCategory, Result, SimulationState
-from simulation_interfaces.srv import SetSimulationState, SpawnEntity
+from simulation_interfaces.srv import SetEntityState, SpawnEntity
 
 from conftest import NodeProcess, Watcher, wait_for
 from sim_node.client import SimClient, SimServiceError
@@ -184,6 +184,8 @@ BAD_SPAWNS = [
      SpawnEntity.Response.INVALID_POSE),
     ({'name': 'x', 'uri': 'box', 'position': (float('nan'), 0, 1)},
      SpawnEntity.Response.INVALID_POSE),
+    ({'name': 'x', 'uri': 'box', 'orientation_xyzw': (0, 0, 0, 0)},
+     SpawnEntity.Response.INVALID_POSE),
     ({'name': 'x', 'resource_string': 'x' * 6_000_000}, SpawnEntity.Response.UNSUPPORTED_ASSETS),
 ]
 
@@ -206,17 +208,16 @@ def test_bad_spawn_gets_its_code_and_changes_nothing(sim, kwargs, code):
     (lambda s: s.set_entity_state('table', (0.75, 0, 0), linear=(1, 0, 0)),
      Result.RESULT_INCORRECT_STATE),
     (lambda s: s.set_entity_state('box_a', (0, 0, 1), orientation_xyzw=(0, 0, 0, 2)),
-     SetSimulationState.Response.INCORRECT_TRANSITION if False else 109),
+     SetEntityState.Response.INVALID_POSE),
+    (lambda s: s.set_entity_state('box_a', (0, 0, 1), orientation_xyzw=(0, 0, 0, 0)),
+     SetEntityState.Response.INVALID_POSE),  # a zero quaternion is no rotation, not identity
 ])
 def test_bad_requests_get_their_code_and_change_nothing(sim, call, code):
     sim.pause()
     before = world_state(sim)
     with pytest.raises(SimServiceError) as info:
         call(sim)
-    if code != 109:
-        assert info.value.code == code, info.value.message
-    else:  # a non-unit quaternion: SetEntityState has no pose code of its own in Result
-        assert info.value.code in (Result.RESULT_OPERATION_FAILED, 101), info.value.message
+    assert info.value.code == code, info.value.message
     assert world_state(sim) == before
 
 
