@@ -2,16 +2,22 @@
 turns an ``EntityFilters`` message into these plain values (``msg_adapters.convert``)."""
 
 import math
-import re
+import time
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+import regex
 
 from .core.errors import InvalidArgumentError
 from .core.world import World
 
 ERR_REGEX = 'invalid filter regex {pattern!r}: {err}'
+ERR_REGEX_TIME = ('the filter regex took longer than {sec:g} s over the entity names; simplify '
+                  'it (nested repetition such as (a+)+ can take exponential time)')
+#: Longest a name filter may run over all entity names (s). Filters never run under the world
+#: lock; this bounds the service thread too.
+FILTER_TIMEOUT_SEC = 0.1
 
 
 @dataclass(frozen=True)
@@ -30,16 +36,22 @@ class Region:
 
 def query(world: World, pattern: str = '', categories: Optional[set] = None,
           tags: tuple = (), region: Optional[Region] = None) -> list:
-    """Entity records, in model order, whose name `pattern` (a regular expression) finds,
+    """Entity records, in model order, whose name `pattern` (a regular expression, at most
+    :data:`FILTER_TIMEOUT_SEC` of matching in all) finds,
     whose category is in `categories` (None: any), and whose root body origin lies in
     `region` (None: anywhere). Entities carry no tags, so any tag matches nothing."""
     recs = world.entities()
     if pattern:
         try:
-            rx = re.compile(pattern)
-        except re.error as exc:
+            rx = regex.compile(pattern)
+        except regex.error as exc:
             raise InvalidArgumentError(ERR_REGEX.format(pattern=pattern, err=exc)) from None
-        recs = [r for r in recs if rx.search(r.name)]
+        deadline = time.monotonic() + FILTER_TIMEOUT_SEC
+        try:
+            recs = [r for r in recs
+                    if rx.search(r.name, timeout=max(deadline - time.monotonic(), 1e-6))]
+        except TimeoutError:
+            raise InvalidArgumentError(ERR_REGEX_TIME.format(sec=FILTER_TIMEOUT_SEC)) from None
     if categories is not None:
         recs = [r for r in recs if r.category in categories]
     if tags:

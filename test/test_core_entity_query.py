@@ -1,6 +1,8 @@
 """The entity query behind get_entities / get_entities_states, ROS-free, and the conversion of
 an EntityFilters message into it."""
 
+import time
+
 import numpy as np
 import pytest
 from geometry_msgs.msg import Vector3
@@ -46,3 +48,15 @@ def test_entity_filters_message_becomes_the_same_query(world):
     msg.bounds = Bounds(type=Bounds.TYPE_BOX, points=[Vector3()])
     with pytest.raises(InvalidArgumentError):
         convert.entity_filters(msg)
+
+
+def test_a_catastrophic_filter_is_refused_in_bounded_time(world):
+    from sim_node.core import sources
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('a' * 40 + '_', sources.primitive('box', [0.05] * 3), position=[2, 2, 1])
+    t0 = time.monotonic()
+    assert names(query(w, pattern='^(a+)+$')) == []  # the issue's: 2^40 steps with Python's re
+    with pytest.raises(InvalidArgumentError, match='took longer'):
+        query(w, pattern='^(a|aa)+$')  # exponential for the regex package too
+    assert time.monotonic() - t0 < 1.0
+    assert names(query(w, pattern='^a+_$')) == ['a' * 40 + '_']
