@@ -21,6 +21,11 @@ def main(args=None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:  # noqa: B902
+        if rclpy.ok():
+            raise
+        # SIGINT or SIGTERM shut the context down while the executor was building its wait
+        # set: rclpy raises from there. That is a normal shutdown, not a failure.
     except SimError as exc:
         print(f'[sim] cannot start: {exc}', file=sys.stderr)
         code = 2

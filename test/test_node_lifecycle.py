@@ -19,3 +19,17 @@ def test_bad_scene_parameter_exits_with_a_message(start_node):
     code = node.proc.wait(20)
     assert code != 0
     assert 'no scene' in node.output() and 'default' in node.output()
+
+
+def test_sigterm_ends_a_busy_node_cleanly_within_two_seconds(start_node, watcher):
+    import signal
+    import time
+    for _ in range(3):
+        node = start_node('real_time_factor:=0')
+        wait_for(watcher.latest_clock, timeout=20)
+        t0 = time.monotonic()
+        node.proc.send_signal(signal.SIGTERM)
+        code = node.proc.wait(10)
+        assert code == 0 and time.monotonic() - t0 < 2.0, node.output()
+        assert 'Traceback' not in node.output()
+        watcher.clock.clear()
