@@ -51,8 +51,9 @@ def steps_until(time_sec: float, limit_sec: float, timestep: float) -> int:
 # below this fraction of the requested factor for a window is reported (once per episode).
 RATE_WINDOW_SEC = 2.0
 LAG_FRACTION = 0.95
-ERR_LAG = ('the physics cannot keep real_time_factor {rtf:g}: achieved {achieved:.3g} over the '
-           'last {window:g} s ({ms:.2f} ms of wall time per {dt:g} s step)')
+ERR_LAG = ('the simulation cannot keep real_time_factor {rtf:g}: achieved {achieved:.3g} over '
+           'the last {window:g} s (its last batch took {ms:.2f} ms of wall time per {dt:g} s '
+           'step, waits for the world lock included)')
 
 ERR_FAILED = ('the stepping loop failed ({error}); reset the simulation or load a world to '
               'recover')
