@@ -38,7 +38,7 @@ class Control:
         self._staged: dict = {}  # joint name -> (mode, value), written by any thread
         self._held: dict = {}  # joint name -> (mode, value), PD/effort, held until replaced
         self.kp, self.kd = float(kp), float(kd)
-        self._applied_dof = _NONE_INT  # qfrc_applied entries this binding writes
+        self._pd_dof = _NONE_INT  # qfrc_applied entries the current binding writes
         self.per_step = False  # True when PD torques or servo targets change every step
 
     # ---------------------------------------------------------------- any thread
@@ -65,11 +65,6 @@ class Control:
     @property
     def has_staged(self) -> bool:
         return bool(self._staged)  # read without the lock: a miss is applied next batch
-
-    @property
-    def held(self) -> dict:
-        """Commands held through ``qfrc_applied`` or a moving servo target (a copy)."""
-        return dict(self._held)
 
     # ---------------------------------------------------------------- world lock held
 
@@ -113,7 +108,7 @@ class Control:
             addresses mean nothing in it (recompile already carried its applied forces over).
         """
         if not new_model:
-            data.qfrc_applied[self._applied_dof] = 0
+            data.qfrc_applied[self._pd_dof] = 0
         self._held = {n: c for n, c in self._held.items() if n in index.joint_index}
         items = [(index.joint_index[n], mode, v) for n, (mode, v) in self._held.items()]
         acts = index.joint_actuators
@@ -147,7 +142,6 @@ class Control:
         self._pd_kp = np.where(is_pos, self.kp * m0, 0.0)
         self._pd_kd = np.where(is_eff, 0.0, self.kd * m0)
         self._pd_bias = ~is_eff
-        self._applied_dof = self._pd_dof
         self.per_step = bool(len(self._pd_dof) or len(self._servo_act))
 
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:

@@ -258,7 +258,7 @@ class World(StateWrites, WorldEdits):
             raise InvalidArgumentError(ERR_STEPS.format(n=n))
         # Once per Gym step and per loop batch: take a free lock directly. It is WorldLock's
         # own fast path without the context-manager calls, 0.25 us a step (1% of a
-        # Reacher-v5 step); a contended lock goes through _WorldLock as usual.
+        # Reacher-v5 step); a contended lock goes through WorldLock as usual.
         if self._lock.acquire(blocking=False):
             try:
                 return self._step_locked(int(n), ctrl)
