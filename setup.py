@@ -1,7 +1,7 @@
 """ament_python packaging of `sim`: `ros2 run sim node` starts `<prefix>/lib/sim/node`."""
 
-import os
 from glob import glob
+import os
 
 from setuptools import find_packages, setup
 

@@ -16,16 +16,16 @@ All environments are unwrapped (no TimeLimit or checker wrappers) and get the sa
 """
 
 import os
+from pathlib import Path
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import gymnasium as gym
-import mujoco
-import numpy as np
 from gymnasium.envs.mujoco import MujocoEnv
 from gymnasium.spaces import Box
+import mujoco
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from sim_node.gym_env import ReachTask, SimEnv, Task  # noqa: E402

@@ -14,11 +14,11 @@ Run with `make bench`; set SIM_BENCH_RT_SEC to shorten the real-time run (defaul
 """
 
 import os
+from pathlib import Path
 import statistics
 import sys
 import threading
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np

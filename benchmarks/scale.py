@@ -16,13 +16,13 @@ Run with `make bench` (all benchmarks) or `make bench-scale` (this one, about 2 
 """
 
 import os
+from pathlib import Path
 import random
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -30,7 +30,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / 'benchmarks'))
-from box_scene import box_scene  # noqa: E402
+from box_scene import box_scene  # noqa: E402, I100
 from sim_node.core import sources  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
 from sim_node.core.loop import SimLoop  # noqa: E402
@@ -60,7 +60,6 @@ class NodeRun:
 
     def __init__(self, scene: str, *params: str):
         import rclpy
-
         from sim_node.client import SimClient
         exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
         args = [str(exe), '--ros-args', '-p', f'scene:={scene}']
@@ -145,10 +144,9 @@ def bench_node_vs_bare(label: str, path: str, target: float, rounds: int = 5,
 
 
 def bench_message_costs(n: int = 1000) -> None:
-    from geometry_msgs.msg import Transform, TransformStamped, Vector3, Quaternion
-    from tf2_msgs.msg import TFMessage
-
+    from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Vector3
     from msg_adapters import convert, markers
+    from tf2_msgs.msg import TFMessage
     w = World.from_string(box_scene(n))
     w.step(10)
     snap = w.snapshot()

@@ -4,8 +4,8 @@ free box; the arm's joint is commanded in a loop."""
 import math
 import time
 
-from sim_node.core.loop import SimLoop
 from sim_node.core.config import WorldConfig
+from sim_node.core.loop import SimLoop
 from sim_node.simulation import Simulation
 
 

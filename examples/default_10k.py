@@ -1,8 +1,8 @@
 """The default scene on its stepping thread, as fast as possible, with a max-steps constraint
 of 10,000 steps: the loop stops by itself and says why."""
 
-import time
 from pathlib import Path
+import time
 
 from sim_node.core.config import WorldConfig
 from sim_node.core.loop import SimLoop

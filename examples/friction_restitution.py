@@ -3,7 +3,6 @@
 from pathlib import Path
 
 import numpy as np
-
 from sim_node.simulation import Simulation
 
 SCENE = Path(__file__).resolve().parent.parent / 'scenes' / 'friction_restitution.xml'

@@ -4,7 +4,6 @@ overwriting the state; then a reset to the start reproduces the first run exactl
 from pathlib import Path
 
 import numpy as np
-
 from sim_node.simulation import Simulation
 
 SCENE = Path(__file__).resolve().parent.parent / 'scenes' / 'push_stack.xml'

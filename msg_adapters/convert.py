@@ -7,19 +7,17 @@ Stamps always come from simulation time, never from the wall clock.
 import math
 from typing import Sequence
 
-import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Accel, Point, Pose, Quaternion, Transform, TransformStamped, \
-    Twist, Vector3
+from geometry_msgs.msg import (Accel, Point, Pose, Quaternion, Transform, TransformStamped, Twist,
+                               Vector3)
+import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Result, \
-    SimulationState
-from tf2_msgs.msg import TFMessage
-
 from sim_node.core import errors, quat
-from sim_node.core.types import DYNAMIC, ROBOT, STATIC, ModelInfo, Snapshot
+from sim_node.core.records import DYNAMIC, ModelInfo, ROBOT, Snapshot, STATIC
 from sim_node.entity_query import Region
+from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Result, SimulationState
+from tf2_msgs.msg import TFMessage
 
 from .cdr import TfTemplate
 

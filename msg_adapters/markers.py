@@ -4,8 +4,7 @@ model generation, written straight to its wire form (:mod:`.cdr`) from the model
 from typing import Sequence
 
 import numpy as np
-
-from sim_node.core.types import GeomVisual, ModelInfo
+from sim_node.core.records import GeomVisual, ModelInfo
 
 from .cdr import CdrWriter, split_time
 

@@ -17,12 +17,11 @@ Run with the system's python3: ``python3 ros_env/bootstrap.py``.
 
 import hashlib
 import os
+from pathlib import Path
 import shutil
 import subprocess
 import sys
-import sysconfig
 import time
-from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / '.venv'
@@ -184,12 +183,12 @@ def write_gym_autoload(python: Path) -> None:
     pth = Path(site.strip()) / 'sim_gym_autoload.pth'
     # Loaded by file path under its own name, so the sim_node package itself is not imported
     # at start-up (that would pin sys.modules['sim_node'] to the installed copy).
-    line = ("import importlib.util as _u, sys as _y; _s = _u.find_spec('sim_node'); "
-            "_p = _s and _u.spec_from_file_location('_sim_gym_autoload', "
-            "_s.submodule_search_locations[0] + '/gym_autoload.py'); "
-            "_m = _p and _u.module_from_spec(_p); "
-            "_m and (_y.modules.__setitem__('_sim_gym_autoload', _m) or _p.loader.exec_module(_m))"
-            "\n")
+    line = ('import importlib.util as _u, sys as _y; _s = _u.find_spec("sim_node"); '
+            '_p = _s and _u.spec_from_file_location("_sim_gym_autoload", '
+            '_s.submodule_search_locations[0] + "/gym_autoload.py"); '
+            '_m = _p and _u.module_from_spec(_p); '
+            '_m and (_y.modules.__setitem__("_sim_gym_autoload", _m) or _p.loader.exec_module(_m))'
+            '\n')
     if not pth.is_file() or pth.read_text() != line:
         pth.write_text(line)
 
@@ -227,7 +226,8 @@ def main() -> None:
             f'export SIM_PREFIX="{sim_install}"',
             f'export SIM_PYTHON="{python}"',
             f'export AMENT_PREFIX_PATH="{sim_install}:{iface}:{VENV}"',
-            f'export LD_LIBRARY_PATH="{iface}/lib:{VENV}/lib${{LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}}"',
+            f'export LD_LIBRARY_PATH="{iface}/lib:{VENV}/lib'
+            '${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"',
             f'export PYTHONPATH="{sim_install}/lib/{pyver}/site-packages:'
             f'{iface}/lib/{pyver}/site-packages"',
         ])

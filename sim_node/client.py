@@ -13,16 +13,15 @@ without ros2cli. Plain Python arguments in, plain values out; failures raise
 import time
 from typing import Optional, Sequence
 
-import rclpy
 from geometry_msgs.msg import PoseStamped
+from msg_adapters import convert
+import rclpy
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from simulation_interfaces import srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import EntityState, Result, SimulationState
-
-from msg_adapters import convert
 
 
 class SimServiceError(RuntimeError):

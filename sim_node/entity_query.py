@@ -1,9 +1,9 @@
 """Which entities match a query: name pattern, categories, tags, a region. ROS-free: the node
 turns an ``EntityFilters`` message into these plain values (``msg_adapters.convert``)."""
 
+from dataclasses import dataclass
 import math
 import time
-from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np

@@ -23,6 +23,7 @@ def register_ids(registration) -> None:
 
 
 class _Finder(importlib.abc.MetaPathFinder):
+
     def find_spec(self, fullname, path, target=None):
         if fullname != _TARGET:
             return None

@@ -14,9 +14,9 @@ actuators' control ranges.
 from typing import Optional
 
 import gymnasium as gym
+from gymnasium import spaces
 import mujoco
 import numpy as np
-from gymnasium import spaces
 
 from . import resources
 from .core.checks import MAX_ABS_VALUE as MAX_CONTROL

@@ -7,11 +7,12 @@ publishers and subscriptions in another, so a long step request never starves ``
 
 import collections
 import logging
+from pathlib import Path
 import threading
 import time
-from pathlib import Path
 from typing import Optional
 
+from msg_adapters import convert, markers
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
@@ -22,12 +23,11 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from msg_adapters import convert, markers
 from . import params, resources
 from .core.config import WorldConfig
 from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
-from .core.types import EFFORT, POSITION, VELOCITY
+from .core.records import EFFORT, POSITION, VELOCITY
 from .core.world import World
 from .services import ERR_NO_WORLD, Sim, SimServices
 

@@ -49,7 +49,7 @@ def declare(node: Node, scenes_dir: str) -> None:
         'simulated seconds per wall second; 0 = as fast as possible', fmin=0, fmax=1000))
     node.declare_parameter('paused', c.paused, d('pause or play the simulation'))
     node.declare_parameter('timestep', c.timestep, d(
-        'physics step in seconds; 0 keeps the scene\'s own', fmin=0, fmax=0.1))
+        "physics step in seconds; 0 keeps the scene's own", fmin=0, fmax=0.1))
     node.declare_parameter('max_steps', c.max_steps, d(
         'pause after this many steps since the last time reset; 0 = unbounded',
         imin=0, imax=2 ** 62))

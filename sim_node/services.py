@@ -3,19 +3,20 @@ converts the request, calls the core, converts the answer (``msg_adapters``). A 
 :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameters and lifecycle.
 """
 
+from msg_adapters import convert, markers
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from simulation_interfaces import srv as si_srv
 from simulation_interfaces.action import SimulateSteps
-from simulation_interfaces.msg import EntityCategory, EntityInfo, Resource, Result, \
-    SimulationState, SimulatorFeatures, Spawnable, TagsFilter, WorldResource
+from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Result,
+                                       SimulationState, SimulatorFeatures, Spawnable, TagsFilter,
+                                       WorldResource)
 from tf2_msgs.msg import TFMessage
 
-from msg_adapters import convert, markers
 from . import entity_query, resources
 from .core import sources
 from .core.errors import NotFoundError, SimError
 from .core.loop import SimLoop
-from .core.types import RESET_ALL
+from .core.records import RESET_ALL
 from .core.world import World
 
 MAX_RESOURCE_STRING_BYTES = 5_000_000

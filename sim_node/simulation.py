@@ -20,7 +20,6 @@ Rules worth knowing:
 """
 
 import math
-
 from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -29,7 +28,7 @@ from .core import sources
 from .core.config import WorldConfig
 from .core.errors import InvalidArgumentError
 from .core.loop import time_reached
-from .core.types import RESET_STATE, RESET_TIME
+from .core.records import RESET_STATE, RESET_TIME
 from .core.world import World
 
 MODES = ('none', 'position', 'velocity', 'effort', 'kinematic')

@@ -2,12 +2,12 @@
 ROS_DOMAIN_ID, so parallel runs on one machine never meet."""
 
 import os
+from pathlib import Path
 import random
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -41,7 +41,8 @@ class NodeProcess:
             args += ['-p', p]
         if namespace:
             args += ['-r', f'__ns:={namespace}']
-        self.log_path = Path(os.environ.get('TMPDIR', '/tmp')) / f'sim_node_{os.getpid()}_{id(self)}.log'
+        self.log_path = (Path(os.environ.get('TMPDIR', '/tmp'))
+                         / f'sim_node_{os.getpid()}_{id(self)}.log')
         self._log = open(self.log_path, 'w+')
         self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
                                      start_new_session=True)

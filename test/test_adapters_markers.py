@@ -2,19 +2,18 @@
 geoms of the model that message came from, whatever was deleted or respawned under which
 name in between. The messages are written as bytes: read back by rclpy's own deserializer."""
 
+from conftest import DEFAULT_SCENE
+from msg_adapters import convert, markers
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
-from visualization_msgs.msg import Marker, MarkerArray
-
-from conftest import DEFAULT_SCENE
-from msg_adapters import convert, markers
 from sim_node.core import sources
 from sim_node.core.world import World
+from visualization_msgs.msg import Marker, MarkerArray
 
-THREE_GEOMS = '''<mujoco><worldbody><body name="b"><freejoint/>
+THREE_GEOMS = """<mujoco><worldbody><body name="b"><freejoint/>
   <geom type="box" size=".05 .05 .05"/><geom type="sphere" size=".04" pos="0 0 .1"/>
-  <geom type="capsule" size=".02" fromto="0 0 .15 0 0 .3"/></body></worldbody></mujoco>'''
+  <geom type="capsule" size=".02" fromto="0 0 .15 0 0 .3"/></body></worldbody></mujoco>"""
 
 
 def marker_bytes(w: World, t: float = 0.0) -> bytes:

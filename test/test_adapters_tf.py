@@ -3,15 +3,14 @@ rclpy's layout, one stamp, and composes back into the world's poses."""
 
 import os
 
+from conftest import DEFAULT_SCENE
 import gymnasium
+from msg_adapters import convert
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
-from tf2_msgs.msg import TFMessage
-
-from conftest import DEFAULT_SCENE
-from msg_adapters import convert
 from sim_node.core import quat, sources
 from sim_node.core.world import World
+from tf2_msgs.msg import TFMessage
 
 ANT = os.path.join(os.path.dirname(gymnasium.__file__), 'envs', 'mujoco', 'assets', 'ant.xml')
 

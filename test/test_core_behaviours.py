@@ -8,32 +8,31 @@ import sys
 import threading
 import time
 
+from conftest import DEFAULT_SCENE
 import mujoco
 import numpy as np
 import pytest
-
-from conftest import DEFAULT_SCENE
 from sim_node.core import sources
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (InvalidArgumentError, InvalidPoseError, NameNotUniqueError,
                                   ResourceParseError)
 from sim_node.core.loop import SimLoop
-from sim_node.core.types import RESET_SPAWNED, RESET_STATE, RESET_TIME
+from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
 from sim_node.core.world import World
 from sim_node.simulation import EMPTY_WORLD, Simulation
 
 # A fixed base with one hinge and no actuator: commands go through the PD path. No joint
 # damping or armature, so the PD law alone sets the dynamics.
-HINGE_ARM = '''<mujoco><worldbody>
+HINGE_ARM = """<mujoco><worldbody>
   <body name="base"><geom type="box" size=".05 .05 .05"/>
     <body name="link" pos="0 0 .1"><joint name="hinge" type="hinge" axis="0 0 1"/>
       <geom type="capsule" fromto="0 0 0 .2 0 0" size=".02" mass=".3"/></body>
-  </body></worldbody></mujoco>'''
+  </body></worldbody></mujoco>"""
 # The issue's model: a child body with an unnamed joint and geom.
-UNNAMED_CHILD = '''<mujoco><worldbody>
+UNNAMED_CHILD = """<mujoco><worldbody>
   <body name="base"><freejoint/><geom type="box" size=".05 .05 .05"/>
     <body pos="0 0 .1"><joint type="hinge"/><geom type="sphere" size=".03"/></body>
-  </body></worldbody></mujoco>'''
+  </body></worldbody></mujoco>"""
 
 
 def arm_source():
@@ -124,8 +123,8 @@ def test_an_own_restitution_also_wins_over_a_default_one():
 
 # ------------------------------------------------------------------ 3. twist at the origin
 
-OFF_CENTRE = '''<mujoco><worldbody><body name="b"><freejoint/>
-  <geom type="sphere" size=".05" pos=".3 0 0" mass="1"/></body></worldbody></mujoco>'''
+OFF_CENTRE = """<mujoco><worldbody><body name="b"><freejoint/>
+  <geom type="sphere" size=".05" pos=".3 0 0" mass="1"/></body></worldbody></mujoco>"""
 
 
 def test_entity_twist_is_that_of_the_body_origin_and_reads_back_as_written():

@@ -3,16 +3,15 @@ an EntityFilters message into it."""
 
 import time
 
+from conftest import DEFAULT_SCENE
+from geometry_msgs.msg import Vector3
+from msg_adapters import convert
 import numpy as np
 import pytest
-from geometry_msgs.msg import Vector3
-from simulation_interfaces.msg import Bounds, EntityCategory, EntityFilters
-
-from conftest import DEFAULT_SCENE
-from msg_adapters import convert
 from sim_node.core.errors import InvalidArgumentError
 from sim_node.core.world import World
-from sim_node.entity_query import Region, query
+from sim_node.entity_query import query, Region
+from simulation_interfaces.msg import Bounds, EntityCategory, EntityFilters
 
 
 @pytest.fixture(scope='module')

@@ -3,9 +3,8 @@
 import threading
 import time
 
-import pytest
-
 from conftest import DEFAULT_SCENE
+import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import IncorrectStateError
 from sim_node.core.loop import SimLoop
@@ -42,7 +41,7 @@ def test_step_while_playing_is_refused(make_loop):
 
 
 def test_paused_loop_uses_no_cpu(make_loop):
-    loop = make_loop(paused=True)
+    make_loop(paused=True)
     time.sleep(0.1)
     p0 = time.process_time()
     time.sleep(0.5)

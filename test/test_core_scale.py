@@ -2,19 +2,18 @@
 cannot keep the requested real-time factor."""
 
 import logging
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
-
-import pytest
 
 from conftest import DEFAULT_SCENE
+import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.loop import RATE_WINDOW_SEC, SimLoop
 from sim_node.core.world import World
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'benchmarks'))
-from box_scene import box_scene  # noqa: E402
+from box_scene import box_scene  # noqa: E402, I100
 
 
 def arena_mb(w: World) -> float:

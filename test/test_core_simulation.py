@@ -1,9 +1,8 @@
 """The stepping API: modes, state overwrite, run constraints, and its two rules."""
 
+from conftest import DEFAULT_SCENE
 import numpy as np
 import pytest
-
-from conftest import DEFAULT_SCENE
 from sim_node.core.errors import InvalidArgumentError, SimError
 from sim_node.simulation import Simulation
 

@@ -6,14 +6,13 @@ import glob
 import os
 import xml.etree.ElementTree as ET
 
+from conftest import DEFAULT_SCENE
 import gymnasium
 import mujoco
 import numpy as np
 import pytest
-
-from conftest import DEFAULT_SCENE
 from sim_node.core import sources
-from sim_node.core.types import RESET_STATE
+from sim_node.core.records import RESET_STATE
 from sim_node.core.world import World
 from sim_node.simulation import Simulation
 

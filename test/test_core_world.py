@@ -3,21 +3,19 @@ control, reset, determinism, physics parameters. Real MuJoCo throughout."""
 
 import threading
 
+from conftest import DEFAULT_SCENE, SCENES
 import mujoco
 import numpy as np
 import pytest
-
-from conftest import DEFAULT_SCENE, SCENES
 from sim_node.core import sources
-from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
                                   InvalidPoseError, MissingAssetsError, NameNotUniqueError,
                                   NotFoundError, ResourceParseError, UnsupportedAssetsError,
                                   UnsupportedFormatError)
-from sim_node.core.types import RESET_SPAWNED, RESET_STATE, RESET_TIME
+from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
 from sim_node.core.world import World
 
-ARM_MJCF = '''<mujoco><worldbody>
+ARM_MJCF = """<mujoco><worldbody>
   <body name="base"><geom type="box" size=".05 .05 .05"/>
     <body name="link"><joint name="hinge" type="hinge" axis="0 1 0"/>
       <geom name="link_geom" type="capsule" fromto="0 0 0 .2 0 0" size=".02"/></body>
@@ -25,7 +23,7 @@ ARM_MJCF = '''<mujoco><worldbody>
   <actuator><motor name="motor" joint="hinge"/></actuator>
   <sensor><jointpos name="angle" joint="hinge"/></sensor>
   <contact><exclude body1="base" body2="link"/></contact>
-</mujoco>'''
+</mujoco>"""
 
 
 @pytest.fixture
@@ -435,11 +433,11 @@ def test_entity_state_and_snapshot_describe_the_state_at_their_time_stamp():
 def test_entity_acceleration_is_the_coordinate_acceleration():
     """Free fall reads -g, resting reads 0, and a tumbling brick (spun off its principal
     axes, so its angular velocity wanders) matches the finite difference of its twist."""
-    world = World.from_string('''<mujoco><worldbody>
+    world = World.from_string("""<mujoco><worldbody>
       <geom type="plane" size="5 5 .1"/>
       <body name="brick" pos="0 0 20"><freejoint/><geom type="box" size=".05 .1 .2"/></body>
       <body name="crate" pos="1 0 .1"><freejoint/><geom type="box" size=".1 .1 .1"/></body>
-      </worldbody></mujoco>''')
+      </worldbody></mujoco>""")
     world.set_entity_state('brick', angular_velocity=[3, 1, 2])
     world.step(500)  # the crate settles on the floor meanwhile
     brick = world.get_entity_state('brick')

@@ -3,14 +3,13 @@
 import glob
 import json
 import os
+from pathlib import Path
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
+from conftest import installed_prefix, node_executable, ROOT
 import pytest
-
-from conftest import ROOT, installed_prefix, node_executable
 
 REFERENCE_HASHES = json.loads((ROOT / 'test' / 'interface_type_hashes.json').read_text())
 

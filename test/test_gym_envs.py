@@ -4,18 +4,17 @@ import subprocess
 import sys
 
 import gymnasium as gym
+from gymnasium.utils.env_checker import check_env
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
-
 import sim_node.gym_env  # noqa: F401  (registers the ids here; see the next test for without)
 
 IDS = ['sim/PushBox-v0', 'sim/Reach-v0']
 
 
 def test_make_works_without_importing_anything_first():
-    code = ("import gymnasium; e = gymnasium.make('sim/PushBox-v0'); "
-            "print(e.reset(seed=0)[0].shape)")
+    code = ('import gymnasium; e = gymnasium.make("sim/PushBox-v0"); '
+            'print(e.reset(seed=0)[0].shape)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          cwd='/')
     assert out.returncode == 0, out.stderr

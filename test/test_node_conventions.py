@@ -3,10 +3,10 @@ goes on while the simulation is paused."""
 
 import time
 
-from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
+from conftest import NodeProcess, wait_for, Watcher
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-
-from conftest import NodeProcess, Watcher, wait_for
 from sim_node.client import SimClient
 
 

@@ -3,10 +3,9 @@ at its rate."""
 
 import time
 
-from simulation_interfaces.srv import GetSimulationState
-
-from conftest import NodeProcess, Watcher, wait_for
+from conftest import NodeProcess, wait_for, Watcher
 from sim_node.client import SimClient
+from simulation_interfaces.srv import GetSimulationState
 
 
 def test_get_simulation_state_says_when_the_factor_is_not_kept(rclpy_context):

@@ -8,12 +8,11 @@ import math
 import threading
 import time
 
+from conftest import NodeProcess, wait_for, Watcher
 import pytest
+from sim_node.client import SimClient, SimServiceError
 from simulation_interfaces.msg import EntityCategory, Result, SimulationState
 from simulation_interfaces.srv import SetEntityState, SpawnEntity
-
-from conftest import NodeProcess, Watcher, wait_for
-from sim_node.client import SimClient, SimServiceError
 
 BOX = ('<mujoco><worldbody><body name="b"><freejoint/>'
        '<geom type="box" size=".05 .05 .05" mass=".3"/></body></worldbody></mujoco>')

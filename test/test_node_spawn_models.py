@@ -3,10 +3,9 @@ file:// URI inside resource_paths, seen on /tf and in markers, commanded, delete
 
 import os
 
+from conftest import NodeProcess, wait_for, Watcher
 import gymnasium
 import pytest
-
-from conftest import NodeProcess, Watcher, wait_for
 from sim_node.client import SimClient
 
 GYM_ASSETS = os.path.join(os.path.dirname(gymnasium.__file__), 'envs', 'mujoco', 'assets')

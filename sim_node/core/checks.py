@@ -6,8 +6,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .errors import (InvalidArgumentError, InvalidPoseError, NameInvalidError,
-                     NamespaceInvalidError)
+from .errors import InvalidArgumentError, InvalidPoseError, NameInvalidError, NamespaceInvalidError
 
 NAME_RE = re.compile(r'^[A-Za-z_][A-Za-z0-9_\-]{0,127}$')
 NAMESPACE_RE = re.compile(r'^/?([A-Za-z_][A-Za-z0-9_]*)(/[A-Za-z_][A-Za-z0-9_]*)*$')

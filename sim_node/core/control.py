@@ -15,7 +15,7 @@ import numpy as np
 from .checks import check_finite
 from .errors import InvalidArgumentError
 from .index import ModelIndex
-from .types import EFFORT, MODES, POSITION, VELOCITY
+from .records import EFFORT, MODES, POSITION, VELOCITY
 
 ERR_MODE = 'unknown command mode {mode!r}; use one of ' + ', '.join(MODES)
 ERR_LENGTH = '{what}: {n} names but {m} values'

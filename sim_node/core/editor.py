@@ -5,16 +5,16 @@ compiles the live spec or touches MjData: the world validates, applies and recom
 
 import logging
 import math
-import warnings
 from typing import Optional, Sequence
+import warnings
 
 import mujoco
 import numpy as np
 
 from . import quat, sources
-from .index import ModelIndex
 from .errors import ResourceParseError
-from .types import EntityRecord
+from .index import ModelIndex
+from .records import EntityRecord
 
 log = logging.getLogger(__name__)
 

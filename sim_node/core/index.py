@@ -12,8 +12,8 @@ import mujoco
 import numpy as np
 
 from .errors import NotFoundError
-from .types import (DYNAMIC, EFFORT, POSITION, ROBOT, STATIC, VELOCITY, EntityRecord,
-                    GeomVisual, ModelInfo)
+from .records import (DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT,
+                      STATIC, VELOCITY)
 
 ERR_UNKNOWN_ENTITY = 'no entity named {name!r}; existing: {names}'
 ERR_UNKNOWN_JOINT = 'no commandable (hinge or slide) joint named {name!r}'

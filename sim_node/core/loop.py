@@ -9,7 +9,7 @@
   loop stops after the first step whose time is >= max_sim_time (see :func:`time_reached`).
 * Divergence pauses the loop with a report; the world is back at the last good state.
 * Every ``1/snapshot_rate_hz`` wall seconds (and after every change) the loop makes an
-  immutable :class:`~sim_node.core.types.Snapshot` that consumers read from any thread.
+  immutable :class:`~sim_node.core.records.Snapshot` that consumers read from any thread.
 """
 
 import logging
@@ -20,7 +20,7 @@ from typing import Callable, Optional
 
 from .config import WorldConfig
 from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError
-from .types import LoopStatus, Snapshot
+from .records import LoopStatus, Snapshot
 from .world import World
 
 log = logging.getLogger(__name__)
@@ -393,4 +393,3 @@ class SimLoop:
         if now - self._last_snapshot >= self._snapshot_period:
             self._last_snapshot = now
             self._publish(self.world.snapshot())
-

@@ -1,26 +1,27 @@
 """What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
 
 Each builder returns a :class:`SpawnSource`: a compiled-once MjSpec (one or more top-level
-bodies: a standalone model file works as it is), plus the in-memory assets it needs. Parsing, file checks and mesh loading all
-happen here, outside the world lock. Nothing here touches a live world.
+bodies: a standalone model file works as it is), plus the in-memory assets it needs.
+Parsing, file checks and mesh loading all happen here, outside the world lock. Nothing here
+touches a live world.
 """
 
+from dataclasses import dataclass, field
 import logging
 import math
 import os
+from pathlib import Path
 import stat
+from typing import Optional, Sequence
 import uuid
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Optional, Sequence
 
 import mujoco
 import numpy as np
 
 from .config import WorldConfig
-from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError,
-                     ResourceParseError, UnsupportedAssetsError, UnsupportedFormatError)
+from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError, ResourceParseError,
+                     UnsupportedAssetsError, UnsupportedFormatError)
 
 MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
 MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf')
@@ -53,7 +54,7 @@ _FILE_ATTRIBUTES = ('file', 'filename', 'meshdir', 'texturedir', 'assetdir')
 
 log = logging.getLogger(__name__)
 
-ERR_DEGREE_RANGES = ('{what} reads joint angles in degrees (MJCF\'s default), but these hinge '
+ERR_DEGREE_RANGES = ("{what} reads joint angles in degrees (MJCF's default), but these hinge "
                      'ranges look like radians: {joints}. Add <compiler angle="radian"/> if '
                      'you meant radians.')
 
@@ -97,8 +98,8 @@ class SpawnSource:
 def inside_roots(path: str, roots: Sequence[str]) -> bool:
     """True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
     real = Path(os.path.realpath(path))
-    return any(real == r or r in real.parents for r in (Path(os.path.realpath(r))
-                                                         for r in roots))
+    reals = [Path(os.path.realpath(r)) for r in roots]
+    return any(real == r or r in real.parents for r in reals)
 
 
 def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import quat
 from .index import ModelIndex
-from .types import EntityRecord, EntityState, Snapshot
+from .records import EntityRecord, EntityState, Snapshot
 
 _XBODY = int(mujoco.mjtObj.mjOBJ_XBODY)  # a body's own frame (mjOBJ_BODY: its centre of mass)
 _NO_GRAVITY = int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)

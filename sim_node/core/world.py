@@ -13,17 +13,18 @@ from typing import Callable, Iterator, Optional, Sequence
 import mujoco
 import numpy as np
 
-from . import checks, editor, guard, index as model_index, sources, state
+from . import checks, editor, guard
+from . import index as model_index
+from . import sources, state
 from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
-from .errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
-                     ResourceParseError)
-from .guard import DivergenceGuard, clean
-from .index import STATE_SPEC, ModelIndex
+from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError, ResourceParseError
+from .guard import clean, DivergenceGuard
+from .index import ModelIndex, STATE_SPEC
 from .lock import WorldLock
-from .types import (RESET_ALL, RESET_SPAWNED, RESET_STATE, RESET_TIME,
-                    EntityRecord, EntityState, ModelInfo, PhysicsState, Snapshot)
+from .records import (EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL, RESET_SPAWNED,
+                      RESET_STATE, RESET_TIME, Snapshot)
 from .world_edits import WorldEdits
 from .world_writes import StateWrites
 
@@ -38,6 +39,8 @@ ERR_STEPS = 'steps must be >= 1, got {n}'
 
 _SCOPE_BITS = RESET_TIME | RESET_STATE | RESET_SPAWNED
 _NO_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+
+
 class World(StateWrites, WorldEdits):
     """A MuJoCo world that can change while it runs. Thread-safe; see ``sim_node.core``.
 

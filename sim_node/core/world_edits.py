@@ -11,9 +11,8 @@ import numpy as np
 
 from . import checks, editor, quat, sources, state
 from .checks import check_finite, check_pose
-from .errors import (IncorrectStateError, InvalidArgumentError, InvalidPoseError,
-                     NameNotUniqueError)
-from .types import ROBOT, STATIC
+from .errors import IncorrectStateError, InvalidArgumentError, InvalidPoseError, NameNotUniqueError
+from .records import ROBOT, STATIC
 
 ERR_DUPLICATE = 'an entity or body named {name!r} exists; pick another name or allow renaming'
 ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth:.4f} m; move '

@@ -10,7 +10,7 @@ import numpy as np
 from . import editor, quat, state
 from .checks import check_finite, check_pose
 from .errors import IncorrectStateError
-from .types import EntityRecord
+from .records import EntityRecord
 
 ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it cannot have a '
                     'velocity (only its pose can be set)')
@@ -32,8 +32,8 @@ class StateWrites:
         """
         with self._locked():
             self._overwrite_locked({name: (position, quat_wxyz)},
-                                  {name: (linear_velocity, angular_velocity)}, {}, {},
-                                  reference)
+                                   {name: (linear_velocity, angular_velocity)}, {}, {},
+                                   reference)
 
     def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
                   joint_positions: Optional[dict] = None,
@@ -49,10 +49,10 @@ class StateWrites:
         """
         with self._locked():
             self._overwrite_locked(poses or {}, twists or {}, joint_positions or {},
-                                  joint_velocities or {}, '')
+                                   joint_velocities or {}, '')
 
     def _overwrite_locked(self, poses: dict, twists: dict, joint_positions: dict,
-                         joint_velocities: dict, reference: str) -> None:
+                          joint_velocities: dict, reference: str) -> None:
         idx, d = self._index, self._data
         self._kinematics_locked()
         frame = self._frame_locked(reference) if reference else None

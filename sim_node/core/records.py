@@ -45,7 +45,7 @@ class GeomVisual:
 
     name: str
     body: int
-    type: str  # 'box', 'sphere', 'cylinder', 'capsule', 'ellipsoid', 'plane', 'mesh'
+    type: str  # noqa: A003  'box', 'sphere', 'cylinder', 'capsule', 'ellipsoid', 'plane', 'mesh'
     size: tuple  # MuJoCo geom_size (3,)
     pos: tuple  # (3,) in the body frame
     quat_wxyz: tuple  # (4,) in the body frame
