@@ -1,4 +1,4 @@
-"""ament_python packaging of `sim`: `ros2 run sim node` starts `<prefix>/lib/sim/node`."""
+"""Ament_python packaging of `sim`: `ros2 run sim node` starts `<prefix>/lib/sim/node`."""
 
 from glob import glob
 import os

@@ -1,6 +1,7 @@
-"""The scale benchmark's scene: n free boxes on a floor, one body each, nothing else.
+"""
+The scale benchmark's scene: n free boxes on a floor, one body each, nothing else.
 
-    python benchmarks/box_scene.py 1000 > /tmp/boxes_1000.xml
+python benchmarks/box_scene.py 1000 > /tmp/boxes_1000.xml
 """
 
 import math

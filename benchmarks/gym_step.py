@@ -1,4 +1,5 @@
-"""env.step throughput of our Gymnasium environments over Gymnasium's own MuJoCo environments.
+"""
+Env.step throughput of our Gymnasium environments over Gymnasium's own MuJoCo environments.
 
 Two comparisons, each measured side by side in one run (interleaved rounds, median):
 
@@ -94,7 +95,7 @@ class ReacherTask(Task):
 
 
 class GymnasiumReach(MujocoEnv):
-    """sim/Reach-v0's Task run by Gymnasium's MujocoEnv: the same work per step as SimEnv."""
+    """Sim/Reach-v0's Task run by Gymnasium's MujocoEnv: the same work per step as SimEnv."""
 
     metadata = {'render_modes': ['human', 'rgb_array', 'depth_array', 'rgbd_tuple'],
                 'render_fps': 100}

@@ -1,4 +1,5 @@
-"""Benchmarks of the world core, each a ratio measured side by side in this one run.
+"""
+Benchmarks of the world core, each a ratio measured side by side in this one run.
 
 1. Loop throughput: our stepping loop (as fast as possible, a snapshot consumer at 100 Hz)
    over a bare Python `mj_step` loop on the same scene.
@@ -112,8 +113,12 @@ def bench_spawn(counts=(10, 100, 500), n_spawns: int = 30) -> None:
 
 
 def bench_spawn_model(model: str = 'humanoid', n_spawns: int = 10) -> None:
-    """A whole standalone model file (Gymnasium's humanoid, 13 bodies, 17 motors) spawned into
-    the default scene running in real time, then deleted, n times."""
+    """
+    Time the spawn of a whole standalone model file.
+
+    (Gymnasium's humanoid, 13 bodies, 17 motors) spawned into the default scene running in real
+    time, then deleted, n times.
+    """
     import gymnasium
     path = os.path.join(os.path.dirname(gymnasium.__file__), 'envs', 'mujoco', 'assets',
                         f'{model}.xml')

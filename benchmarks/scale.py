@@ -1,4 +1,5 @@
-"""Scale: a thousand moving bodies with /tf at 100 Hz and physics at full speed.
+"""
+Scale: a thousand moving bodies with /tf at 100 Hz and physics at full speed.
 
 Measured side by side in one run, on scenes from box_scene.py (n free boxes on a floor):
 
@@ -54,9 +55,13 @@ def bare_steps_per_sec(path: str, seconds: float) -> float:
 
 
 class NodeRun:
-    """The installed node on a scene, with its default publishers. Nothing here listens
-    while its steps are counted (a subscriber in this process would take CPU from it): the
-    simulated time is read off /clock once at each end, /tf's rate in a phase of its own."""
+    """
+    The installed node on a scene, with its default publishers.
+
+    Nothing here listens while its steps are counted (a subscriber in this process would take CPU
+    from it): the simulated time is read off /clock once at each end, /tf's rate in a phase of its
+    own.
+    """
 
     def __init__(self, scene: str, *params: str):
         import rclpy
@@ -94,7 +99,7 @@ class NodeRun:
         return wall, sec + nsec * 1e-9
 
     def measure(self, seconds: float, dt: float) -> float:
-        """Steps per second over the next `seconds`."""
+        """Step per second over the next `seconds`."""
         w0, s0 = self.sim_time()
         time.sleep(seconds)
         w1, s1 = self.sim_time()

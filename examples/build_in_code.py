@@ -1,5 +1,9 @@
-"""A world built in code while it runs: a fixed robot base, then a revolute arm on it, then a
-free box; the arm's joint is commanded in a loop."""
+"""
+A world built in code while it runs.
+
+A fixed robot base, then a revolute arm on it, then a free box; the arm's joint is commanded in a
+loop.
+"""
 
 import math
 import time

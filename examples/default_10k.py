@@ -1,5 +1,8 @@
-"""The default scene on its stepping thread, as fast as possible, with a max-steps constraint
-of 10,000 steps: the loop stops by itself and says why."""
+"""
+The default scene on its stepping thread, as fast as possible.
+
+With a max-steps constraint of 10,000 steps: the loop stops by itself and says why.
+"""
 
 from pathlib import Path
 import time

@@ -1,5 +1,9 @@
-"""A finger on a slide joint pushes a stack of five blocks. Mid-run two blocks are swapped by
-overwriting the state; then a reset to the start reproduces the first run exactly."""
+"""
+A finger on a slide joint pushes a stack of five blocks.
+
+Mid-run two blocks are swapped by overwriting the state; then a reset to the start reproduces the
+first run exactly.
+"""
 
 from pathlib import Path
 

@@ -1,4 +1,5 @@
-"""Messages written straight to their wire form (CDR, little endian), for the big ones.
+"""
+Messages written straight to their wire form (CDR, little endian), for the big ones.
 
 rclpy publishes ``bytes`` as an already serialized message. Building a TFMessage of 1,000
 transforms from Python objects costs about 30 us a transform; here its bytes are laid out once
@@ -70,7 +71,8 @@ def split_time(t: float) -> tuple:
 
 
 class TfTemplate:
-    """The bytes of a tf2_msgs/TFMessage with fixed frame names, to be filled each tick.
+    """
+    The bytes of a tf2_msgs/TFMessage with fixed frame names, to be filled each tick.
 
     :param parents: (n,) frame_id of each transform.
     :param children: (n,) child_frame_id of each transform.
@@ -98,7 +100,8 @@ class TfTemplate:
         self._val_at = ((np.asarray(values, dtype=int) - 4) // 8)[:, None] + np.arange(7)
 
     def fill(self, sim_time: float, pos: np.ndarray, quat_xyzw: np.ndarray) -> bytes:
-        """The serialized message for one tick: every transform stamped `sim_time`.
+        """
+        Return the serialized message for one tick: every transform stamped `sim_time`.
 
         :param pos: (n, 3) translations.
         :param quat_xyzw: (n, 4) rotations in ROS order.

@@ -1,4 +1,5 @@
-"""Pure conversions between core values and ROS messages.
+"""
+Pure conversions between core values and ROS messages.
 
 The one place where quaternion order changes: MuJoCo is (w, x, y, z), ROS is (x, y, z, w).
 Stamps always come from simulation time, never from the wall clock.
@@ -46,7 +47,7 @@ CATEGORY_TO_MSG = {ROBOT: EntityCategory.CATEGORY_ROBOT,
 
 
 def result_for(exc: Exception, response_type: type = None) -> Result:
-    """The Result for a core exception: a service-specific code where the response has one."""
+    """Return the Result for a core exception (a service's own code where it has one)."""
     for kind, code, specific in RESULT_CODES:
         if isinstance(exc, kind):
             if specific and response_type is not None and hasattr(response_type, specific):
@@ -98,9 +99,12 @@ def pose_to_msg(pos: Sequence[float], q_wxyz: Sequence[float]) -> Pose:
 
 
 def pose_from_msg(pose: Pose) -> tuple:
-    """(position (3,), quat_wxyz (4,)) from a Pose, as given: an all-zero quaternion is no
-    rotation at all and is refused by the core as an invalid pose (a message's default
-    orientation is already the identity, w = 1)."""
+    """
+    (position (3,), quat_wxyz (4,)) from a Pose, as given.
+
+    An all-zero quaternion is no rotation at all and is refused by the core as an invalid pose (a
+    message's default orientation is already the identity, w = 1).
+    """
     return vec_from_msg(pose.position), quat_from_msg(pose.orientation)
 
 
@@ -123,7 +127,7 @@ MSG_TO_CATEGORY = {v: k for k, v in CATEGORY_TO_MSG.items()}
 
 
 def entity_filters(filters) -> dict:
-    """An EntityFilters message as keyword arguments of ``sim_node.entity_query.query``."""
+    """Return an EntityFilters message as keyword arguments of ``sim_node.entity_query.query``."""
     out = {'pattern': filters.filter, 'tags': tuple(filters.tags.tags), 'region': None,
            'categories': ({MSG_TO_CATEGORY.get(c.category) for c in filters.categories}
                           if len(filters.categories) else None)}
@@ -169,13 +173,18 @@ def _transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStampe
 
 
 def frame_names(info: ModelInfo, world_frame: str, prefix: str = '') -> tuple:
-    """The TF frame of every body, (nbody,): `world_frame` for the world body, the body's name
-    for the others, each after `prefix` (like robot_state_publisher's frame_prefix)."""
+    """
+    Return the TF frame of every body, (nbody,).
+
+    `world_frame` for the world body, the body's name for the others, each after `prefix` (like
+    robot_state_publisher's frame_prefix).
+    """
     return (prefix + world_frame,) + tuple(prefix + n for n in info.body_names[1:])
 
 
 def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str]) -> TFMessage:
-    """Welded bodies: their fixed pose in the parent body's frame, for /tf_static.
+    """
+    Welded bodies: their fixed pose in the parent body's frame, for /tf_static.
 
     :param frames: (nbody,) frame names from :func:`frame_names`.
     """
@@ -201,15 +210,22 @@ def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> t
 
 def moving_tf_template(info: ModelInfo, bodies: np.ndarray,
                        frames: Sequence[str]) -> TfTemplate:
-    """The /tf message layout of one model generation: parent body -> body for each of
-    `bodies` (free bodies from the world frame); `frames` from :func:`frame_names`."""
+    """
+    Return the /tf message layout of one model generation.
+
+    Parent body -> body for each of `bodies` (free bodies from the world frame); `frames` from
+    :func:`frame_names`.
+    """
     return TfTemplate([frames[p] for p in info.body_parent[bodies]],
                       [frames[b] for b in bodies])
 
 
 def moving_tf(template: TfTemplate, info: ModelInfo, snap: Snapshot,
               bodies: np.ndarray) -> bytes:
-    """The serialized /tf message of a snapshot: every transform stamped with its simulation
-    time, built from numpy arrays in one pass."""
+    """
+    Return the serialized /tf message of a snapshot.
+
+    Every transform stamped with its simulation time, built from numpy arrays in one pass.
+    """
     pos, rot = relative_poses(snap, bodies, info.body_parent[bodies])
     return template.fill(snap.time, pos, rot[:, [1, 2, 3, 0]])

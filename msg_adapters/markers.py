@@ -1,5 +1,9 @@
-"""RViz markers for every visible geom, locked to its body's TF frame: one MarkerArray per
-model generation, written straight to its wire form (:mod:`.cdr`) from the model info."""
+"""
+RViz markers for every visible geom, locked to its body's TF frame.
+
+One MarkerArray per model generation, written straight to its wire form (:mod:`.cdr`) from the
+model info.
+"""
 
 from typing import Sequence
 
@@ -75,7 +79,7 @@ def _marker(w: CdrWriter, sec: int, nsec: int, frame: str, ns: str, mid: int, mt
 
 
 def clear_markers(sim_time: float, world_frame: str) -> bytes:
-    """A serialized MarkerArray of one DELETEALL: RViz drops every marker of this topic."""
+    """Return a serialized MarkerArray of one DELETEALL: RViz drops every marker of this topic."""
     w = CdrWriter()
     w.u32(1)
     _marker(w, *split_time(sim_time), world_frame, '', 0, 0, DELETEALL)
@@ -83,9 +87,11 @@ def clear_markers(sim_time: float, world_frame: str) -> bytes:
 
 
 def markers(info: ModelInfo, sim_time: float, frames: Sequence[str]) -> bytes:
-    """The serialized MarkerArray of one model generation: a DELETEALL first (so nothing of an
-    earlier generation survives, whatever was respawned under which name), then one marker
-    per visible geom, in its body's frame.
+    """
+    Return the serialized MarkerArray of one model generation.
+
+    A DELETEALL first (so nothing of an earlier generation survives, whatever was respawned under
+    which name), then one marker per visible geom, in its body's frame.
 
     :param frames: (nbody,) TF frame of each body (``convert.frame_names``).
     """

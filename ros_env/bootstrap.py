@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Set up everything `sim` needs to run and test, then write `.build/env.sh`.
+"""
+Set up everything `sim` needs to run and test, then write `.build/env.sh`.
 
 Two cases:
 
@@ -175,8 +176,11 @@ def ensure_sim_package(colcon: str, env: dict) -> Path:
 
 
 def write_gym_autoload(python: Path) -> None:
-    """Gymnasium 1.x dropped entry-point plugins: a .pth line registers the sim/... ids
-    (see sim_node/gym_autoload.py). It does nothing where sim_node is not importable."""
+    """
+    Gymnasium 1.x dropped entry-point plugins: a .pth line registers the sim/...
+
+    ids (see sim_node/gym_autoload.py). It does nothing where sim_node is not importable.
+    """
     site = subprocess.run([str(python), '-c', 'import sysconfig; print(sysconfig.get_paths()'
                            '["purelib"])'], capture_output=True, text=True, check=True,
                           env={**os.environ, '_ROS_WHEELS_BOOTSTRAP_COMPLETE': '1'}).stdout

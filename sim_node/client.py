@@ -1,5 +1,7 @@
-"""A small Python client for the `sim` node's services, for scripts, tests and machines
-without ros2cli. Plain Python arguments in, plain values out; failures raise
+"""
+A small Python client for the `sim` node's services, for scripts.
+
+Tests and machines without ros2cli. Plain Python arguments in, plain values out; failures raise
 :class:`SimServiceError` with the Result code and message.
 
     import rclpy
@@ -33,7 +35,8 @@ class SimServiceError(RuntimeError):
 
 
 class SimClient:
-    """Wraps the simulation_interfaces services of one `sim` node.
+    """
+    Wraps the simulation_interfaces services of one `sim` node.
 
     :param namespace: where the node's services live ('' for a node started without one).
     :param node: an existing node to create clients on (it must not be spun elsewhere);
@@ -104,8 +107,11 @@ class SimClient:
         return list(self.call('get_entities', srv.GetEntities, req).entities)
 
     def entity_state(self, name: str) -> dict:
-        """{'position', 'orientation_xyzw', 'linear', 'angular', 'linear_acceleration',
-        'angular_acceleration', 'stamp', 'frame_id'} of an entity."""
+        """
+        {'position', 'orientation_xyzw', 'linear', 'angular', 'linear_acceleration'.
+
+        'angular_acceleration', 'stamp', 'frame_id'} of an entity.
+        """
         s = self.call('get_entity_state', srv.GetEntityState,
                       srv.GetEntityState.Request(entity=name)).state
         p, q = s.pose.position, s.pose.orientation

@@ -1,5 +1,9 @@
-"""Which entities match a query: name pattern, categories, tags, a region. ROS-free: the node
-turns an ``EntityFilters`` message into these plain values (``msg_adapters.convert``)."""
+"""
+Which entities match a query: name pattern, categories, tags, a region.
+
+ROS-free: the node turns an ``EntityFilters`` message into these plain values
+(``msg_adapters.convert``).
+"""
 
 from dataclasses import dataclass
 import math
@@ -36,10 +40,13 @@ class Region:
 
 def query(world: World, pattern: str = '', categories: Optional[set] = None,
           tags: tuple = (), region: Optional[Region] = None) -> list:
-    """Entity records, in model order, whose name `pattern` (a regular expression, at most
-    :data:`FILTER_TIMEOUT_SEC` of matching in all) finds,
-    whose category is in `categories` (None: any), and whose root body origin lies in
-    `region` (None: anywhere). Entities carry no tags, so any tag matches nothing."""
+    """
+    Entity records, in model order.
+
+    Whose name `pattern` (a regular expression, at most :data:`FILTER_TIMEOUT_SEC` of matching in
+    all) finds, whose category is in `categories` (None: any), and whose root body origin lies in
+    `region` (None: anywhere). Entities carry no tags, so any tag matches nothing.
+    """
     recs = world.entities()
     if pattern:
         try:

@@ -1,4 +1,5 @@
-"""Registers the `sim/...` Gymnasium ids as soon as Gymnasium's registry is imported.
+"""
+Registers the `sim/...` Gymnasium ids as soon as Gymnasium's registry is imported.
 
 Gymnasium before 1.0 loaded plugins from the ``gymnasium.envs`` entry point (declared in
 setup.py); Gymnasium 1.x no longer does. So the project venv runs this module at start-up

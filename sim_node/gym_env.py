@@ -1,4 +1,5 @@
-"""Gymnasium environments over the same core world (composed, not Gymnasium's MujocoEnv).
+"""
+Gymnasium environments over the same core world (composed, not Gymnasium's MujocoEnv).
 
     import gymnasium, sim_node.gym_env   # the import registers sim/PushBox-v0, sim/Reach-v0
     env = gymnasium.make('sim/PushBox-v0')
@@ -24,14 +25,18 @@ from .core.world import World
 
 
 def _scene(name: str) -> str:
-    """A scene file: from the source tree, else from the installed share folder."""
+    """Return a scene file: from the source tree, else from the installed share folder."""
     path = resources.source_scenes_dir() / name
     return str(path if path.is_file() else resources.installed_scenes_dir() / name)
 
 
 class Task:
-    """What a task defines; subclass and override. Methods get ``(model, data)`` read-only,
-    except :meth:`randomize`, which may write the initial state."""
+    """
+    What a task defines; subclass and override.
+
+    Methods get ``(model, data)`` read-only, except :meth:`randomize`, which may write the initial
+    state.
+    """
 
     scene = 'default.xml'
     frame_skip = 5
@@ -104,8 +109,12 @@ class SimEnv(gym.Env):
 
 
 class PushBoxTask(Task):
-    """A finger on two slide joints pushes a box to a goal on the table; dense reward on the
-    box-goal distance (plus a small term for reaching the box). Success within 3 cm."""
+    """
+    A finger on two slide joints pushes a box to a goal on the table.
+
+    Dense reward on the box-goal distance (plus a small term for reaching the box). Success within
+    3 cm.
+    """
 
     scene = 'push_box.xml'
     frame_skip = 10

@@ -1,4 +1,5 @@
-"""The `sim` rclpy node: a thin layer over the world core.
+"""
+The `sim` rclpy node: a thin layer over the world core.
 
 Callbacks convert the request, call the core, convert the answer (``msg_adapters``). The node
 makes no ``mj_*`` call and never touches MjData. Services run in a reentrant callback group,
@@ -35,14 +36,17 @@ NODE_NAME = 'sim'
 
 
 def _next_deadline(deadline: float, period: float, now: float) -> float:
-    """The next absolute deadline; one period from now if more than a period behind."""
+    """Return the next absolute deadline; one period from now if more than a period behind."""
     deadline += period
     return deadline if deadline > now else now + period
 
 
 class _LogForwarder(logging.Handler):
-    """Core log records go to a queue the node drains on its own thread (the loop thread
-    never calls rclpy)."""
+    """
+    Core log records go to a queue the node drains on its own thread.
+
+    (the loop thread never calls rclpy).
+    """
 
     def __init__(self):
         super().__init__(logging.INFO)
@@ -53,8 +57,11 @@ class _LogForwarder(logging.Handler):
 
 
 class SimNode(SimServices, Node):
-    """Publishes /clock, /tf, /tf_static, markers and joint_states; serves
-    simulation_interfaces. Call :meth:`start` after adding it to an executor."""
+    """
+    Publishes /clock, /tf, /tf_static, markers and joint_states; serves simulation_interfaces.
+
+    Call :meth:`start` after adding it to an executor.
+    """
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
@@ -161,8 +168,7 @@ class SimNode(SimServices, Node):
                                f'{"paused" if loop.paused else "playing"}')
 
     def shutdown(self) -> None:
-        """Stop the stepping loop and the publisher first (before the executor and the
-        node)."""
+        """Stop the stepping loop and the publisher first (before the executor and the node)."""
         with self._sim_lock:
             if self._sim is not None:
                 self._sim.loop.stop()
@@ -179,8 +185,11 @@ class SimNode(SimServices, Node):
     # ------------------------------------------------------------------ publishing
 
     def _publish_loop(self) -> None:
-        """/clock and /tf every tf period, joint_states every joint-states period, from the
-        newest snapshot; re-syncs after a stall instead of bursting."""
+        """
+        /clock and /tf every tf period, joint_states every joint-states period.
+
+        From the newest snapshot; re-syncs after a stall instead of bursting.
+        """
         now = time.perf_counter()
         next_tf = next_js = now
         while self._publishing.is_set():
@@ -238,8 +247,12 @@ class SimNode(SimServices, Node):
             self._joint_pub.publish(convert.joint_state(snap.info, snap))
 
     def _sync_paused_parameter(self) -> None:
-        """Mirror the loop's paused state (changed by services, limits or divergence too) in
-        the `paused` parameter, so `ros2 param get` tells the truth."""
+        """
+        Mirror the loop's paused state.
+
+        (changed by services, limits or divergence too) in the `paused` parameter, so `ros2 param
+        get` tells the truth.
+        """
         sim = self._sim
         if sim is None:
             return

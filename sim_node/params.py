@@ -1,5 +1,9 @@
-"""The node's ROS parameters, declared from :class:`~sim_node.core.config.WorldConfig` with
-descriptors (description, range, read-only where a change needs a restart)."""
+"""
+The node's ROS parameters.
+
+Declared from :class:`~sim_node.core.config.WorldConfig` with descriptors (description, range,
+read-only where a change needs a restart).
+"""
 
 from typing import List
 
@@ -28,15 +32,22 @@ DOUBLES = ('real_time_factor', 'timestep', 'max_sim_time', 'tf_rate_hz', 'joint_
 
 
 def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
-    """An integer value for a double parameter becomes that double; nothing else changes (a
-    string stays a string, and is refused as the wrong type)."""
+    """
+    Accept an integer value for a double parameter as that double.
+
+    Nothing else changes (a string stays a string, and is refused as the wrong type).
+    """
     return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
             if p.name in DOUBLES and p.type_ == Parameter.Type.INTEGER else p for p in params]
 
 
 def declare(node: Node, scenes_dir: str) -> None:
-    """Declare every parameter of the node with its default. Integers given on the command
-    line for double parameters are taken as doubles, at start-up and at run time."""
+    """
+    Declare every parameter of the node with its default.
+
+    Integers given on the command line for double parameters are taken as doubles, at start-up and
+    at run time.
+    """
     overrides = getattr(node, '_parameter_overrides', {})  # rclpy keeps --ros-args -p here
     for p in integers_as_doubles(list(overrides.values())):
         overrides[p.name] = p
@@ -80,7 +91,7 @@ def declare(node: Node, scenes_dir: str) -> None:
 
 
 def world_config(node: Node) -> WorldConfig:
-    """The configuration the node's current parameters describe."""
+    """Return the configuration the node's current parameters describe."""
     def p(name: str):
         return node.get_parameter(name).value
     return WorldConfig(

@@ -1,4 +1,5 @@
-"""Where spawnable resources and scenes live, and which URIs may be read (no ROS imports).
+"""
+Where spawnable resources and scenes live, and which URIs may be read (no ROS imports).
 
 URIs a caller may give:
 
@@ -23,7 +24,7 @@ PACKAGE = 'sim'
 
 
 def source_scenes_dir() -> Path:
-    """The scenes folder of a source checkout (used when the package is not installed)."""
+    """Return the scenes folder of a source checkout (used when the package is not installed)."""
     return Path(__file__).resolve().parent.parent / 'scenes'
 
 
@@ -36,7 +37,8 @@ def installed_scenes_dir() -> Path:
 
 
 def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Path:
-    """Resolve a spawn or world URI to a checked file path.
+    """
+    Resolve a spawn or world URI to a checked file path.
 
     :raises NoResourceError: empty URI.
     :raises MissingAssetsError: nothing there, '..', or outside the resource paths.
@@ -111,7 +113,7 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
 
 
 def check_folder(folder: str, resource_paths: Sequence[str]) -> Path:
-    """A directory a caller names must lie inside the resource paths."""
+    """Check that a directory a caller names lies inside the resource paths."""
     p = Path(unquote(urlparse(folder).path) if folder.startswith('file://') else folder)
     if '..' in p.parts:
         raise MissingAssetsError(sources.ERR_DOTDOT.format(path=folder))
@@ -131,7 +133,7 @@ def list_worlds(scenes_dir: Path) -> list:
 
 
 def resolve_scene(scene: str, scenes_dir: Path) -> Path:
-    """A scene parameter: a path to a file, or a scene name from the installed scenes."""
+    """Return a scene parameter: a path to a file, or a scene name from the installed scenes."""
     if scene.startswith('package://') or scene.startswith('file://'):
         return resolve_uri(scene, [str(scenes_dir)] + [os.path.dirname(unquote(
             urlparse(scene).path))], scenes_dir)

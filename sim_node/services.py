@@ -1,6 +1,8 @@
-"""The node's simulation_interfaces services and the simulate_steps action: each callback
-converts the request, calls the core, converts the answer (``msg_adapters``). A mixin of
-:class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameters and lifecycle.
+"""
+The node's simulation_interfaces services and the simulate_steps action.
+
+Each callback converts the request, calls the core, converts the answer (``msg_adapters``). A mixin
+of :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameters and lifecycle.
 """
 
 from msg_adapters import convert, markers

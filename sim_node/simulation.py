@@ -1,4 +1,5 @@
-"""A small stepping API for scripts and notebooks: no ROS, no thread.
+"""
+A small stepping API for scripts and notebooks: no ROS, no thread.
 
     from sim_node.simulation import Simulation
     sim = Simulation.from_file('scenes/default.xml')
@@ -54,7 +55,7 @@ class Simulation:
 
     @classmethod
     def empty(cls, **config) -> 'Simulation':
-        """A world with only a floor, to build in code."""
+        """Return a world with only a floor, to build in code."""
         return cls.from_string(EMPTY_WORLD, **config)
 
     # ------------------------------------------------------------------ building
@@ -64,7 +65,11 @@ class Simulation:
                    quat_wxyz: Sequence[float] = (1, 0, 0, 0), mass: float = 0.0,
                    rgba: Sequence[float] = (0.7, 0.7, 0.7, 1), friction: Optional[float] = None,
                    restitution: Optional[float] = None) -> str:
-        """A top-level object (box, sphere, cylinder, capsule). ``mass=0``: static."""
+        """
+        Add a top-level object (box, sphere, cylinder, capsule).
+
+        ``mass=0``: static.
+        """
         src = sources.primitive(shape, size, mass=mass, rgba=rgba)
         self.world.spawn(name, src, position, quat_wxyz)
         if friction is not None:
@@ -78,13 +83,13 @@ class Simulation:
                  quat_wxyz: Sequence[float] = (1, 0, 0, 0), mass: float = 0.0,
                  joint: Optional[str] = None, axis: Sequence[float] = (0, 0, 1),
                  rgba: Sequence[float] = (0.7, 0.7, 0.7, 1)) -> str:
-        """A body under `parent` (its frame); ``joint=None`` welds it to the parent."""
+        """Add a body under `parent` (its frame); ``joint=None`` welds it to the parent."""
         return self.world.add_body(name, parent, shape, size, position, quat_wxyz, mass,
                                    joint, axis, rgba)
 
     def add_model(self, name: str, xml: str, position: Sequence[float] = (0, 0, 0),
                   quat_wxyz: Sequence[float] = (1, 0, 0, 0)) -> str:
-        """An MJCF or URDF model (text) as one entity."""
+        """Add an MJCF or URDF model (text) as one entity."""
         return self.world.spawn(name, sources.from_model_text(xml), position, quat_wxyz)
 
     def remove(self, name: str) -> None:
@@ -126,7 +131,8 @@ class Simulation:
 
     def step(self, ctrl: Union[None, dict, Sequence[float]] = None, dt: Optional[float] = None,
              mode: str = 'none') -> float:
-        """Advance by `dt` seconds (one timestep by default) under a control.
+        """
+        Advance by `dt` seconds (one timestep by default) under a control.
 
         :param ctrl: {joint: value}, or values for :attr:`joint_names` in order.
         :param dt: rounded to the nearest whole number of timesteps (halves up); at least
@@ -150,7 +156,7 @@ class Simulation:
         return self.world.time
 
     def steps_for(self, dt: float) -> int:
-        """The number of timesteps ``step(dt=dt)`` runs: the nearest, halves rounded up."""
+        """Return the number of timesteps ``step(dt=dt)`` runs: the nearest, halves rounded up."""
         timestep = self.world.timestep
         if not (math.isfinite(dt) and dt >= 0.5 * timestep):
             raise InvalidArgumentError(f'dt must be at least half a timestep '
@@ -172,7 +178,8 @@ class Simulation:
     def run(self, max_steps: Optional[int] = None, max_time: Optional[float] = None,
             ctrl: Union[None, dict, Sequence[float]] = None, mode: str = 'none',
             callback: Optional[Callable[['Simulation'], bool]] = None) -> str:
-        """Step until a termination constraint holds; returns why it stopped.
+        """
+        Step until a termination constraint holds; returns why it stopped.
 
         :param max_time: stop after the first step whose time is >= max_time.
 
@@ -198,8 +205,11 @@ class Simulation:
     # ------------------------------------------------------------------ state
 
     def get_state(self, velocities: bool = True) -> dict:
-        """{'time', 'bodies': {entity: (position, quat_wxyz)}, 'joints': {joint: position}}
-        plus 'body_velocities' {entity: (linear, angular)} and 'joint_velocities'."""
+        """
+        {'time', 'bodies': {entity: (position, quat_wxyz)}, 'joints': {joint.
+
+        Position}} plus 'body_velocities' {entity: (linear, angular)} and 'joint_velocities'.
+        """
         out = {'time': self.world.time, 'bodies': {}, 'joints': {}}
         for rec in self.world.entities():
             st = self.world.get_entity_state(rec.name)
@@ -214,10 +224,13 @@ class Simulation:
         return out
 
     def set_state(self, state: dict) -> None:
-        """Overwrite any part of a :meth:`get_state` dict, without rebuilding: bodies' poses
-        (and velocities), joint positions (and velocities); missing parts are left as they
-        are. Everything is checked first: an error changes nothing. A static body given a new
-        pose is moved (see :meth:`World.overwrite <sim_node.core.world.World.overwrite>`)."""
+        """
+        Overwrite any part of a :meth:`get_state` dict, without rebuilding.
+
+        Bodies' poses (and velocities), joint positions (and velocities); missing parts are left as
+        they are. Everything is checked first: an error changes nothing. A static body given a new
+        pose is moved (see :meth:`World.overwrite <sim_node.core.world.World.overwrite>`).
+        """
         self.world.overwrite(poses=state.get('bodies'), twists=state.get('body_velocities'),
                              joint_positions=state.get('joints'),
                              joint_velocities=state.get('joint_velocities'))

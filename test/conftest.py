@@ -1,5 +1,9 @@
-"""Shared fixtures. Every test session keeps DDS discovery on loopback and uses its own
-ROS_DOMAIN_ID, so parallel runs on one machine never meet."""
+"""
+Shared fixtures.
+
+Every test session keeps DDS discovery on loopback and uses its own ROS_DOMAIN_ID, so parallel runs
+on one machine never meet.
+"""
 
 import os
 from pathlib import Path
@@ -28,7 +32,7 @@ def installed_prefix() -> Path:
 
 
 def node_executable() -> Path:
-    """The very file `ros2 run sim node` starts."""
+    """Return the very file `ros2 run sim node` starts."""
     return installed_prefix() / 'lib' / 'sim' / 'node'
 
 

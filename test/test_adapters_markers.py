@@ -1,6 +1,10 @@
-"""Markers follow the model generation: what RViz shows after each message is exactly the
-geoms of the model that message came from, whatever was deleted or respawned under which
-name in between. The messages are written as bytes: read back by rclpy's own deserializer."""
+"""
+Markers follow the model generation.
+
+What RViz shows after each message is exactly the geoms of the model that message came from,
+whatever was deleted or respawned under which name in between. The messages are written as bytes:
+read back by rclpy's own deserializer.
+"""
 
 from conftest import DEFAULT_SCENE
 from msg_adapters import convert, markers
@@ -22,7 +26,7 @@ def marker_bytes(w: World, t: float = 0.0) -> bytes:
 
 
 def apply(shown: dict, data: bytes) -> dict:
-    """What an RViz MarkerArray display holds after receiving `data`."""
+    """Return what an RViz MarkerArray display holds after receiving `data`."""
     for m in deserialize_message(data, MarkerArray).markers:
         if m.action == Marker.DELETEALL:
             shown.clear()

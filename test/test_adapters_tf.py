@@ -1,5 +1,9 @@
-"""/tf is written as bytes from numpy arrays: read back by rclpy's own deserializer, it has
-rclpy's layout, one stamp, and composes back into the world's poses."""
+"""
+/tf is written as bytes from numpy arrays.
+
+Read back by rclpy's own deserializer, it has rclpy's layout, one stamp, and composes back into the
+world's poses.
+"""
 
 import os
 

@@ -1,7 +1,10 @@
-"""Behaviours a user notices, each checked against theory or against what was written:
-commands outliving their joints, restitution, twists at the body origin, the kinematic step,
-welding in place, time limits, snapshot order, spawn naming and overlap rules, PD damping,
-pacing. Real MuJoCo throughout."""
+"""
+Behaviours a user notices, each checked against theory or against what was written.
+
+Commands outliving their joints, restitution, twists at the body origin, the kinematic step,
+welding in place, time limits, snapshot order, spawn naming and overlap rules, PD damping, pacing.
+Real MuJoCo throughout.
+"""
 
 import math
 import sys
@@ -420,8 +423,12 @@ def test_world_set_state_refuses_non_finite_values_and_changes_nothing(bad):
 # ------------------------------------------------------------------ PD and pacing
 
 def test_pd_position_control_is_critically_damped_at_the_default_gains():
-    """kp = 400, kd = 40 per unit inertia: w = 20 rad/s, zeta = 1, so the step response is
-    q(t) = q* (1 - (1 + w t) e^(-w t)): no overshoot, 98% by 0.3 s."""
+    """
+    Kp = 400, kd = 40 per unit inertia.
+
+    W = 20 rad/s, zeta = 1, so the step response is q(t) = q* (1 - (1 + w t) e^(-w t)): no
+    overshoot, 98% by 0.3 s.
+    """
     w = World.from_string('<mujoco><option timestep="0.001"/><worldbody/></mujoco>')
     w.spawn('arm', arm_source())
     target, omega = 0.5, 20.0

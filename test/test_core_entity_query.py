@@ -1,5 +1,8 @@
-"""The entity query behind get_entities / get_entities_states, ROS-free, and the conversion of
-an EntityFilters message into it."""
+"""
+The entity query behind get_entities / get_entities_states, ROS-free.
+
+And the conversion of an EntityFilters message into it.
+"""
 
 import time
 

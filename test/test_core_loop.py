@@ -125,9 +125,12 @@ def test_pacing_resyncs_after_a_stall_instead_of_bursting(make_loop):
 
 
 def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_loop):
-    """An injected fault in the stepping loop: the loop stops with the reason, play and step
-    are refused with it (nothing reports success while time stands still), and a reset plus
-    recover() brings it back, paused."""
+    """
+    An injected fault in the stepping loop.
+
+    The loop stops with the reason, play and step are refused with it (nothing reports success
+    while time stands still), and a reset plus recover() brings it back, paused.
+    """
     loop = make_loop(real_time_factor=0)
     world = loop.world
     real_step = world.step

@@ -1,5 +1,9 @@
-"""Large worlds: MuJoCo's arena sized by body count, and a loop that says when the physics
-cannot keep the requested real-time factor."""
+"""
+Large worlds.
+
+MuJoCo's arena sized by body count, and a loop that says when the physics cannot keep the requested
+real-time factor.
+"""
 
 import logging
 from pathlib import Path

@@ -1,6 +1,9 @@
-"""Spawning the standalone model files people already have: every Gymnasium MuJoCo asset spawns
-into the running default scene beside its entities, runs, obeys commands, honours its own
-angle units, and deletes cleanly. Real files, real MuJoCo."""
+"""
+Spawning the standalone model files people already have.
+
+Every Gymnasium MuJoCo asset spawns into the running default scene beside its entities, runs, obeys
+commands, honours its own angle units, and deletes cleanly. Real files, real MuJoCo.
+"""
 
 import glob
 import os
@@ -26,7 +29,7 @@ def gym_file(name: str) -> str:
 
 
 def others(w: World, name: str) -> dict:
-    """qpos and qvel of every joint not in entity `name`, by joint name."""
+    """Qpos and qvel of every joint not in entity `name`, by joint name."""
     out = {}
     with w.locked() as (m, d):
         for j in range(m.njnt):
@@ -148,8 +151,12 @@ def test_a_models_own_keyframes_do_not_replace_the_worlds():
 
 
 def test_worldbody_geometry_follows_the_documented_rule():
-    """Ground planes are dropped; other static worldbody geoms become a welded part of the
-    entity (reacher's arena walls and base); lights come along and go with it."""
+    """
+    Ground planes are dropped.
+
+    Other static worldbody geoms become a welded part of the entity (reacher's arena walls and
+    base); lights come along and go with it.
+    """
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('reacher', sources.from_file(gym_file('reacher')), position=SPAWN_AT)
     rec = w.entity('reacher')

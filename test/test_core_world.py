@@ -1,5 +1,9 @@
-"""The ROS-free world: spawn/delete keep everything else's state, failures change nothing,
-control, reset, determinism, physics parameters. Real MuJoCo throughout."""
+"""
+The ROS-free world.
+
+Spawn/delete keep everything else's state, failures change nothing, control, reset, determinism,
+physics parameters. Real MuJoCo throughout.
+"""
 
 import threading
 
@@ -294,9 +298,12 @@ UNSTABLE_MJCF = """<mujoco><option integrator="Euler" timestep="0.01" gravity="0
 
 
 def test_divergence_mid_batch_names_the_exact_step_and_restores_the_state_before_it():
-    """A servo far too stiff for its time step blows up some steps into a batch that was
-    given new controls: the report names that step and the world is left exactly where a
-    plain MuJoCo run stands one step before it, still holding the new control."""
+    """
+    Name the step a servo too stiff for its time step blows up, mid-batch.
+
+    The batch was given new controls: the report names that step and the world is left exactly
+    where a plain MuJoCo run stands one step before it, still holding the new control.
+    """
     world = World.from_string(UNSTABLE_MJCF)
     world.step(3, ctrl=np.array([0.0]))  # at rest: the next batch starts from a cached state
     with pytest.raises(DivergenceError) as info:
@@ -413,8 +420,11 @@ def test_mujoco_warnings_go_to_logging_not_to_a_file(tmp_path, monkeypatch, capl
 
 
 def test_entity_state_and_snapshot_describe_the_state_at_their_time_stamp():
-    """After mj_step MuJoCo's body poses still describe the state before the step; what we
-    report must match qpos and the time stamp (a falling box: 4 mm per step apart)."""
+    """
+    After mj_step MuJoCo's body poses still describe the state before the step.
+
+    What we report must match qpos and the time stamp (a falling box: 4 mm per step apart).
+    """
     world = World.from_file(str(DEFAULT_SCENE))
     world.set_entity_state('box_b', position=[2, 2, 3])
     world.step(100)
@@ -431,8 +441,12 @@ def test_entity_state_and_snapshot_describe_the_state_at_their_time_stamp():
 
 
 def test_entity_acceleration_is_the_coordinate_acceleration():
-    """Free fall reads -g, resting reads 0, and a tumbling brick (spun off its principal
-    axes, so its angular velocity wanders) matches the finite difference of its twist."""
+    """
+    Free fall reads -g, resting reads 0.
+
+    And a tumbling brick (spun off its principal axes, so its angular velocity wanders) matches the
+    finite difference of its twist.
+    """
     world = World.from_string("""<mujoco><worldbody>
       <geom type="plane" size="5 5 .1"/>
       <body name="brick" pos="0 0 20"><freejoint/><geom type="box" size=".05 .1 .2"/></body>

@@ -59,3 +59,29 @@ def test_core_imports_no_ros():
             'print(bad); sys.exit(1 if bad else 0)')
     out = subprocess.run([sys.executable, '-c', code], cwd=ROOT, capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
+
+
+#: rosdep keys of the Python packages the code imports (ROS packages are their own keys).
+ROSDEP_KEYS = {'numpy': 'python3-numpy', 'mujoco': 'python3-mujoco-pip',
+               'trimesh': 'python3-trimesh-pip', 'gymnasium': 'python3-gymnasium-pip',
+               'regex': 'python3-regex'}
+
+
+def test_package_xml_declares_exactly_what_the_code_imports():
+    import ast
+    import xml.etree.ElementTree as ET
+    imported = set()
+    for folder in ('sim_node', 'msg_adapters'):
+        for f in (ROOT / folder).rglob('*.py'):
+            for node in ast.walk(ast.parse(f.read_text())):
+                if isinstance(node, ast.Import):
+                    imported |= {a.name.split('.')[0] for a in node.names}
+                elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                    imported.add(node.module.split('.')[0])
+    third_party = {m for m in imported - set(sys.stdlib_module_names)
+                   if m not in ('sim_node', 'msg_adapters')}
+    wanted = {ROSDEP_KEYS.get(m, m) for m in third_party}
+    root = ET.parse(ROOT / 'package.xml').getroot()
+    declared = {e.text for e in root.iter('exec_depend')}
+    assert declared == wanted, (f'undeclared: {sorted(wanted - declared)}, '
+                                f'declared but not imported: {sorted(declared - wanted)}')

@@ -60,8 +60,11 @@ def test_actions_follow_control_ranges():
 
 @pytest.mark.parametrize('bad', [[np.nan, 0.0], [0.0, np.inf], [1e11, 0.0], [0.1], 0.1])
 def test_a_bad_action_is_refused_and_changes_nothing(bad):
-    """NaN, inf or > 1e10 would make MuJoCo zero every actuator; a wrong shape would be
-    broadcast. Each is a ValueError, and the world is where it was."""
+    """
+    NaN, inf or > 1e10 would make MuJoCo zero every actuator; a wrong shape would be broadcast.
+
+    Each is a ValueError, and the world is where it was.
+    """
     env = gym.make('sim/PushBox-v0').unwrapped
     env.reset(seed=3)
     env.step(np.array([0.2, -0.1]))

@@ -1,5 +1,8 @@
-"""ROS conventions as users meet them: integers typed for double parameters, and /clock that
-goes on while the simulation is paused."""
+"""
+ROS conventions as users meet them.
+
+Integers typed for double parameters, and /clock that goes on while the simulation is paused.
+"""
 
 import time
 

@@ -1,5 +1,8 @@
-"""The node tells when the physics cannot keep the requested real-time factor, and keeps /tf
-at its rate."""
+"""
+The node tells when the physics cannot keep the requested real-time factor.
+
+And keeps /tf at its rate.
+"""
 
 import time
 

@@ -1,4 +1,5 @@
-"""The node as users meet it: the installed executable in its own process, a real client here.
+"""
+The node as users meet it: the installed executable in its own process, a real client here.
 
 One node process serves the whole module (start-up costs seconds); tests that need a clean
 world reset it first.

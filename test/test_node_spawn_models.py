@@ -1,5 +1,9 @@
-"""A user's own model file over the wire: Gymnasium's ant spawned with spawn_entity from a
-file:// URI inside resource_paths, seen on /tf and in markers, commanded, deleted."""
+"""
+A user's own model file over the wire.
+
+Gymnasium's ant spawned with spawn_entity from a file:// URI inside resource_paths, seen on /tf and
+in markers, commanded, deleted.
+"""
 
 import os
 

@@ -1,4 +1,5 @@
-"""The ROS-free MuJoCo world: no rclpy or message imports here.
+"""
+The ROS-free MuJoCo world: no rclpy or message imports here.
 
 Modules, one job each: :mod:`.world` (the lock, the generation, the recompile, and the public
 methods that lock, validate and delegate), :mod:`.index` (names and addresses of one model),

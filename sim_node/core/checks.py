@@ -1,5 +1,8 @@
-"""Input checks shared by the core: names, finite values, poses. Error texts are constants so
-tests can match them."""
+"""
+Input checks shared by the core: names, finite values, poses.
+
+Error texts are constants so tests can match them.
+"""
 
 import re
 from typing import Optional, Sequence
@@ -23,7 +26,8 @@ ERR_QUAT = 'orientation must be a unit quaternion (norm {norm:.6f}); normalize i
 
 
 def check_finite(what: str, values: Sequence[float], n: Optional[int] = None) -> np.ndarray:
-    """Values as a float array, refusing NaN, inf and magnitudes MuJoCo calls divergent.
+    """
+    Values as a float array, refusing NaN, inf and magnitudes MuJoCo calls divergent.
 
     :param n: the number of values required, if fixed.
     """
@@ -39,7 +43,7 @@ def check_finite(what: str, values: Sequence[float], n: Optional[int] = None) ->
 
 
 def check_quat(quat_wxyz: Sequence[float], tol: float = 1e-3) -> np.ndarray:
-    """A (4,) w,x,y,z quaternion, finite and of unit norm within `tol`, normalized."""
+    """Return a (4,) w,x,y,z quaternion, finite and of unit norm within `tol`, normalized."""
     q = check_finite('orientation', quat_wxyz, 4)
     norm = float(np.linalg.norm(q))
     if abs(norm - 1.0) > tol:

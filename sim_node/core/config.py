@@ -5,7 +5,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """Configuration of a :class:`~sim_node.core.world.World` and its stepping loop.
+    """
+    Configuration of a :class:`~sim_node.core.world.World` and its stepping loop.
 
     The node declares its ROS parameters from these fields (``sim_node.params``).
     """

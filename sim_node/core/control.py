@@ -1,4 +1,5 @@
-"""Joint commands: staged by any thread, held by joint *name*, bound to one model's addresses.
+"""
+Joint commands: staged by any thread, held by joint *name*, bound to one model's addresses.
 
 Commands survive recompiles because they are keyed by name: :meth:`Control.bind` turns the held
 ones into arrays of the current :class:`~sim_node.core.index.ModelIndex` and drops those whose
@@ -25,7 +26,8 @@ _NONE_INT = np.zeros(0, int)
 
 
 class Control:
-    """Staged and held joint commands and the PD law for joints without a matching actuator.
+    """
+    Staged and held joint commands and the PD law for joints without a matching actuator.
 
     Position and velocity commands use the joint's actuator of that kind if it has one (its
     ctrl is set once), otherwise PD torques through ``qfrc_applied`` recomputed before every
@@ -45,7 +47,8 @@ class Control:
 
     def stage(self, index: ModelIndex, names: Sequence[str], values: Sequence[float],
               mode: str) -> None:
-        """Validate and stage commands; the world's next step applies them.
+        """
+        Validate and stage commands; the world's next step applies them.
 
         :raises NotFoundError: an unknown joint; nothing is staged.
         :raises InvalidArgumentError: a non-finite value, a length mismatch or a bad mode.
@@ -101,8 +104,10 @@ class Control:
 
     def bind(self, index: ModelIndex, model: mujoco.MjModel, data: mujoco.MjData,
              new_model: bool = False) -> None:
-        """Turn the held commands into arrays of `index`; commands for joints it does not have
-        are dropped.
+        """
+        Turn the held commands into arrays of `index`.
+
+        Commands for joints it does not have are dropped.
 
         :param new_model: `data` belongs to a model just recompiled: the previous binding's
             addresses mean nothing in it (recompile already carried its applied forces over).

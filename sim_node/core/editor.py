@@ -1,6 +1,9 @@
-"""The model editor: every change to the MjSpec (attach, remove, add a body, contact settings,
-mass, moving welded bodies). Functions of a spec (and, to read current values, a model); none
-compiles the live spec or touches MjData: the world validates, applies and recompiles.
+"""
+The model editor.
+
+Every change to the MjSpec (attach, remove, add a body, contact settings, mass, moving welded
+bodies). Functions of a spec (and, to read current values, a model); none compiles the live spec or
+touches MjData: the world validates, applies and recompiles.
 """
 
 import logging
@@ -44,7 +47,8 @@ _NAMED_KINDS = ('meshes', 'skins', 'hfields', 'textures', 'materials', 'tendons'
 
 
 def restitution_to_solref(restitution: float) -> list:
-    """MuJoCo solref (timeconst, dampratio) whose bounce has coefficient of restitution e.
+    """
+    Return MuJoCo solref (timeconst, dampratio) whose bounce has coefficient of restitution e.
 
     A linear spring-damper gives e = exp(-zeta pi / sqrt(1 - zeta^2)), so
     zeta = -ln(e') / sqrt(pi^2 + ln(e')^2), with e' = e - 0.12 (0.8 - e) correcting for the
@@ -57,9 +61,13 @@ def restitution_to_solref(restitution: float) -> list:
 
 
 def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
-    """Give every unnamed body, joint, geom and site of `spec` a name unique in it (and not
-    in `taken`), e.g. ``geom_3``: the world looks elements up by name, and an attached copy
-    gets them under its prefix, so a model can be spawned any number of times."""
+    """
+    Give every unnamed body, joint.
+
+    Geom and site of `spec` a name unique in it (and not in `taken`), e.g. ``geom_3``: the world
+    looks elements up by name, and an attached copy gets them under its prefix, so a model can be
+    spawned any number of times.
+    """
     groups = (('body', spec.bodies), ('joint', spec.joints), ('geom', spec.geoms),
               ('site', spec.sites))
     used = set(taken or ()) | {e.name for _, elems in groups for e in elems if e.name}
@@ -76,7 +84,8 @@ def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
 
 def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.ndarray,
            quat_wxyz: np.ndarray) -> tuple:
-    """Attach a copy of a whole model to `spec` through a frame at a world pose.
+    """
+    Attach a copy of a whole model to `spec` through a frame at a world pose.
 
     Every element comes along under the prefix ``name/``; the first top-level body is renamed
     `name` and is the entity's root. Whole-world furniture follows one rule: ground planes
@@ -118,10 +127,13 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
 
 
 def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str]) -> None:
-    """Remove an attached entity: its frame with everything attached through it (bodies,
-    joints, geoms, lights, cameras; actuators, sensors, tendons, equality constraints, contact
-    pairs and excludes that refer to them), every other element under its prefix (assets),
-    and its in-memory assets."""
+    """
+    Remove an attached entity.
+
+    Its frame with everything attached through it (bodies, joints, geoms, lights, cameras;
+    actuators, sensors, tendons, equality constraints, contact pairs and excludes that refer to
+    them), every other element under its prefix (assets), and its in-memory assets.
+    """
     spec.delete(spec.frame(frame))
     prefix = f'{name}/'
     for kind in _NAMED_KINDS:
@@ -134,8 +146,10 @@ def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str]) ->
 
 def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,
                  tolerance: float) -> Optional[tuple]:
-    """Where entity `name`, new in `model` (whose `data` holds the state), would overlap
-    existing geometry by more than `tolerance`: (other geom's name, depth) or None.
+    """
+    Where entity `name`, new in `model` (whose `data` holds the state).
+
+    Would overlap existing geometry by more than `tolerance`: (other geom's name, depth) or None.
 
     Only pairs MuJoCo would make contact forces for count (geoms that can collide: contype
     and conaffinity, not excluded, not both welded to the world), since only those explode.
@@ -157,8 +171,11 @@ def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,
 def add_child(spec: mujoco.MjSpec, parent: str, full: str, shape: str, size: list,
               pos: np.ndarray, quat_wxyz: np.ndarray, mass: float, joint: Optional[str],
               axis: np.ndarray, rgba: list) -> None:
-    """A body with one primitive geom (checked by :func:`sources.primitive_size`) under
-    `parent`, welded or on a hinge/slide joint about `axis`."""
+    """
+    Add a body with one primitive geom (see :func:`sources.primitive_size`) under `parent`.
+
+    Welded or on a hinge/slide joint about `axis`.
+    """
     body = spec.body(parent).add_body(name=full, pos=pos.tolist(), quat=quat_wxyz.tolist())
     if joint:
         body.add_joint(name=f'{full}/joint', axis=axis.tolist(), type=getattr(
@@ -172,10 +189,13 @@ def add_child(spec: mujoco.MjSpec, parent: str, full: str, shape: str, size: lis
 def apply_contact(spec: mujoco.MjSpec, geom_names: Sequence[str],
                   friction: Optional[np.ndarray], restitution: Optional[float],
                   priority: int) -> None:
-    """Friction and/or restitution for geoms. Geoms given :data:`OWN_CONTACT_PRIORITY` win
-    a contact with geoms of lower priority: MuJoCo then uses their solref and friction alone.
-    Between two geoms of equal priority MuJoCo mixes them (solref averaged, the larger
-    friction)."""
+    """
+    Friction and/or restitution for geoms.
+
+    Geoms given :data:`OWN_CONTACT_PRIORITY` win a contact with geoms of lower priority: MuJoCo
+    then uses their solref and friction alone. Between two geoms of equal priority MuJoCo mixes
+    them (solref averaged, the larger friction).
+    """
     solref = None if restitution is None else restitution_to_solref(restitution)
     for name in geom_names:
         geom = spec.geom(name) if name else None
@@ -190,8 +210,11 @@ def apply_contact(spec: mujoco.MjSpec, geom_names: Sequence[str],
 
 def move_group(spec: mujoco.MjSpec, frame: Optional[str], body_name: str,
                model_pose: tuple, pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
-    """Move a welded entity so that its root body is at a world pose: a spawned entity by its
-    frame (the welded bodies it came with move along), a scene entity by its body.
+    """
+    Move a welded entity so that its root body is at a world pose.
+
+    A spawned entity by its frame (the welded bodies it came with move along), a scene entity by
+    its body.
 
     :param model_pose: (pos (3,), quat (4,)): the root's compiled pose in the world
         (``model.body_pos``/``body_quat`` of a top-level body).
@@ -210,8 +233,12 @@ def move_group(spec: mujoco.MjSpec, frame: Optional[str], body_name: str,
 
 def weld_in_place(spec: mujoco.MjSpec, frame: Optional[str], rec: EntityRecord,
                   pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
-    """Remove an entity's free joint; its root body stays at the given world pose (where it
-    is now), relative to its frame if it has one."""
+    """
+    Remove an entity's free joint.
+
+    Its root body stays at the given world pose (where it is now), relative to its frame if it has
+    one.
+    """
     body = spec.body(rec.name)
     if frame is not None:
         f = spec.frame(frame)
@@ -222,8 +249,11 @@ def weld_in_place(spec: mujoco.MjSpec, frame: Optional[str], rec: EntityRecord,
 
 
 def set_body_pose(body, pos: np.ndarray, quat_wxyz: np.ndarray) -> None:
-    """A body's pose in its parent frame, as a quaternion (any other orientation form the
-    file used is replaced)."""
+    """
+    Set a body's pose in its parent frame.
+
+    As a quaternion (any other orientation form the file used is replaced).
+    """
     body.pos, body.quat = list(map(float, pos)), list(map(float, quat_wxyz))
     body.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
 

@@ -1,4 +1,7 @@
-"""Typed errors of the world core. Each maps to one simulation_interfaces Result code.
+"""
+Typed errors of the world core.
+
+Each maps to one simulation_interfaces Result code.
 
 The node maps them in one table (``msg_adapters.results``); messages say what to fix.
 """

@@ -1,5 +1,7 @@
-"""The divergence guard: MuJoCo's own checks after every batch, and the replay that finds the
-exact bad step.
+"""
+The divergence guard.
+
+MuJoCo's own checks after every batch, and the replay that finds the exact bad step.
 
 MuJoCo's whole-world auto-reset on NaN is disabled by the world; divergence is reported
 instead (dm_control's ``check_invalid_state``).
@@ -29,9 +31,13 @@ def _log_mujoco_warning(message: str) -> None:
 
 
 def route_mujoco_warnings() -> None:
-    """Send MuJoCo's warning text to logging (the node forwards it to the ROS log) instead
-    of stderr and a MUJOCO_LOG.TXT in the working directory; unless the application has
-    installed a handler of its own (the handler is process-wide)."""
+    """
+    Send MuJoCo's warning text to logging.
+
+    (the node forwards it to the ROS log) instead of stderr and a MUJOCO_LOG.TXT in the working
+    directory; unless the application has installed a handler of its own (the handler is
+    process-wide).
+    """
     if mujoco.get_mju_user_warning() is None:
         mujoco.set_mju_user_warning(_log_mujoco_warning)
 
@@ -41,13 +47,17 @@ _BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mj
 
 
 def clean(state: np.ndarray) -> bool:
-    """True if a state vector has nothing MuJoCo would call divergent."""
+    """Return True if a state vector has nothing MuJoCo would call divergent."""
     return bool(np.all(np.isfinite(state)) and np.max(np.abs(state), initial=0) < MAX_ABS_VALUE)
 
 
 class DivergenceGuard:
-    """Watches one MjData's warning counters. A counter may be set back to 1 by a reset, so
-    changes are detected by comparison with the last seen values, not by "greater than"."""
+    """
+    Watches one MjData's warning counters.
+
+    A counter may be set back to 1 by a reset, so changes are detected by comparison with the last
+    seen values, not by "greater than".
+    """
 
     def bind(self, data: mujoco.MjData) -> None:
         """Watch `data` (a new one after every recompile), taking its counters as seen."""
@@ -60,8 +70,11 @@ class DivergenceGuard:
         self._seen_bytes = self._seen.tobytes()
 
     def diverged(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
-        """True if MuJoCo calls the state bad (NaN, inf or beyond 1e10 in qpos, qvel or qacc);
-        logs other new warnings. Runs after every batch: three C calls and one comparison."""
+        """
+        Return True if MuJoCo calls the state bad (NaN, inf or beyond 1e10 in qpos, qvel or qacc).
+
+        Logs other new warnings. Runs after every batch: three C calls and one comparison.
+        """
         # mj_step checks qpos and qvel only at the start of the next step; the integrator may
         # have just carried a bad acceleration into them. Check them now, as MuJoCo would.
         mujoco.mj_checkPos(model, data)
@@ -84,7 +97,8 @@ class DivergenceGuard:
 
     def locate(self, model: mujoco.MjModel, data: mujoco.MjData, before: np.ndarray, n: int,
                ctrl: Optional[np.ndarray], before_step: Optional[Callable[[], None]]) -> tuple:
-        """Replay a batch that diverged one step at a time from `before`.
+        """
+        Replay a batch that diverged one step at a time from `before`.
 
         :param ctrl: the batch's controls, if `before` does not hold them yet.
         :param before_step: per-step control to run before each replayed step, if any.

@@ -1,4 +1,5 @@
-"""The per-model index: every name <-> id and address table of one compiled model.
+"""
+The per-model index: every name <-> id and address table of one compiled model.
 
 :func:`build` runs once per recompile; the result is frozen. It is the only place in the core
 that turns names into MuJoCo ids and addresses, so nothing can hold an address of an older
@@ -34,8 +35,11 @@ _GEOM_TYPES = {int(mujoco.mjtGeom.mjGEOM_PLANE): 'plane',
 
 @dataclass(frozen=True)
 class ModelIndex:
-    """Names and addresses of one model generation. Arrays are (njoint,) over the
-    commandable (hinge and slide) joints, in model order."""
+    """
+    Names and addresses of one model generation.
+
+    Arrays are (njoint,) over the commandable (hinge and slide) joints, in model order.
+    """
 
     generation: int
     state_size: int
@@ -65,7 +69,7 @@ class ModelIndex:
         return b
 
     def entity_of_body(self, name: str) -> str:
-        """The name of the entity (top-level body) a body belongs to."""
+        """Return the name of the entity (top-level body) a body belongs to."""
         return self.body_names[self.info.body_root[self.body(name)]]
 
     def joints(self, names: Iterable[str]) -> np.ndarray:
@@ -80,7 +84,8 @@ class ModelIndex:
 
 
 def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
-    """Index a compiled model.
+    """
+    Index a compiled model.
 
     :param spawned: entity name -> {'description': str, 'bodies': top-level body names, root
         first} for entities spawned since load. Every other top-level body is an entity of

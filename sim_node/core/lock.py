@@ -1,4 +1,5 @@
-"""The world lock: reentrant, and fair enough that the stepping loop steps aside for callers.
+"""
+The world lock: reentrant, and fair enough that the stepping loop steps aside for callers.
 
 A plain lock is not fair: a reader waited up to 2.5 s behind a loop that re-took the lock at
 once. Callers that had to wait are counted, and the loop calls :meth:`WorldLock.wait_for_callers`
@@ -9,7 +10,8 @@ import threading
 
 
 class WorldLock:
-    """Context manager for the world lock (a class: cheaper than a generator per step).
+    """
+    Context manager for the world lock (a class: cheaper than a generator per step).
 
     Each acquisition records whether it had to wait (and so was counted as a waiter),
     innermost last; only the thread holding the lock touches that record.

@@ -1,4 +1,5 @@
-"""The stepping loop: one thread that advances a :class:`World` at a fixed step.
+"""
+The stepping loop: one thread that advances a :class:`World` at a fixed step.
 
 * Real-time factor 1.0 paces simulated time to the wall clock (2.0: twice as fast; 0: as fast
   as possible). Pacing sleeps to absolute deadlines outside the world lock and re-syncs after a
@@ -38,12 +39,12 @@ TIME_TOLERANCE_STEPS = 1e-3
 
 
 def time_reached(time_sec: float, limit_sec: float, timestep: float) -> bool:
-    """True once `time_sec` is at or past `limit_sec` (within a thousandth of a step)."""
+    """Return True once `time_sec` is at or past `limit_sec` (within a thousandth of a step)."""
     return time_sec >= limit_sec - TIME_TOLERANCE_STEPS * timestep
 
 
 def steps_until(time_sec: float, limit_sec: float, timestep: float) -> int:
-    """Steps until the first step whose time is >= `limit_sec` (0 if already there)."""
+    """Step until the first step whose time is >= `limit_sec` (0 if already there)."""
     return max(0, math.ceil((limit_sec - time_sec) / timestep - TIME_TOLERANCE_STEPS))
 
 
@@ -64,7 +65,11 @@ ERR_NOT_RUNNING = 'the stepping loop is not running'
 
 
 class SimLoop:
-    """Steps a world on its own thread. Start with :meth:`start`, end with :meth:`stop`."""
+    """
+    Steps a world on its own thread.
+
+    Start with :meth:`start`, end with :meth:`stop`.
+    """
 
     def __init__(self, world: World, config: Optional[WorldConfig] = None):
         cfg = config or world.config
@@ -127,8 +132,12 @@ class SimLoop:
             self._cv.notify_all()
 
     def cancel_steps(self) -> None:
-        """End a step request in progress: its caller gets an IncorrectStateError saying how
-        many steps were done. A simulator must never be held by one request for ever."""
+        """
+        End a step request in progress.
+
+        Its caller gets an IncorrectStateError saying how many steps were done. A simulator must
+        never be held by one request for ever.
+        """
         with self._cv:
             self._cancel_steps_locked()
 
@@ -138,7 +147,8 @@ class SimLoop:
             self._steps_done_cv.notify_all()
 
     def play(self) -> None:
-        """Resume; clears a termination or divergence report (limits still apply).
+        """
+        Resume; clears a termination or divergence report (limits still apply).
 
         :raises IncorrectStateError: the loop failed; :meth:`recover` first.
         """
@@ -188,7 +198,10 @@ class SimLoop:
 
     def step(self, n: int = 1, timeout: Optional[float] = None,
              feedback: Optional[Callable[[int, int], None]] = None) -> int:
-        """Run `n` steps while paused; block until they are done. Returns steps completed.
+        """
+        Run `n` steps while paused; block until they are done.
+
+        Returns steps completed.
 
         :param feedback: called as ``feedback(completed, remaining)`` from this thread.
         :raises IncorrectStateError: the loop is playing, or is not running.
@@ -268,9 +281,12 @@ class SimLoop:
     # ------------------------------------------------------------------ the loop
 
     def _track_rate(self, now: float, n: int, rtf: float, wall_per_step: float) -> None:
-        """Measure the achieved real-time factor over windows; say once, when the physics
-        cannot keep the requested one, by how much (log and status), instead of lagging
-        silently."""
+        """
+        Measure the achieved real-time factor over windows.
+
+        Say once, when the physics cannot keep the requested one, by how much (log and status),
+        instead of lagging silently.
+        """
         if self._window_start is None or rtf != self._window_rtf:
             self._window_start, self._window_steps, self._window_rtf = now, 0, rtf
             return

@@ -1,4 +1,5 @@
-"""Quaternion maths in MuJoCo's (w, x, y, z) order, on one (4,) or many (n, 4) at once.
+"""
+Quaternion maths in MuJoCo's (w, x, y, z) order, on one (4,) or many (n, 4) at once.
 
 The one place rotations are written: the core uses it for reference frames, the adapters for
 relative transforms.
@@ -35,12 +36,12 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def to_frame(frame_pos: np.ndarray, frame_quat: np.ndarray, pos: np.ndarray,
              quat: np.ndarray) -> tuple:
-    """A world pose expressed in another frame: (position (3,), quat (4,))."""
+    """Return a world pose expressed in another frame: (position (3,), quat (4,))."""
     inv = conj(frame_quat)
     return rotate(inv, np.asarray(pos) - frame_pos), mul(inv, quat)
 
 
 def from_frame(frame_pos: np.ndarray, frame_quat: np.ndarray, pos: np.ndarray,
                quat: np.ndarray) -> tuple:
-    """A pose given in another frame, expressed in the world: (position (3,), quat (4,))."""
+    """Return a pose given in another frame, expressed in the world: (position (3,), quat (4,))."""
     return frame_pos + rotate(frame_quat, pos), mul(frame_quat, quat)

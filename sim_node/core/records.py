@@ -24,7 +24,8 @@ RESET_ALL = 255
 
 @dataclass(frozen=True)
 class EntityRecord:
-    """An entity: one body attached directly to the world body, with its subtree.
+    """
+    An entity: one body attached directly to the world body, with its subtree.
 
     Ids index the model of the generation the record came from.
     """
@@ -73,7 +74,8 @@ class ModelInfo:
 
 @dataclass(frozen=True)
 class Snapshot:
-    """A copy of the world made by the loop between steps: safe to read from any thread.
+    """
+    A copy of the world made by the loop between steps: safe to read from any thread.
 
     :param joint_position: (njoint,) for ModelInfo.joint_names; likewise velocity and effort.
     :param body_xpos: (nbody, 3) world positions.
@@ -96,8 +98,10 @@ class Snapshot:
 
 @dataclass(frozen=True)
 class EntityState:
-    """Pose, twist and acceleration of an entity's root body in the world frame (or a
-    reference frame).
+    """
+    Pose.
+
+    Twist and acceleration of an entity's root body in the world frame (or a reference frame).
 
     Twist: linear velocity of the body origin and angular velocity, both in the world frame.
     Acceleration: the same point's linear acceleration (coordinate acceleration: -9.81 m/s^2
@@ -115,8 +119,12 @@ class EntityState:
 
 @dataclass(frozen=True)
 class PhysicsState:
-    """The full integration state (time, qpos, qvel, act, ctrl, mocap, warm start, applied
-    forces) of one model generation, as ``mj_getState(mjSTATE_INTEGRATION)`` gives it."""
+    """
+    The full integration state.
+
+    (time, qpos, qvel, act, ctrl, mocap, warm start, applied forces) of one model generation, as
+    ``mj_getState(mjSTATE_INTEGRATION)`` gives it.
+    """
 
     generation: int
     step: int

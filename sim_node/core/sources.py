@@ -1,4 +1,5 @@
-"""What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
+"""
+What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
 
 Each builder returns a :class:`SpawnSource`: a compiled-once MjSpec (one or more top-level
 bodies: a standalone model file works as it is), plus the in-memory assets it needs.
@@ -60,9 +61,12 @@ ERR_DEGREE_RANGES = ("{what} reads joint angles in degrees (MJCF's default), but
 
 
 def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
-    """Log hinge ranges of a degree-reading model that look like radians: all within +-pi
-    and not empty. ``range="-1.57 1.57"`` without ``<compiler angle="radian"/>`` is +-1.57
-    degrees, a joint that barely moves."""
+    """
+    Log hinge ranges of a degree-reading model that look like radians.
+
+    All within +-pi and not empty. ``range="-1.57 1.57"`` without ``<compiler angle="radian"/>`` is
+    +-1.57 degrees, a joint that barely moves.
+    """
     if not spec.compiler.degree:
         return
     joints = []
@@ -77,7 +81,8 @@ def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
 
 @dataclass
 class SpawnSource:
-    """A parsed, compiled-once description of one entity, ready to attach to a world.
+    """
+    A parsed, compiled-once description of one entity, ready to attach to a world.
 
     :param spec: MjSpec with at least one top-level body or worldbody geom.
     :param assets: file name -> bytes for meshes kept in memory.
@@ -96,14 +101,15 @@ class SpawnSource:
 
 
 def inside_roots(path: str, roots: Sequence[str]) -> bool:
-    """True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
+    """Return True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
     real = Path(os.path.realpath(path))
     reals = [Path(os.path.realpath(r)) for r in roots]
     return any(real == r or r in real.parents for r in reals)
 
 
 def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
-    """Check that `path` is a readable regular file inside `allowed_roots` (None: anywhere).
+    """
+    Check that `path` is a readable regular file inside `allowed_roots` (None: anywhere).
 
     A FIFO or device would block MuJoCo forever, and '..' or paths outside the roots would let
     a caller read any file; both are refused before anything opens the file.
@@ -175,8 +181,12 @@ def _finish(spec: mujoco.MjSpec, kind: str, description: str,
 def check_model_text(text: str, base_dir: Optional[str] = None,
                      allowed_roots: Optional[Sequence[str]] = None,
                      max_bytes: int = _LIMITS.max_resource_bytes) -> ET.Element:
-    """Check MJCF/URDF text before MuJoCo sees it: size, XML, root tag, and every file it
-    names (inside `allowed_roots`, regular, no '..'). Returns the parsed root element."""
+    """
+    Check MJCF/URDF text before MuJoCo sees it.
+
+    Size, XML, root tag, and every file it names (inside `allowed_roots`, regular, no '..').
+    Returns the parsed root element.
+    """
     if not text or not text.strip():
         raise NoResourceError(ERR_EMPTY)
     _check_size(len(text.encode()), max_bytes)
@@ -194,7 +204,8 @@ def check_model_text(text: str, base_dir: Optional[str] = None,
 def from_model_text(text: str, base_dir: Optional[str] = None,
                     allowed_roots: Optional[Sequence[str]] = None,
                     max_bytes: int = _LIMITS.max_resource_bytes) -> SpawnSource:
-    """Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
+    """
+    Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
 
     :param base_dir: directory relative file names resolve against (None: only absolute).
     :param allowed_roots: directories files may be read from (None: anywhere).
@@ -220,10 +231,14 @@ WORLD_GEOMS_BODY = 'world_geoms'
 
 
 def _mjcf_gather_world_geoms(root: ET.Element, text: str) -> str:
-    """A standalone model's static geometry (geoms and sites directly in <worldbody>, except
-    ground planes, which the world drops when it attaches the model) moves into one welded
-    body, appended after the model's own top-level bodies, so it becomes part of the entity.
-    Returns `text` unchanged when there is nothing to gather."""
+    """
+    Gather a standalone model's static geometry into one body.
+
+    (geoms and sites directly in <worldbody>, except ground planes, which the world drops when it
+    attaches the model) moves into one welded body, appended after the model's own top-level
+    bodies, so it becomes part of the entity. Returns `text` unchanged when there is nothing to
+    gather.
+    """
     wb = root.find('worldbody')
     loose = [] if wb is None else [e for e in wb if e.tag in ('geom', 'site')
                                    and e.get('type') != 'plane']
@@ -242,8 +257,11 @@ def _mjcf_gather_world_geoms(root: ET.Element, text: str) -> str:
 
 
 def _urdf_keep_root_link(root: ET.Element) -> str:
-    """MuJoCo's URDF import fuses links welded to the world into the world body (fusestatic),
-    which would leave a fixed-base robot without a root body to be the entity: keep them."""
+    """
+    Keep a URDF's root link: MuJoCo's import fuses links welded to the world (fusestatic).
+
+    Which would leave a fixed-base robot without a root body to be the entity: keep them.
+    """
     ext = root.find('mujoco')
     if ext is None:
         ext = ET.SubElement(root, 'mujoco')
@@ -310,8 +328,11 @@ _PRIMITIVE_SIZES = {'box': 3, 'sphere': 1, 'cylinder': 2, 'capsule': 2}
 
 
 def primitive_size(shape: str, size: Sequence[float]) -> list:
-    """MuJoCo's (3,) geom size for a primitive: box half-sizes x, y, z; sphere radius;
-    cylinder or capsule radius and half-length. Refuses unknown shapes and bad sizes."""
+    """
+    Return MuJoCo's (3,) geom size for a primitive: box half-sizes x, y, z; sphere radius.
+
+    Cylinder or capsule radius and half-length. Refuses unknown shapes and bad sizes.
+    """
     n_size = _PRIMITIVE_SIZES.get(shape)
     if n_size is None:
         raise UnsupportedFormatError(ERR_PRIMITIVE.format(shape=shape))
@@ -324,7 +345,8 @@ def primitive_size(shape: str, size: Sequence[float]) -> list:
 def primitive(shape: str, size: Sequence[float], mass: Optional[float] = 1.0,
               rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), static: bool = False,
               friction: Optional[Sequence[float]] = None) -> SpawnSource:
-    """A box (half-sizes x, y, z), sphere (radius), cylinder or capsule (radius, half-length).
+    """
+    Build a box (half-sizes x, y, z), sphere (radius), cylinder or capsule (radius, half-length).
 
     :param mass: kg; a body without mass (0 or None) is welded to the world (static).
     :param static: weld to the world regardless of mass.
@@ -347,7 +369,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
               static: bool = False, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = _LIMITS.max_resource_bytes,
               max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
-    """A mesh file loaded with trimesh (scenes are merged into one mesh) as one body."""
+    """Load a mesh file with trimesh (scenes are merged into one mesh) as one body."""
     import trimesh  # heavy import, only needed here
 
     p = check_path(path, allowed_roots)

@@ -1,6 +1,9 @@
-"""Reading and writing the state of one (model, data): snapshots, entity states, free-body
-writes, bounds, and the kinematic step. Plain functions; the world calls them with its lock
-held and derived quantities up to date (see ``World._kinematics_locked``).
+"""
+Reading and writing the state of one (model, data).
+
+Snapshots, entity states, free-body writes, bounds, and the kinematic step. Plain functions; the
+world calls them with its lock held and derived quantities up to date (see
+``World._kinematics_locked``).
 """
 
 from typing import Optional
@@ -18,7 +21,7 @@ _PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
 
 
 def snapshot(data: mujoco.MjData, index: ModelIndex, step: int, seq: int) -> Snapshot:
-    """An immutable copy of what publishers need (body poses, joint states)."""
+    """Return an immutable copy of what publishers need (body poses, joint states)."""
     dof = index.joint_dofadr
     return Snapshot(generation=index.generation, step=step, time=float(data.time),
                     joint_position=data.qpos[index.joint_qposadr],
@@ -30,8 +33,11 @@ def snapshot(data: mujoco.MjData, index: ModelIndex, step: int, seq: int) -> Sna
 
 def entity_state(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecord,
                  frame: Optional[tuple] = None) -> EntityState:
-    """Pose, twist and acceleration of an entity's root body origin, in the world frame or in
-    `frame` = (position (3,), quat_wxyz (4,)). Needs velocities and accelerations up to date.
+    """
+    Pose, twist and acceleration of an entity's root body origin.
+
+    In the world frame or in `frame` = (position (3,), quat_wxyz (4,)). Needs velocities and
+    accelerations up to date.
 
     Twist and acceleration are those of the body's origin (the point its pose gives), not of
     its centre of mass, so what :func:`write_free_body` writes reads back unchanged.
@@ -80,8 +86,11 @@ def write_free_body(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecor
 
 
 def bounds(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecord) -> tuple:
-    """Axis-aligned bounds of an entity's geoms (infinite planes left out) in the world frame:
-    (min (3,), max (3,)); the root body's position twice when it has no such geom."""
+    """
+    Axis-aligned bounds of an entity's geoms (infinite planes left out) in the world frame.
+
+    (min (3,), max (3,)); the root body's position twice when it has no such geom.
+    """
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for g in rec.geom_ids:
         if model.geom_type[g] == _PLANE:
@@ -98,10 +107,14 @@ def bounds(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecord) -> tup
 
 def kinematic_step(model: mujoco.MjModel, data: mujoco.MjData, qposadr: np.ndarray,
                    dofadr: np.ndarray, targets: np.ndarray) -> None:
-    """One step with no physics: time advances by the timestep, the joints at `qposadr` take
-    `targets` exactly and their velocities are the change over the step, every other velocity
-    is zero and nothing else moves (no gravity, contacts or actuators). Body poses and the
-    sensors that depend on positions and velocities are recomputed."""
+    """
+    One step with no physics.
+
+    Time advances by the timestep, the joints at `qposadr` take `targets` exactly and their
+    velocities are the change over the step, every other velocity is zero and nothing else moves
+    (no gravity, contacts or actuators). Body poses and the sensors that depend on positions and
+    velocities are recomputed.
+    """
     dt = model.opt.timestep
     change = targets - data.qpos[qposadr]
     data.qvel[:] = 0

@@ -1,4 +1,5 @@
-"""The MuJoCo world: one MjSpec/MjModel/MjData, its entities, and every change to them.
+"""
+The MuJoCo world: one MjSpec/MjModel/MjData, its entities, and every change to them.
 
 The world keeps the lock, the model generation and the recompile, and its public methods lock,
 validate and delegate: addresses to :mod:`.index`, joint commands to :mod:`.control`, the
@@ -42,7 +43,10 @@ _NO_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
 
 
 class World(StateWrites, WorldEdits):
-    """A MuJoCo world that can change while it runs. Thread-safe; see ``sim_node.core``.
+    """
+    A MuJoCo world that can change while it runs.
+
+    Thread-safe; see ``sim_node.core``.
 
     Build with :meth:`from_file` or :meth:`from_string`.
     """
@@ -102,16 +106,17 @@ class World(StateWrites, WorldEdits):
     # ---------------------------------------------------------------- locking
 
     def _locked(self) -> WorldLock:
-        """The world lock, counting waiters so the loop can step aside for them."""
+        """Return the world lock, counting waiters so the loop can step aside for them."""
         return self._lock_cm
 
     def wait_for_callers(self, timeout: float = 0.05) -> None:
-        """Used by the loop: let callers waiting for the lock go first."""
+        """Use by the loop: let callers waiting for the lock go first."""
         self._lock_cm.wait_for_callers(timeout)
 
     @contextlib.contextmanager
     def locked(self) -> Iterator[tuple]:
-        """Direct access to ``(model, data)`` under the world lock, for advanced use.
+        """
+        Direct access to ``(model, data)`` under the world lock, for advanced use.
 
         Anything changed here is the caller's responsibility; the loop is held off meanwhile.
         """
@@ -144,7 +149,7 @@ class World(StateWrites, WorldEdits):
 
     @property
     def step_count(self) -> int:
-        """Steps since the last time reset."""
+        """Step since the last time reset."""
         with self._locked():
             return self._step_count
 
@@ -172,7 +177,7 @@ class World(StateWrites, WorldEdits):
     # ---------------------------------------------------------------- snapshots and state
 
     def snapshot(self) -> Snapshot:
-        """An immutable copy for publishers, with the model info of its generation."""
+        """Return an immutable copy for publishers, with the model info of its generation."""
         with self._locked():
             if self._stale_kinematics:
                 # Body poses only: a third of _kinematics_locked's cost (1,000 bodies at
@@ -183,7 +188,7 @@ class World(StateWrites, WorldEdits):
                                   self._snapshot_seq)
 
     def get_state(self) -> PhysicsState:
-        """The full integration state, like the older systems' ``getState``."""
+        """Return the full integration state, like the older systems' ``getState``."""
         with self._locked():
             values = np.empty(self._index.state_size)
             mujoco.mj_getState(self._model, self._data, values, STATE_SPEC)
@@ -208,8 +213,11 @@ class World(StateWrites, WorldEdits):
         self._forward_locked()
 
     def get_entity_state(self, name: str, reference: str = '') -> EntityState:
-        """Pose, twist and acceleration of the entity's root body origin, in the world or
-        `reference`'s frame (see :func:`state.entity_state`)."""
+        """
+        Pose, twist and acceleration of the entity's root body origin.
+
+        In the world or `reference`'s frame (see :func:`state.entity_state`).
+        """
         with self._locked():
             rec = self._index.entity(name)
             self._dynamics_locked()
@@ -222,7 +230,7 @@ class World(StateWrites, WorldEdits):
         return state.body_pose(self._data, rec.root_body)
 
     def get_joint_states(self) -> dict:
-        """name -> (position, velocity, effort) for every hinge and slide joint."""
+        """Name -> (position, velocity, effort) for every hinge and slide joint."""
         snap = self.snapshot()
         return {n: (float(p), float(v), float(e)) for n, p, v, e in zip(
             snap.info.joint_names, snap.joint_position, snap.joint_velocity,
@@ -231,8 +239,11 @@ class World(StateWrites, WorldEdits):
     # ---------------------------------------------------------------- control
 
     def command(self, names: Sequence[str], values: Sequence[float], mode: str) -> None:
-        """Stage joint commands; the next step applies them, and they hold until replaced or
-        until their joint is deleted (see :class:`~sim_node.core.control.Control`).
+        """
+        Stage joint commands.
+
+        The next step applies them, and they hold until replaced or until their joint is deleted
+        (see :class:`~sim_node.core.control.Control`).
 
         :raises NotFoundError: an unknown joint; nothing is staged.
         :raises InvalidArgumentError: a non-finite value, a length mismatch or a bad mode.
@@ -250,7 +261,8 @@ class World(StateWrites, WorldEdits):
     # ---------------------------------------------------------------- stepping
 
     def step(self, n: int = 1, ctrl: Optional[np.ndarray] = None) -> int:
-        """Advance `n` steps (applying staged commands first); returns the step count.
+        """
+        Advance `n` steps (applying staged commands first); returns the step count.
 
         :param ctrl: (nu,) actuator controls to set first, for callers that own the world
             (the Gym environment); the caller checks them (finite, within +-1e10).
@@ -318,8 +330,12 @@ class World(StateWrites, WorldEdits):
                               'before it', bad_step, report)
 
     def step_kinematic(self, positions: dict, n: int = 1) -> int:
-        """Advance `n` steps with no physics (see :func:`state.kinematic_step`): the named
-        hinge/slide joints take `positions` exactly at every step; returns the step count."""
+        """
+        Advance `n` steps with no physics (see :func:`state.kinematic_step`).
+
+        The named hinge/slide joints take `positions` exactly at every step; returns the step
+        count.
+        """
         if n < 1:
             raise InvalidArgumentError(ERR_STEPS.format(n=n))
         with self._locked():
@@ -334,7 +350,8 @@ class World(StateWrites, WorldEdits):
             return self._step_count
 
     def _kinematics_locked(self) -> None:
-        """Bring body poses and velocities up to the current state before reading them.
+        """
+        Bring body poses and velocities up to the current state before reading them.
 
         mj_step computes them before integrating, so afterwards they describe the state one
         step earlier than qpos, qvel and time (MuJoCo's convention, kept for the Gym
@@ -348,8 +365,12 @@ class World(StateWrites, WorldEdits):
             self._stale_kinematics = False
 
     def _dynamics_locked(self) -> None:
-        """As :meth:`_kinematics_locked`, and accelerations too (mj_forward, then the body
-        accelerations mj_objectAcceleration reads). Changes no state either."""
+        """
+        As :meth:`_kinematics_locked`.
+
+        And accelerations too (mj_forward, then the body accelerations mj_objectAcceleration
+        reads). Changes no state either.
+        """
         m, d = self._model, self._data
         if self._stale_dynamics:
             mujoco.mj_forward(m, d)
@@ -366,9 +387,13 @@ class World(StateWrites, WorldEdits):
     # ---------------------------------------------------------------- reset
 
     def reset(self, scope: int = RESET_ALL) -> None:
-        """Reset by scope bits: RESET_TIME (time and step count to 0), RESET_STATE (the
-        `home` keyframe or the initial state; held commands are dropped), RESET_SPAWNED
-        (delete everything spawned since load). 0 and RESET_ALL do all three."""
+        """
+        Reset by scope bits.
+
+        RESET_TIME (time and step count to 0), RESET_STATE (the `home` keyframe or the initial
+        state; held commands are dropped), RESET_SPAWNED (delete everything spawned since load). 0
+        and RESET_ALL do all three.
+        """
         if scope != RESET_ALL and not 0 <= scope <= _SCOPE_BITS:
             raise InvalidArgumentError(ERR_SCOPE.format(scope=scope))
         scope = _SCOPE_BITS if scope in (0, RESET_ALL) else scope
@@ -406,8 +431,10 @@ class World(StateWrites, WorldEdits):
     def _edit_locked(self, edit: Callable[[mujoco.MjSpec], object],
                      check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]] = None,
                      spawned: Optional[dict] = None, overrides: Optional[dict] = None) -> None:
-        """Apply `edit` to a copy of the spec and recompile it with the live state; only if
-        that compiles (and `check` passes) does the copy become the world. A failed compile
+        """
+        Apply `edit` to a copy of the spec and recompile it with the live state.
+
+        Only if that compiles (and `check` passes) does the copy become the world. A failed compile
         or check leaves the world, its spec and its generation exactly as they were.
 
         :param spawned: the spawned-entity table that goes with the edited spec.
@@ -431,8 +458,11 @@ class World(StateWrites, WorldEdits):
         self._adopt_locked(model, data)
 
     def _size_arena(self, spec: mujoco.MjSpec) -> None:
-        """Give a spec whose scene did not size MuJoCo's arena one proportional to its bodies
-        (see ``WorldConfig.arena_bytes_per_body``)."""
+        """
+        Give a spec whose scene did not size MuJoCo's arena one proportional to its bodies.
+
+        (see ``WorldConfig.arena_bytes_per_body``).
+        """
         if self._auto_arena:
             spec.memory = (self.config.arena_base_bytes
                            + self.config.arena_bytes_per_body * len(spec.bodies))

@@ -1,7 +1,10 @@
-"""World model edits: spawn, add a body, delete, and physics parameters (contact, mass,
-gravity, timestep). A mixin of :class:`~sim_node.core.world.World`, split out only to keep
-one file per job: each method locks, validates, and hands a spec edit to
-``World._edit_locked`` (the recompile and generation stay in ``world.py``).
+"""
+World model edits.
+
+Spawn, add a body, delete, and physics parameters (contact, mass, gravity, timestep). A mixin of
+:class:`~sim_node.core.world.World`, split out only to keep one file per job: each method locks,
+validates, and hands a spec edit to ``World._edit_locked`` (the recompile and generation stay in
+``world.py``).
 """
 
 from typing import Optional, Sequence
@@ -26,12 +29,12 @@ class WorldEdits:
     """Structural and physics-parameter changes of a :class:`World` (see its docstring)."""
 
     def _frame_of(self, name: str) -> Optional[str]:
-        """The name of the frame a spawned entity hangs from (None: a scene entity)."""
+        """Return the name of the frame a spawned entity hangs from (None: a scene entity)."""
         meta = self._spawned.get(name)
         return meta['frame'] if meta else None
 
     def unique_name(self, base: str) -> str:
-        """`base`, or `base_<n>` with the smallest n not taken by an entity or body."""
+        """Return `base`, or `base_<n>` with the smallest n not taken by an entity or body."""
         with self._locked():
             return self._unique_name_locked(base)
 
@@ -49,7 +52,8 @@ class WorldEdits:
               quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), reference: str = '',
               allow_renaming: bool = False, namespace: str = '',
               allow_interpenetration: Optional[bool] = None) -> str:
-        """Add an entity at a pose (world frame, or `reference` entity's frame) while running.
+        """
+        Add an entity at a pose (world frame, or `reference` entity's frame) while running.
 
         Its root body is named `name`; every other element ``name/<original>`` (unnamed ones
         get ``name/<kind>_<i>``). All or nothing: on any error the world is exactly as
@@ -95,7 +99,8 @@ class WorldEdits:
                  quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), mass: float = 0.0,
                  joint: Optional[str] = None, axis: Sequence[float] = (0.0, 0.0, 1.0),
                  rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> str:
-        """Add a body with one geom under an existing body of a spawned entity, while running.
+        """
+        Add a body with one geom under an existing body of a spawned entity, while running.
 
         :param parent: name of the parent body (an entity or one of its bodies).
         :param position: in the parent's frame.
@@ -123,9 +128,11 @@ class WorldEdits:
             return full
 
     def delete(self, name: str) -> None:
-        """Remove a spawned entity with its joints, geoms, actuators, sensors, equality
-        constraints, contact pairs, excludes and joint commands; everything else keeps its
-        state exactly."""
+        """
+        Remove a spawned entity with its joints, geoms, actuators, sensors, equality constraints.
+
+        Contact pairs, excludes and joint commands; everything else keeps its state exactly.
+        """
         with self._locked():
             self._index.entity(name)
             meta = self._spawned.get(name)
@@ -152,8 +159,11 @@ class WorldEdits:
 
     def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
                      rolling: Optional[float] = None) -> None:
-        """Friction of every geom of an entity (MuJoCo's three coefficients); it wins over
-        surfaces without friction of their own (see :func:`editor.apply_contact`)."""
+        """
+        Friction of every geom of an entity (MuJoCo's three coefficients).
+
+        It wins over surfaces without friction of their own (see :func:`editor.apply_contact`).
+        """
         with self._locked():
             rec = self._index.entity(name)
             cur = (self._model.geom_friction[rec.geom_ids[0]] if rec.geom_ids
@@ -165,8 +175,12 @@ class WorldEdits:
             self._set_override_locked(name, 'friction', f)
 
     def set_restitution(self, name: str, restitution: float) -> None:
-        """Bounciness in [0, 0.8] of an entity's geoms: a bounce off any surface without a
-        restitution of its own has that coefficient (see :func:`editor.apply_contact`)."""
+        """
+        Bounciness in [0, 0.8] of an entity's geoms.
+
+        A bounce off any surface without a restitution of its own has that coefficient (see
+        :func:`editor.apply_contact`).
+        """
         e = self._check_restitution(restitution)
         with self._locked():
             self._index.entity(name)
@@ -214,7 +228,8 @@ class WorldEdits:
         return float(e)
 
     def set_mass(self, name: str, mass: float) -> None:
-        """Total mass of an entity (kg); each body's mass and inertia scale by one factor.
+        """
+        Total mass of an entity (kg); each body's mass and inertia scale by one factor.
 
         A body without mass is static: giving a static (jointless) entity a mass frees it
         where it is (it gets a free joint and falls), and a mass of 0 welds a free object to

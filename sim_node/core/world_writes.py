@@ -1,4 +1,6 @@
-"""Writing the state of a world: entity poses and twists, joint positions and velocities.
+"""
+Writing the state of a world: entity poses and twists, joint positions and velocities.
+
 A mixin of :class:`~sim_node.core.world.World`, split out only to keep one file per job: each
 method locks, checks everything, then writes (see :mod:`.state`).
 """
@@ -24,7 +26,8 @@ class StateWrites:
                          linear_velocity: Optional[Sequence[float]] = None,
                          angular_velocity: Optional[Sequence[float]] = None,
                          reference: str = '') -> None:
-        """Set the pose and/or twist of an entity's root body (world frame or `reference`).
+        """
+        Set the pose and/or twist of an entity's root body (world frame or `reference`).
 
         A free body is moved through its free joint. A welded entity (static object or
         fixed-base robot) can be moved (its model is rebuilt, keeping all state) but its
@@ -38,9 +41,11 @@ class StateWrites:
     def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
                   joint_positions: Optional[dict] = None,
                   joint_velocities: Optional[dict] = None) -> None:
-        """Overwrite any parts of the state at once, in the world frame: ``poses``
-        {entity: (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and
-        {joint: value} for hinge/slide joint positions and velocities.
+        """
+        Overwrite any parts of the state at once, in the world frame: ``poses`` {entity.
+
+        (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and {joint: value} for
+        hinge/slide joint positions and velocities.
 
         Everything is checked before anything changes, so an error changes nothing. An
         entity without a free joint given its current pose stays put (no rebuild); given
@@ -90,8 +95,11 @@ class StateWrites:
 
     def _check_target_locked(self, rec: EntityRecord, position, quat_wxyz, linear, angular,
                              frame: Optional[tuple]) -> tuple:
-        """Checked world-frame (pos, quat, lin, ang), None where not given; a pose given by
-        one half keeps the current other half."""
+        """
+        Check world-frame (pos, quat, lin, ang), None where not given.
+
+        A pose given by one half keeps the current other half.
+        """
         pos = q = lin = ang = None
         if position is not None or quat_wxyz is not None:
             cur_pos, cur_q = state.body_pose(self._data, rec.root_body)
@@ -120,7 +128,7 @@ class StateWrites:
             self._overwrite_locked({}, {}, {}, velocities, '')
 
     def _joint_targets_locked(self, what: str, values: dict, use_qpos: bool) -> tuple:
-        """Checked (qpos or qvel addresses, values) for {joint: value}."""
+        """Check (qpos or qvel addresses, values) for {joint: value}."""
         i = self._index.joints(values.keys())
         vals = check_finite(f'joint {what}s', list(values.values()))
         return (self._index.joint_qposadr if use_qpos else self._index.joint_dofadr)[i], vals
