@@ -108,9 +108,10 @@ class SimClient:
 
     def entity_state(self, name: str) -> dict:
         """
-        {'position', 'orientation_xyzw', 'linear', 'angular', 'linear_acceleration'.
+        Return the state of an entity as a dict.
 
-        'angular_acceleration', 'stamp', 'frame_id'} of an entity.
+        Keys: 'position', 'orientation_xyzw', 'linear', 'angular', 'linear_acceleration',
+        'angular_acceleration', 'stamp', 'frame_id'.
         """
         s = self.call('get_entity_state', srv.GetEntityState,
                       srv.GetEntityState.Request(entity=name)).state

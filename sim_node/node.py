@@ -155,8 +155,10 @@ class SimNode(SimServices, Node):
                                                   name='sim-publisher', daemon=True)
         self._publisher_thread.start()
 
-    def _install(self, world: World, name: str, uri: str) -> None:
+    def _install(self, world: World, name: str, uri: str, paused: bool = False) -> None:
         loop = SimLoop(world)
+        if paused:
+            loop.pause()
         with self._sim_lock:
             old, self._sim = self._sim, Sim(world, loop, name, uri)
             self._published_generation = None

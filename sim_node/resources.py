@@ -17,7 +17,8 @@ from typing import Optional, Sequence
 from urllib.parse import unquote, urlparse
 
 from .core import sources
-from .core.errors import MissingAssetsError, NoResourceError, UnsupportedFormatError
+from .core.errors import (MissingAssetsError, NoResourceError, NotFoundError,
+                          UnsupportedFormatError)
 
 SPAWNABLE_SUFFIXES = sources.MODEL_SUFFIXES + sources.MESH_SUFFIXES
 PACKAGE = 'sim'
@@ -40,8 +41,13 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
     """
     Resolve a spawn or world URI to a checked file path.
 
+    The file must lie inside the resource paths (``package://sim/...``: inside this package's
+    share folder); only then is its existence checked, so a refused path says nothing about
+    what exists on the server.
+
     :raises NoResourceError: empty URI.
-    :raises MissingAssetsError: nothing there, '..', or outside the resource paths.
+    :raises NotFoundError: no such file, package or spawnable.
+    :raises MissingAssetsError: '..', or outside the directories the node may read.
     :raises UnsupportedFormatError: a URI scheme other than package:// and file://.
     """
     if not uri or not uri.strip():
@@ -49,14 +55,16 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
                               'file:///... or a resource_string')
     uri = uri.strip()
     parsed = urlparse(uri)
+    roots = list(resource_paths)
     if parsed.scheme == 'package':
-        if parsed.netloc != PACKAGE:
-            root = _package_share(parsed.netloc)
-        else:
-            root = scenes_dir.parent
         rel = unquote(parsed.path).lstrip('/')
         if '..' in Path(rel).parts:
             raise MissingAssetsError(sources.ERR_DOTDOT.format(path=uri))
+        if parsed.netloc == PACKAGE:
+            root = scenes_dir.parent
+            roots = [str(root)]
+        else:
+            root = _package_share(parsed.netloc)
         path = root / rel
     elif parsed.scheme == 'file':
         path = Path(unquote(parsed.path))
@@ -67,7 +75,17 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
     else:
         raise UnsupportedFormatError(f'unsupported uri scheme {parsed.scheme!r}; use a '
                                      'spawnable name, package:// or file://')
-    sources.check_path(str(path), list(resource_paths))
+    if '..' in path.parts:
+        raise MissingAssetsError(sources.ERR_DOTDOT.format(path=uri))
+    if not sources.inside_roots(str(path), roots):
+        raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(path=uri))
+    try:
+        exists = path.exists()
+    except OSError:  # a name too long for the file system, say
+        exists = False
+    if not exists:
+        raise NotFoundError(f'no file at {uri}; get_spawnables lists what can be spawned')
+    sources.check_path(str(path), roots)
     return path
 
 
@@ -76,18 +94,67 @@ def _package_share(package: str) -> Path:
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory(package))
     except (ImportError, LookupError, ValueError):
-        raise MissingAssetsError(f'package {package!r} is not installed') from None
+        raise NotFoundError(f'package {package!r} is not installed') from None
+
+
+#: How many names an error message lists at most.
+MAX_LISTED_NAMES = 40
+
+
+def _names_hint(names: Sequence[str]) -> str:
+    shown = ', '.join(names[:MAX_LISTED_NAMES])
+    more = len(names) - MAX_LISTED_NAMES
+    return shown + (f' and {more} more' if more > 0 else '') if names else '(none)'
 
 
 def find_spawnable(name: str, resource_paths: Sequence[str], scenes_dir: Path) -> Path:
-    if '/' in name or '..' in name:
-        raise MissingAssetsError(f'{name!r} is not a spawnable name; see get_spawnables')
-    for folder in [scenes_dir / 'objects'] + [Path(p) for p in resource_paths]:
-        for suffix in SPAWNABLE_SUFFIXES:
-            candidate = folder / f'{name}{suffix}'
-            if candidate.is_file():
-                return candidate
-    raise MissingAssetsError(f'no spawnable named {name!r}; see get_spawnables')
+    """Return the file of a spawnable name; an unknown name is answered with the valid ones."""
+    if '/' not in name and '..' not in name and len(name.encode()) < 250:
+        for folder in [scenes_dir / 'objects'] + [Path(p) for p in resource_paths]:
+            for suffix in SPAWNABLE_SUFFIXES:
+                candidate = folder / f'{name}{suffix}'
+                if candidate.is_file():
+                    return candidate
+    names = sorted({Path(uri).stem for uri, _ in list_spawnables(resource_paths, scenes_dir)})
+    raise NotFoundError(f'no spawnable named {name[:200]!r}; spawnable names: '
+                        f'{_names_hint(names)} (or give a package:// or file:// uri)')
+
+
+def resolve_world(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Path:
+    """Resolve a load_world URI: a world name from get_available_worlds, or a file URI."""
+    if uri and uri.strip() and urlparse(uri.strip()).scheme == '' and \
+            not os.path.isabs(uri.strip()):
+        name = uri.strip()
+        names = [n for n, _ in list_worlds(scenes_dir)]
+        if name in names:
+            return scenes_dir / f'{name}.xml'
+        raise NotFoundError(f'no world named {name[:200]!r}; worlds: {_names_hint(names)} '
+                            '(or give a package:// or file:// uri)')
+    return resolve_uri(uri, resource_paths, scenes_dir)
+
+
+def redact(text: str, resource_paths: Sequence[str], scenes_dir: Path,
+           limit: int = 2000) -> str:
+    """
+    Return an error text fit to send to a client: no server paths, and not too long.
+
+    The resource paths become ``<resource_paths[i]>`` and this package's share folder
+    ``package://sim``, so a message says what was wrong with the request, never where the
+    server keeps its files; anything over `limit` characters is cut (a huge name sent by a
+    client is not echoed back whole).
+    """
+    aliases = {}
+    for i, root in enumerate(resource_paths):
+        for form in {str(root).rstrip('/'), os.path.realpath(root)}:
+            aliases[form] = f'<resource_paths[{i}]>'
+    share = scenes_dir.parent
+    for form in {str(share), os.path.realpath(share)}:
+        aliases[form] = f'package://{PACKAGE}'
+    for real in sorted((a for a in aliases if len(a) > 1), key=len, reverse=True):
+        text = text.replace(real, aliases[real])
+    if len(text) > limit:
+        text = text[:limit] + f'... ({len(text) - limit} more characters)'
+    return text
 
 
 def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
@@ -118,8 +185,7 @@ def check_folder(folder: str, resource_paths: Sequence[str]) -> Path:
     if '..' in p.parts:
         raise MissingAssetsError(sources.ERR_DOTDOT.format(path=folder))
     if not sources.inside_roots(str(p), resource_paths):
-        raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(
-            path=folder, roots=[os.path.realpath(r) for r in resource_paths]))
+        raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(path=folder))
     real = Path(os.path.realpath(p))
     if not real.is_dir():
         raise MissingAssetsError(f'not a directory: {folder}')

@@ -73,15 +73,25 @@ class SimServices:
         """Every core error becomes a Result; nothing escapes to kill spin()."""
         def callback(request, response):
             try:
-                return handler(request, response)
-            except SimError as exc:
-                response.result = convert.result_for(exc, srv_type.Response)
+                response = handler(request, response)
             except Exception as exc:  # a bug must not take the node down: report it
-                self.get_logger().error(f'{handler.__name__} failed: {exc!r}')
-                response.result = Result(result=Result.RESULT_OPERATION_FAILED,
-                                         error_message=f'internal error: {exc!r}')
+                response.result = self._result_for(exc, srv_type.Response, handler.__name__)
+            result = getattr(response, 'result', None)  # get_simulator_features has none
+            if result is not None and result.error_message:
+                result.error_message = self._redact(result.error_message)
             return response
         return callback
+
+    def _result_for(self, exc: Exception, response_type, where: str) -> Result:
+        """Return the Result for an exception: its code, or an internal error (logged)."""
+        if isinstance(exc, SimError):
+            return convert.result_for(exc, response_type)
+        self.get_logger().error(f'{where} failed: {exc!r}')
+        return Result(result=Result.RESULT_OPERATION_FAILED,
+                      error_message=f'internal error: {exc!r}')
+
+    def _redact(self, text: str) -> str:
+        return resources.redact(text, self._resource_paths, self._scenes_dir)
 
     def _srv_features(self, request, response):
         f = SimulatorFeatures
@@ -145,14 +155,15 @@ class SimServices:
         failed = 0
         for req in request.spawn_requests:
             res = SpawnResult()
-            try:
+            try:  # one result per request, whatever happens; earlier spawns stay
                 res.entity_name = self._spawn_one(
                     sim, req.name, req.allow_renaming, req.entity_resource.uri,
                     req.entity_resource.resource_string, req.entity_namespace, req.initial_pose)
                 res.result = convert.ok()
-            except SimError as exc:
+            except Exception as exc:
                 failed += 1
-                res.result = convert.result_for(exc, SpawnResult)
+                res.result = self._result_for(exc, SpawnResult, 'spawn_entities')
+                res.result.error_message = self._redact(res.result.error_message)
             response.results.append(res)
         self._after_change(sim)
         if failed:
@@ -361,12 +372,15 @@ class SimServices:
             world = World.from_string(src, cfg)
             name, uri = 'resource_string', ''
         else:
-            path = resources.resolve_uri(request.uri, self._resource_paths, self._scenes_dir)
-            sources.check_model_text(path.read_text(), str(path.parent), self._resource_paths)
+            path = resources.resolve_world(request.uri, self._resource_paths, self._scenes_dir)
+            sources.check_model_text(sources.read_model_text(path), str(path.parent),
+                                     self._resource_paths)
             world = World.from_file(str(path), cfg)
             name, uri = path.stem, request.uri
-        self._stopped = False
-        self._install(world, name, uri)
+        # The standard: a loaded world is left STOPPED (at its initial state, not stepping).
+        self._stopped = True
+        self._install(world, name, uri, paused=True)
+        self._sync_paused_parameter()
         response.world = WorldResource(name=name, world_resource=_resource(uri))
         response.result = convert.ok()
         return response

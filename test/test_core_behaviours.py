@@ -78,6 +78,38 @@ def test_deleting_a_commanded_joint_drops_its_command_and_keeps_the_others(remov
     w.step(10)
 
 
+@pytest.mark.parametrize('stage', ['index', 'commands', 'guard'])
+def test_a_delete_that_fails_while_switching_models_changes_nothing(stage, monkeypatch):
+    """A fault injected after the new model compiled: entity, commands and world all stay."""
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('arm1', arm_source(), position=[0, 1.5, 0.2])
+    w.spawn('arm2', arm_source(), position=[0, -1.5, 0.2])
+    w.command(['arm1/hinge', 'arm2/hinge'], [0.5, -0.5], 'position')
+    w.step(10)
+    before = (w.entities(), w.joint_names(), w.generation)
+    targets = {'index': (sys.modules['sim_node.core.world'].model_index, 'build'),
+               'commands': (w._control, 'bind'), 'guard': (w._guard, 'bind')}
+    owner, attr = targets[stage]
+    real, calls = getattr(owner, attr), []
+
+    def faulty(*args, **kwargs):
+        out = real(*args, **kwargs)  # fails after its work is done: nothing may stick
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError('injected fault')
+        return out
+    monkeypatch.setattr(owner, attr, faulty)
+    with pytest.raises(RuntimeError, match='injected'):
+        w.delete('arm1')
+    monkeypatch.undo()
+    assert (w.entities(), w.joint_names(), w.generation) == before
+    w.step(500)  # both commands still hold: both arms reach their targets
+    assert hinge_angle(w, 'arm1/hinge') == pytest.approx(0.5, abs=0.01)
+    assert hinge_angle(w, 'arm2/hinge') == pytest.approx(-0.5, abs=0.01)
+    w.delete('arm1')  # and the delete works once the fault is gone
+    assert 'arm1' not in w.entities()
+
+
 def test_a_state_reset_drops_held_commands():
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('arm', arm_source(), position=[0, 1.5, 0.2])
@@ -378,7 +410,7 @@ def test_a_failed_spawn_leaves_generation_and_state_unchanged(case):
         error = NameNotUniqueError
     else:
         kwargs['reference'] = 'nobody'
-        from sim_node.core.errors import NotFoundError as error
+        error = InvalidPoseError  # a pose in an unknown frame
     with pytest.raises(error):
         w.spawn(kwargs.pop('name', 'x'), src, **kwargs)
     assert w.generation == g0 and len(w.entities()) == n0

@@ -127,7 +127,7 @@ def test_bad_resources_are_refused_before_touching_the_world(world, make_source,
     ({'position': [0, 1, float('nan')]}, InvalidPoseError),
     ({'quat_wxyz': [1, 1, 0, 0]}, InvalidPoseError),
     ({'position': [0.75, 0, 0.41]}, InvalidPoseError),  # inside the table top
-    ({'reference': 'nobody'}, NotFoundError),
+    ({'reference': 'nobody'}, InvalidPoseError),  # a pose in an unknown frame
 ])
 def test_failed_spawn_leaves_the_world_unchanged(world, kwargs, error):
     before = named_state(world)

@@ -27,14 +27,20 @@ def node():
     assert code == 0, proc.output()
 
 
-@pytest.fixture
-def sim(node, rclpy_context):
+@pytest.fixture(scope='module')
+def client(node, rclpy_context):
+    """One client for the module: discovery happens once, not per test."""
     c = SimClient(timeout_sec=30)
-    c.reset()  # scope default: everything, spawned entities included
-    if c.state() != SimulationState.STATE_PLAYING:
-        c.play()
     yield c
     c.close()
+
+
+@pytest.fixture
+def sim(client):
+    client.reset()  # scope default: everything, spawned entities included
+    if client.state() != SimulationState.STATE_PLAYING:
+        client.play()
+    return client
 
 
 @pytest.fixture
@@ -179,7 +185,7 @@ BAD_SPAWNS = [
     ({'name': 'x', 'uri': 'file:///etc/passwd'}, SpawnEntity.Response.MISSING_ASSETS),
     ({'name': 'x', 'uri': 'package://sim/scenes/../../../../etc/passwd'},
      SpawnEntity.Response.MISSING_ASSETS),
-    ({'name': 'x', 'uri': 'no_such_object'}, SpawnEntity.Response.MISSING_ASSETS),
+    ({'name': 'x', 'uri': 'no_such_object'}, Result.RESULT_NOT_FOUND),
     ({'name': 'x', 'uri': 'box', 'orientation_xyzw': (0, 0, 0.5, 0.5)},
      SpawnEntity.Response.INVALID_POSE),
     ({'name': 'x', 'uri': 'box', 'position': (float('nan'), 0, 1)},
@@ -293,6 +299,11 @@ def test_spawn_urdf_and_mesh_and_relative_pose(sim):
 def test_worlds_load_unload(sim):
     sim.load_world(uri='package://sim/scenes/push_stack.xml')
     assert sim.current_world() == 'push_stack'
+    # The standard: a loaded world is left STOPPED, at its initial state.
+    assert sim.state() == SimulationState.STATE_STOPPED
+    t0 = sim.entity_state('finger_base')['stamp']
+    time.sleep(0.3)
+    assert sim.entity_state('finger_base')['stamp'] == t0
     assert 'finger_base' in sim.entities()
     sim.unload_world()
     with pytest.raises(SimServiceError):
@@ -383,3 +394,72 @@ def test_an_endless_step_request_ends_on_a_state_request_and_zero_steps_is_a_no_
     finally:
         t.join(10)
         other.close()
+
+
+def _code_and_message(call):
+    with pytest.raises(SimServiceError) as info:
+        call()
+    return info.value.code, info.value.message
+
+
+def test_bad_resources_get_their_own_codes_and_never_the_servers_paths(sim):
+    from conftest import ROOT, installed_prefix
+    from simulation_interfaces.srv import LoadWorld
+    before = sorted(sim.entities())
+    scenes = installed_prefix() / 'share' / 'sim' / 'scenes'
+    spawn_cases = [
+        ({'uri': 'package://sim/scenes/objects/nope.xml'}, Result.RESULT_NOT_FOUND, 'no file'),
+        ({'uri': 'package://sim/objects/nope.xml'}, Result.RESULT_NOT_FOUND, 'no file'),
+        ({'uri': 'package://no_such_package/x.xml'}, Result.RESULT_NOT_FOUND, 'not installed'),
+        ({'uri': 'crate_that_is_not_there'}, Result.RESULT_NOT_FOUND, 'box'),  # lists names
+        ({'uri': 'file:///etc/passwd'}, SpawnEntity.Response.MISSING_ASSETS, 'resource_paths'),
+        ({'uri': 'x' * 100_000}, Result.RESULT_NOT_FOUND, 'spawnable names'),
+        ({}, SpawnEntity.Response.NO_RESOURCE, 'empty'),
+        # A client that knows where the server's files are is still not told it.
+        ({'resource_string': f'<mujoco><asset><mesh name="m" file="{scenes}/objects/gone.stl"/>'
+                             '</asset><worldbody><body><geom type="mesh" mesh="m"/></body>'
+                             '</worldbody></mujoco>'},
+         SpawnEntity.Response.MISSING_ASSETS, 'resource_paths[0]>/objects/gone.stl'),
+    ]
+    for kwargs, code, hint in spawn_cases:
+        got, message = _code_and_message(lambda: sim.spawn('thing', **kwargs))
+        assert (got, hint in message) == (code, True), (kwargs, got, message)
+        assert len(message) < 3000
+        for secret in (str(ROOT), str(installed_prefix()), '/share/sim'):
+            assert secret not in message, (kwargs, message)
+    world_cases = [
+        ({'uri': 'no_such_world'}, Result.RESULT_NOT_FOUND, 'default'),
+        ({}, LoadWorld.Response.NO_RESOURCE, 'empty'),
+        ({'resource_string': '<robot2/>'}, LoadWorld.Response.UNSUPPORTED_FORMAT, '<robot2>'),
+        ({'resource_string': '<mujoco><worldbody><geom type="nope"/></worldbody></mujoco>'},
+         LoadWorld.Response.RESOURCE_PARSE_ERROR, 'nope'),
+        ({'uri': 'file:///etc/hostname'}, LoadWorld.Response.MISSING_ASSETS, 'resource_paths'),
+    ]
+    for kwargs, code, hint in world_cases:
+        got, message = _code_and_message(lambda: sim.load_world(**kwargs))
+        assert (got, hint in message) == (code, True), (kwargs, got, message)
+        assert str(installed_prefix()) not in message
+    # Nothing of that changed the world.
+    assert sorted(sim.entities()) == before
+    assert sim.current_world() == 'default'
+
+
+def test_set_entity_state_honours_the_header_frame(sim):
+    sim.pause()
+    try:
+        sim.spawn('anchor', uri='box', position=(1.0, -1.0, 0.5))
+        sim.spawn('mover', uri='box', position=(-1.0, 1.0, 0.5))
+        # 90 degrees about z: the anchor's x axis is the world's y axis.
+        q = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))
+        sim.set_entity_state('anchor', (1.0, -1.0, 0.5), q)
+        sim.set_entity_state('mover', (0.3, 0.0, 0.2), linear=(1.0, 0.0, 0.0),
+                             frame_id='anchor')
+        st = sim.entity_state('mover')
+        assert st['position'] == pytest.approx((1.0, -0.7, 0.7), abs=1e-6)
+        assert st['linear'] == pytest.approx((0.0, 1.0, 0.0), abs=1e-6)
+        assert st['orientation_xyzw'] == pytest.approx(q, abs=1e-6)
+        code, message = _code_and_message(
+            lambda: sim.set_entity_state('mover', (0, 0, 1), frame_id='no_such_frame'))
+        assert code == SetEntityState.Response.INVALID_POSE and 'no_such_frame' in message
+    finally:
+        sim.play()

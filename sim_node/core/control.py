@@ -65,6 +65,14 @@ class Control:
             for n, v in zip(names, vals):
                 self._staged[n] = (mode, float(v))
 
+    def held_copy(self) -> dict:
+        """Return a copy of the held commands, for :meth:`restore_held`."""
+        return dict(self._held)
+
+    def restore_held(self, held: dict) -> None:
+        """Put back held commands saved by :meth:`held_copy` (before the next :meth:`bind`)."""
+        self._held = dict(held)
+
     @property
     def has_staged(self) -> bool:
         return bool(self._staged)  # read without the lock: a miss is applied next batch

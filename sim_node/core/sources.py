@@ -37,8 +37,8 @@ ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
 ERR_COMPILE = 'the model does not compile: {err}'
 ERR_FILE_MISSING = 'file not found: {path}'
 ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
-ERR_FILE_OUTSIDE = ('{path} is outside the allowed resource paths {roots}; put it there or add '
-                    'its directory to resource_paths')
+ERR_FILE_OUTSIDE = ('{path} is not inside the directories this node may read (its resource_paths '
+                    'parameter); put the file there or add its directory to resource_paths')
 ERR_DOTDOT = "'..' is not allowed in resource paths: {path}"
 ERR_MESH_SUFFIX = 'unsupported mesh format {suffix!r}; supported: ' + ', '.join(MESH_SUFFIXES)
 ERR_MESH_LOAD = 'the mesh {path} could not be loaded: {err}'
@@ -118,8 +118,7 @@ def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
         raise MissingAssetsError(ERR_DOTDOT.format(path=path))
     p = Path(path)
     if allowed_roots is not None and not inside_roots(path, allowed_roots):
-        raise MissingAssetsError(ERR_FILE_OUTSIDE.format(
-            path=path, roots=[os.path.realpath(r) for r in allowed_roots]))
+        raise MissingAssetsError(ERR_FILE_OUTSIDE.format(path=path))
     try:
         st = p.stat()
     except OSError:
@@ -282,6 +281,14 @@ def _from_string_in(text: str, base: Path) -> mujoco.MjSpec:
         tmp.unlink(missing_ok=True)
 
 
+def read_model_text(path: Path) -> str:
+    """Read an MJCF/URDF file as text; a file that is not UTF-8 is a parse error."""
+    try:
+        return Path(path).read_text(encoding='utf-8')
+    except UnicodeDecodeError:
+        raise ResourceParseError(f'{Path(path).name} is not UTF-8 text') from None
+
+
 def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = _LIMITS.max_resource_bytes,
               max_faces: int = _LIMITS.max_mesh_faces, **mesh_options) -> SpawnSource:
@@ -296,10 +303,7 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
         raise UnsupportedFormatError(
             f'unsupported file type {suffix!r}; supported: '
             + ', '.join(MODEL_SUFFIXES + MESH_SUFFIXES))
-    try:
-        text = p.read_text()
-    except UnicodeDecodeError:
-        raise ResourceParseError(f'{path} is not UTF-8 text') from None
+    text = read_model_text(p)
     return from_model_text(text, base_dir=str(p.parent), allowed_roots=allowed_roots,
                            max_bytes=max_bytes)
 

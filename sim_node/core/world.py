@@ -20,7 +20,8 @@ from . import sources, state
 from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
-from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError, ResourceParseError
+from .errors import (DivergenceError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
+                     ResourceParseError)
 from .guard import clean, DivergenceGuard
 from .index import ModelIndex, STATE_SPEC
 from .lock import WorldLock
@@ -37,6 +38,8 @@ ERR_COMPILE = 'the model does not compile: {err}'
 ERR_SCOPE = ('reset scope {scope} has undefined bits: use 0 (all), 255 (all) or a combination '
              'of 1 (time), 2 (state) and 4 (spawned)')
 ERR_STEPS = 'steps must be >= 1, got {n}'
+ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the world frame '
+             "('' or 'world') or the name of an entity")
 
 _SCOPE_BITS = RESET_TIME | RESET_STATE | RESET_SPAWNED
 _NO_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
@@ -91,7 +94,7 @@ class World(StateWrites, WorldEdits):
         try:
             spec = mujoco.MjSpec.from_file(str(path))
         except ValueError as exc:
-            raise ResourceParseError(f'cannot load scene {path}: {exc}') from None
+            raise ResourceParseError(f'cannot load the scene: {exc}') from None
         return cls(spec, config, source=str(path))
 
     @classmethod
@@ -228,6 +231,12 @@ class World(StateWrites, WorldEdits):
         rec = self._index.entity(name)
         self._kinematics_locked()
         return state.body_pose(self._data, rec.root_body)
+
+    def _pose_frame_locked(self, name: str) -> tuple:
+        """Return the pose of the frame a written pose is given in; unknown: an invalid pose."""
+        if name not in self._index.entity_by_name:
+            raise InvalidPoseError(ERR_FRAME.format(frame=name[:200]))
+        return self._frame_locked(name)
 
     def get_joint_states(self) -> dict:
         """Name -> (position, velocity, effort) for every hinge and slide joint."""
@@ -449,13 +458,24 @@ class World(StateWrites, WorldEdits):
             raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
         if check is not None:
             check(model, data)
-        self._spec = trial
-        if spawned is not None:
-            self._spawned = spawned
-        if overrides is not None:
-            self._overrides = overrides
-        self._generation += 1
-        self._adopt_locked(model, data)
+        saved = (self._spec, self._spawned, self._overrides, self._generation, self._model,
+                 self._data, self._control.held_copy())
+        try:
+            self._spec = trial
+            if spawned is not None:
+                self._spawned = spawned
+            if overrides is not None:
+                self._overrides = overrides
+            self._generation += 1
+            self._adopt_locked(model, data)
+        except BaseException:
+            # Whatever failed while switching over (index, commands, guard), the world goes
+            # back to exactly what it was: a request that fails changes nothing.
+            (self._spec, self._spawned, self._overrides, self._generation, model, data,
+             held) = saved
+            self._control.restore_held(held)
+            self._adopt_locked(model, data)
+            raise
 
     def _size_arena(self, spec: mujoco.MjSpec) -> None:
         """

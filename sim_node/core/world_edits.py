@@ -73,7 +73,7 @@ class WorldEdits:
                     raise NameNotUniqueError(ERR_DUPLICATE.format(name=name))
                 name = self._unique_name_locked(name or source.kind)
             if reference:
-                pos, q = quat.from_frame(*self._frame_locked(reference), pos, q)
+                pos, q = quat.from_frame(*self._pose_frame_locked(reference), pos, q)
             meta = {'assets': tuple(source.assets), 'description': source.description}
 
             def edit(spec: mujoco.MjSpec) -> None:

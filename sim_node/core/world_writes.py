@@ -60,7 +60,7 @@ class StateWrites:
                           joint_velocities: dict, reference: str) -> None:
         idx, d = self._index, self._data
         self._kinematics_locked()
-        frame = self._frame_locked(reference) if reference else None
+        frame = self._pose_frame_locked(reference) if reference else None
         targets = {}  # entity -> (record, pos, quat, lin, ang), checked, in the world frame
         for n in (*poses, *twists):
             rec = idx.entity(n)
