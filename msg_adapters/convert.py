@@ -174,25 +174,47 @@ def _transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStampe
 
 def frame_names(info: ModelInfo, world_frame: str, prefix: str = '') -> tuple:
     """
-    Return the TF frame of every body, (nbody,).
+    Return the TF frame of every body, (nbody,), by one rule for scene and spawned entities.
 
-    `world_frame` for the world body, the body's name for the others, each after `prefix` (like
-    robot_state_publisher's frame_prefix).
+    The world body is `world_frame`; an entity's root body is the entity's name; every other
+    body is ``<entity>/<body>``, its name in its own model (a spawned model's bodies already
+    carry that prefix in MuJoCo). Each is given after `prefix` (like robot_state_publisher's
+    frame_prefix).
     """
-    return (prefix + world_frame,) + tuple(prefix + n for n in info.body_names[1:])
+    names = info.body_names
+    out = [prefix + world_frame]
+    for b in range(1, len(names)):
+        root = int(info.body_root[b])
+        name = names[b]
+        if root != b and root != 0 and not name.startswith(names[root] + '/'):
+            name = f'{names[root]}/{name}'
+        out.append(prefix + name)
+    return tuple(out)
 
 
-def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str]) -> TFMessage:
+def parent_frames(info: ModelInfo, frames: Sequence[str], prefix: str = '') -> tuple:
+    """Return the frame each body's transform hangs from: its parent's, or a URDF root link's."""
+    return tuple(prefix + info.body_alias[p] if info.body_alias[p] else frames[p]
+                 for p in info.body_parent)
+
+
+def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
+                      prefix: str = '') -> TFMessage:
     """
     Welded bodies: their fixed pose in the parent body's frame, for /tf_static.
+
+    Also the identity from a spawned URDF's entity frame to its root link's own frame.
 
     :param frames: (nbody,) frame names from :func:`frame_names`.
     """
     t = stamp(sim_time)
-    return TFMessage(transforms=[
-        _transform(frames[info.body_parent[b]], frames[b],
-                   info.body_local_pos[b], info.body_local_quat_wxyz[b], t)
-        for b in range(1, len(info.body_names)) if not info.body_has_joint[b]])
+    parents = parent_frames(info, frames, prefix)
+    out = [_transform(parents[b], frames[b], info.body_local_pos[b],
+                      info.body_local_quat_wxyz[b], t)
+           for b in range(1, len(info.body_names)) if not info.body_has_joint[b]]
+    out += [_transform(frames[b], prefix + alias, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
+            for b, alias in enumerate(info.body_alias) if alias]
+    return TFMessage(transforms=out)
 
 
 def moving_body_ids(info: ModelInfo) -> np.ndarray:
@@ -208,16 +230,16 @@ def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> t
     return quat.rotate(inv, cp - pp), quat.mul(inv, cq)
 
 
-def moving_tf_template(info: ModelInfo, bodies: np.ndarray,
-                       frames: Sequence[str]) -> TfTemplate:
+def moving_tf_template(info: ModelInfo, bodies: np.ndarray, frames: Sequence[str],
+                       prefix: str = '') -> TfTemplate:
     """
     Return the /tf message layout of one model generation.
 
     Parent body -> body for each of `bodies` (free bodies from the world frame); `frames` from
     :func:`frame_names`.
     """
-    return TfTemplate([frames[p] for p in info.body_parent[bodies]],
-                      [frames[b] for b in bodies])
+    parents = parent_frames(info, frames, prefix)
+    return TfTemplate([parents[b] for b in bodies], [frames[b] for b in bodies])
 
 
 def moving_tf(template: TfTemplate, info: ModelInfo, snap: Snapshot,

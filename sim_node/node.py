@@ -236,8 +236,10 @@ class SimNode(SimServices, Node):
         self._published_generation = info.generation
         self._moving = convert.moving_body_ids(info)
         self._frames = convert.frame_names(info, self._world_frame, self._frame_prefix)
-        self._tf_template = convert.moving_tf_template(info, self._moving, self._frames)
-        self._tf_static_pub.publish(convert.static_transforms(info, sim_time, self._frames))
+        self._tf_template = convert.moving_tf_template(info, self._moving, self._frames,
+                                                       self._frame_prefix)
+        self._tf_static_pub.publish(convert.static_transforms(info, sim_time, self._frames,
+                                                              self._frame_prefix))
         self._marker_pub.publish(markers.markers(info, sim_time, self._frames))
 
     def _publish_joint_states(self) -> None:

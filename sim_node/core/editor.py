@@ -95,7 +95,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     spawn state); its <option>, <size> and <visual> give way to the world's (MuJoCo logs each
     difference). Its <compiler> settings (angle units, asset folders) apply to it alone.
 
-    :returns: (frame name, names of the entity's top-level bodies, root first).
+    :returns: (frame name, names of the entity's top-level bodies, root first, the root body's
+        name in the model itself).
     """
     child = source.spec.copy()
     planes = [g for g in child.worldbody.geoms if g.type == mujoco.mjtGeom.mjGEOM_PLANE]
@@ -123,7 +124,7 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     _rename_body_references(spec, old_root, name)
     if source.assets:
         spec.assets = {**spec.assets, **source.assets}
-    return frame.name, (name,) + tuple(f'{name}/{t}' for t in tops[1:])
+    return frame.name, (name,) + tuple(f'{name}/{t}' for t in tops[1:]), tops[0]
 
 
 def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str]) -> None:

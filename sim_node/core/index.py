@@ -109,11 +109,15 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
     root_of = entity_root[top_of]
     root_of[0] = 0
     entities = _entity_records(m, names, root_of, spawned)
+    alias = [''] * m.nbody
+    for meta in spawned.values():
+        if meta.get('root_link') and meta['bodies'] and meta['bodies'][0] in ids:
+            alias[ids[meta['bodies'][0]]] = meta['root_link']
     info = ModelInfo(
         generation=generation, timestep=float(m.opt.timestep), body_names=names,
         body_parent=parent, body_root=root_of, body_has_joint=m.body_jntnum > 0,
         body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
-        joint_names=jnames, geoms=_geom_visuals(m), entities=entities)
+        body_alias=tuple(alias), joint_names=jnames, geoms=_geom_visuals(m), entities=entities)
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

@@ -67,6 +67,10 @@ class ModelInfo:
     body_has_joint: np.ndarray  # (nbody,) bool: moves relative to its parent
     body_local_pos: np.ndarray  # (nbody, 3) pose in the parent frame for welded bodies
     body_local_quat_wxyz: np.ndarray  # (nbody, 4)
+    #: (nbody,) for the root body of a spawned URDF, ``<entity>/<root link>``: a frame at the
+    #: root (the entity's own frame) that the root's child links hang from, so every link's
+    #: frame is named as robot_state_publisher names it with ``frame_prefix:=<entity>/``.
+    body_alias: tuple
     joint_names: tuple  # hinge and slide joints only, in model order
     geoms: tuple  # GeomVisual for every visible geom
     entities: tuple  # EntityRecord

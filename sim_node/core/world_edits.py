@@ -77,7 +77,9 @@ class WorldEdits:
             meta = {'assets': tuple(source.assets), 'description': source.description}
 
             def edit(spec: mujoco.MjSpec) -> None:
-                meta['frame'], meta['bodies'] = editor.attach(spec, name, source, pos, q)
+                meta['frame'], meta['bodies'], root = editor.attach(spec, name, source, pos, q)
+                # A URDF's root link keeps a frame of its own name (see ModelInfo.body_alias).
+                meta['root_link'] = f'{name}/{root}' if source.kind == 'urdf' else ''
                 if self._default_friction is not None or self._default_restitution is not None:
                     geoms = [g.name for b in meta['bodies']
                              for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
