@@ -47,7 +47,7 @@ def test_published_tf_bytes_are_the_worlds_poses():
 
 
 # base_link -(revolute)- link1 -(fixed)- tool0, as robot_state_publisher would see it.
-ARM_URDF = '''<robot name="arm">
+ARM_URDF = """<robot name="arm">
   <link name="base_link"><visual><geometry><box size=".1 .1 .1"/></geometry></visual>
     <inertial><mass value="1"/><inertia ixx=".01" iyy=".01" izz=".01" ixy="0" ixz="0"
     iyz="0"/></inertial></link>
@@ -60,7 +60,7 @@ ARM_URDF = '''<robot name="arm">
     velocity="1"/></joint>
   <joint name="flange" type="fixed"><parent link="link1"/><child link="tool0"/>
     <origin xyz=".2 0 0"/></joint>
-</robot>'''
+</robot>"""
 
 
 def test_one_frame_rule_and_urdf_links_named_as_robot_state_publisher_names_them():
