@@ -24,6 +24,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
+        ('share/' + PACKAGE + '/rviz', glob('rviz/*.rviz')),
     ] + scene_data_files(),
     install_requires=['setuptools'],
     zip_safe=True,

@@ -463,3 +463,30 @@ def test_set_entity_state_honours_the_header_frame(sim):
         assert code == SetEntityState.Response.INVALID_POSE and 'no_such_frame' in message
     finally:
         sim.play()
+
+
+def test_launch_file_and_rviz_config_match_what_the_node_offers(sim):
+    """The shipped launch file sets real parameters; the RViz config shows real topics."""
+    import ast
+    from conftest import installed_prefix
+    from rcl_interfaces.srv import ListParameters
+    import yaml
+    share = installed_prefix() / 'share' / 'sim'
+    launch_text = (share / 'launch' / 'sim.launch.py').read_text()
+    tree = ast.parse(launch_text)
+    args = next(n.value for n in tree.body if isinstance(n, ast.Assign)
+                and n.targets[0].id == 'ARGUMENTS')
+    launch_params = {k.value for k in args.keys} - {'rviz'}
+    listed = sim.call('sim/list_parameters', ListParameters, ListParameters.Request(),
+                      check=False)
+    assert launch_params <= set(listed.result.names)
+    assert "'sim.rviz'" in launch_text and (share / 'rviz' / 'sim.rviz').is_file()
+    rviz = yaml.safe_load((share / 'rviz' / 'sim.rviz').read_text())
+    manager = rviz['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame'] == 'world'
+    displays = {d['Class']: d for d in manager['Displays']}
+    assert 'rviz_default_plugins/TF' in displays
+    topic = displays['rviz_default_plugins/MarkerArray']['Topic']
+    assert topic['Durability Policy'] == 'Transient Local'  # the node latches its markers
+    topics = dict(sim.node.get_topic_names_and_types())
+    assert topics[topic['Value']] == ['visualization_msgs/msg/MarkerArray']
