@@ -103,9 +103,7 @@ class Snapshot:
 @dataclass(frozen=True)
 class EntityState:
     """
-    Pose.
-
-    Twist and acceleration of an entity's root body in the world frame (or a reference frame).
+    Pose, twist and acceleration of an entity's root body, in the world or a reference frame.
 
     Twist: linear velocity of the body origin and angular velocity, both in the world frame.
     Acceleration: the same point's linear acceleration (coordinate acceleration: -9.81 m/s^2

@@ -375,10 +375,10 @@ class World(StateWrites, WorldEdits):
 
     def _dynamics_locked(self) -> None:
         """
-        As :meth:`_kinematics_locked`.
+        Bring accelerations up to date too, as :meth:`_kinematics_locked` does poses.
 
-        And accelerations too (mj_forward, then the body accelerations mj_objectAcceleration
-        reads). Changes no state either.
+        (mj_forward, then the body accelerations mj_objectAcceleration reads.) Changes no state
+        either.
         """
         m, d = self._model, self._data
         if self._stale_dynamics:
