@@ -13,11 +13,13 @@ The stepping loop: one thread that advances a :class:`World` at a fixed step.
   immutable :class:`~sim_node.core.records.Snapshot` that consumers read from any thread.
 """
 
+import atexit
 import logging
 import math
 import threading
 import time
 from typing import Callable, Optional
+import weakref
 
 from .config import WorldConfig
 from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError
@@ -64,6 +66,16 @@ ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
 
 
+_RUNNING: 'weakref.WeakSet' = weakref.WeakSet()
+
+
+@atexit.register
+def _stop_running_loops() -> None:
+    """Stop loops still stepping at interpreter exit (a script that never called stop())."""
+    for loop in list(_RUNNING):
+        loop.stop()
+
+
 class SimLoop:
     """
     Steps a world on its own thread.
@@ -106,8 +118,10 @@ class SimLoop:
     def start(self) -> None:
         if self._thread is not None:
             return
-        # Daemon, so an interpreter exit never hangs on it; stop() joins it properly.
+        # Daemon, so an interpreter exit never hangs on it; stop() joins it properly, and at
+        # exit every running loop is stopped before the interpreter tears MuJoCo down under it.
         self._thread = threading.Thread(target=self._run, name='sim-loop', daemon=True)
+        _RUNNING.add(self)
         self._thread.start()
 
     def stop(self, timeout: float = 2.0) -> None:
