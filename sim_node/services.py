@@ -365,18 +365,18 @@ class SimServices:
 
     def _srv_load_world(self, request, response):
         cfg = self.world_config()
+        # The same checks as a spawn: safe XML, budgets, and every file read here, from inside
+        # the resource paths (MuJoCo opens nothing itself).
         if request.resource_string:
-            src = request.resource_string
-            # Size, XML, and files only inside the resource paths: the same checks as a spawn.
-            sources.check_model_text(src, None, self._resource_paths, MAX_RESOURCE_STRING_BYTES)
-            world = World.from_string(src, cfg)
+            spec = sources.world_spec(request.resource_string, None, self._resource_paths,
+                                      MAX_RESOURCE_STRING_BYTES)
             name, uri = 'resource_string', ''
         else:
             path = resources.resolve_world(request.uri, self._resource_paths, self._scenes_dir)
-            sources.check_model_text(sources.read_model_text(path), str(path.parent),
-                                     self._resource_paths)
-            world = World.from_file(str(path), cfg)
+            spec = sources.world_spec(sources.read_model_text(path), str(path.parent),
+                                      self._resource_paths)
             name, uri = path.stem, request.uri
+        world = World(spec, cfg, source=name)
         # The standard: a loaded world is left STOPPED (at its initial state, not stepping).
         self._stopped = True
         self._install(world, name, uri, paused=True)

@@ -64,7 +64,7 @@ def test_core_imports_no_ros():
 #: rosdep keys of the Python packages the code imports (ROS packages are their own keys).
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'mujoco': 'python3-mujoco-pip',
                'trimesh': 'python3-trimesh-pip', 'gymnasium': 'python3-gymnasium-pip',
-               'regex': 'python3-regex'}
+               'regex': 'python3-regex', 'defusedxml': 'python3-defusedxml'}
 
 
 def test_package_xml_declares_exactly_what_the_code_imports():

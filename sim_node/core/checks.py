@@ -61,7 +61,8 @@ def check_pose(position: Sequence[float], quat_wxyz: Sequence[float]) -> tuple:
 
 def check_name(name: str) -> str:
     if not NAME_RE.match(name or ''):
-        raise NameInvalidError(ERR_NAME.format(name=name))
+        shown = name if len(name or '') <= 100 else f'{name[:100]}... ({len(name)} characters)'
+        raise NameInvalidError(ERR_NAME.format(name=shown))
     return name
 
 

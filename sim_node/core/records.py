@@ -122,10 +122,9 @@ class EntityState:
 @dataclass(frozen=True)
 class PhysicsState:
     """
-    The full integration state.
+    The full integration state of one model generation, as ``mj_getState`` gives it.
 
-    (time, qpos, qvel, act, ctrl, mocap, warm start, applied forces) of one model generation, as
-    ``mj_getState(mjSTATE_INTEGRATION)`` gives it.
+    (time, qpos, qvel, act, ctrl, mocap, warm start, applied forces: mjSTATE_INTEGRATION.)
     """
 
     generation: int

@@ -20,6 +20,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
+from . import assets
 from .config import WorldConfig
 from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError, ResourceParseError,
                      UnsupportedAssetsError, UnsupportedFormatError)
@@ -30,7 +31,6 @@ PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
 
 ERR_EMPTY = 'the resource is empty: give MJCF or URDF text, a file, a primitive or a mesh'
 ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
-ERR_NOT_XML = 'resource does not parse as XML: {err}'
 ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
                 '<robot> (URDF)')
 ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
@@ -49,8 +49,6 @@ ERR_MASS = 'mass must be finite and >= 0, got {mass}'
 ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
 # Default budgets: the configuration's (the node passes its own WorldConfig's).
 _LIMITS = WorldConfig()
-# XML attributes that name files MuJoCo would read.
-_FILE_ATTRIBUTES = ('file', 'filename', 'meshdir', 'texturedir', 'assetdir')
 
 
 log = logging.getLogger(__name__)
@@ -133,31 +131,6 @@ def _check_size(n_bytes: int, limit: int) -> None:
         raise UnsupportedAssetsError(ERR_TOO_LARGE.format(size=n_bytes, limit=limit))
 
 
-def _check_file_references(root: ET.Element, base_dir: Optional[Path], is_urdf: bool,
-                           allowed_roots: Optional[Sequence[str]]) -> None:
-    """Check every file an MJCF/URDF document names before MuJoCo opens any of them."""
-    compiler = root.find('compiler')
-    dirs = {}
-    if compiler is not None:
-        for key in ('meshdir', 'texturedir', 'assetdir'):
-            if key in compiler.attrib:
-                dirs[key] = compiler.attrib[key]
-    for elem in root.iter():
-        for attr in _FILE_ATTRIBUTES:
-            value = elem.attrib.get(attr)
-            if value is None or elem is compiler:
-                continue
-            if is_urdf:
-                # MuJoCo's URDF import strips directories: meshes must sit beside the file.
-                value = Path(value.split('://', 1)[-1]).name
-            elif elem.tag in ('mesh', 'skin'):
-                value = os.path.join(dirs.get('meshdir', dirs.get('assetdir', '')), value)
-            elif elem.tag in ('texture', 'hfield'):
-                value = os.path.join(dirs.get('texturedir', dirs.get('assetdir', '')), value)
-            path = value if os.path.isabs(value) or base_dir is None else str(base_dir / value)
-            check_path(path, allowed_roots)
-
-
 def _compile_error(exc: Exception) -> Exception:
     text = str(exc).strip()
     low = text.lower()
@@ -181,28 +154,48 @@ def check_model_text(text: str, base_dir: Optional[str] = None,
                      allowed_roots: Optional[Sequence[str]] = None,
                      max_bytes: int = _LIMITS.max_resource_bytes) -> ET.Element:
     """
-    Check MJCF/URDF text before MuJoCo sees it.
+    Check MJCF/URDF text before MuJoCo sees it: size, safe XML, root tag.
 
-    Size, XML, root tag, and every file it names (inside `allowed_roots`, regular, no '..').
-    Returns the parsed root element.
+    Returns the parsed root element; :func:`assets.sandbox` then reads the files it names.
     """
     if not text or not text.strip():
         raise NoResourceError(ERR_EMPTY)
     _check_size(len(text.encode()), max_bytes)
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise ResourceParseError(ERR_NOT_XML.format(err=exc)) from None
+    root = assets.parse(text)  # no DOCTYPE or entities, nesting bounded
     if root.tag not in ('mujoco', 'robot'):
-        raise UnsupportedFormatError(ERR_ROOT_TAG.format(tag=root.tag))
-    _check_file_references(root, Path(base_dir) if base_dir else None, root.tag == 'robot',
-                           allowed_roots)
+        raise UnsupportedFormatError(ERR_ROOT_TAG.format(tag=root.tag[:100]))
     return root
+
+
+def _budget(max_bytes: int, max_faces: int) -> assets.Budget:
+    return assets.Budget(max_file_bytes=max_bytes, max_total_bytes=4 * max_bytes,
+                         max_mesh_faces=max_faces)
+
+
+def _spec_from(root: ET.Element, files: dict) -> mujoco.MjSpec:
+    """Return the spec of a sandboxed document: MuJoCo reads only the in-memory files."""
+    try:
+        return mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'), assets=files)
+    except ValueError as exc:
+        raise _compile_error(exc) from None
+
+
+def world_spec(text: str, base_dir: Optional[str] = None,
+               allowed_roots: Optional[Sequence[str]] = None,
+               max_bytes: int = _LIMITS.max_resource_bytes,
+               max_faces: int = _LIMITS.max_mesh_faces) -> mujoco.MjSpec:
+    """Return the spec of a whole world (load_world) from untrusted text, files read here."""
+    root = check_model_text(text, base_dir, allowed_roots, max_bytes)
+    files = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                           _budget(max_bytes, max_faces))
+    spec = _spec_from(root, files)
+    return spec
 
 
 def from_model_text(text: str, base_dir: Optional[str] = None,
                     allowed_roots: Optional[Sequence[str]] = None,
-                    max_bytes: int = _LIMITS.max_resource_bytes) -> SpawnSource:
+                    max_bytes: int = _LIMITS.max_resource_bytes,
+                    max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
     """
     Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
 
@@ -211,25 +204,23 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     """
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     is_urdf = root.tag == 'robot'
-    base = Path(base_dir) if base_dir else None
+    files = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                           _budget(max_bytes, max_faces))
     if is_urdf:
-        text = _urdf_keep_root_link(root)
+        _urdf_keep_root_link(root)
     else:
-        text = _mjcf_gather_world_geoms(root, text)
-    try:
-        spec = mujoco.MjSpec.from_string(text) if base is None else _from_string_in(text, base)
-    except ValueError as exc:
-        raise _compile_error(exc) from None
+        _mjcf_gather_world_geoms(root)
+    spec = _spec_from(root, files)
     kind = 'urdf' if is_urdf else 'mjcf'
     name = root.attrib.get('name') or root.attrib.get('model') or ''
-    return _finish(spec, kind, f'{kind.upper()} model {name}'.strip())
+    return _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(), assets=files)
 
 
 #: The body that a standalone model's static <worldbody> geoms and sites are gathered into.
 WORLD_GEOMS_BODY = 'world_geoms'
 
 
-def _mjcf_gather_world_geoms(root: ET.Element, text: str) -> str:
+def _mjcf_gather_world_geoms(root: ET.Element) -> None:
     """
     Gather a standalone model's static geometry into one body.
 
@@ -242,7 +233,7 @@ def _mjcf_gather_world_geoms(root: ET.Element, text: str) -> str:
     loose = [] if wb is None else [e for e in wb if e.tag in ('geom', 'site')
                                    and e.get('type') != 'plane']
     if not loose:
-        return text
+        return
     taken = {e.get('name') for e in root.iter('body')}
     name, i = WORLD_GEOMS_BODY, 0
     while name in taken:
@@ -252,10 +243,9 @@ def _mjcf_gather_world_geoms(root: ET.Element, text: str) -> str:
     for e in loose:
         wb.remove(e)
         holder.append(e)
-    return ET.tostring(root, encoding='unicode')
 
 
-def _urdf_keep_root_link(root: ET.Element) -> str:
+def _urdf_keep_root_link(root: ET.Element) -> None:
     """
     Keep a URDF's root link: MuJoCo's import fuses links welded to the world (fusestatic).
 
@@ -268,17 +258,6 @@ def _urdf_keep_root_link(root: ET.Element) -> str:
     if compiler is None:
         compiler = ET.SubElement(ext, 'compiler')
     compiler.set('fusestatic', 'false')
-    return ET.tostring(root, encoding='unicode')
-
-
-def _from_string_in(text: str, base: Path) -> mujoco.MjSpec:
-    """Parse text as if it were a file in `base`, so relative asset paths resolve there."""
-    tmp = base / f'.sim_spawn_{uuid.uuid4().hex}.xml'
-    try:
-        tmp.write_text(text)
-        return mujoco.MjSpec.from_file(str(tmp))
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def read_model_text(path: Path) -> str:
@@ -305,7 +284,7 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
             + ', '.join(MODEL_SUFFIXES + MESH_SUFFIXES))
     text = read_model_text(p)
     return from_model_text(text, base_dir=str(p.parent), allowed_roots=allowed_roots,
-                           max_bytes=max_bytes)
+                           max_bytes=max_bytes, max_faces=max_faces)
 
 
 def check_rgba(rgba: Sequence[float]) -> list:

@@ -1,0 +1,182 @@
+"""
+Hostile model files and text: MuJoCo never opens a file the node did not read and check.
+
+Each case asserts the exact error type (the node maps it to the standard code), that it comes
+at once (no FIFO blocks, no 11 s compile), and that the world is intact afterwards.
+"""
+
+import os
+from pathlib import Path
+import struct
+import time
+
+from conftest import DEFAULT_SCENE
+import numpy as np
+import pytest
+from sim_node.core import sources
+from sim_node.core.errors import (MissingAssetsError, NameInvalidError, ResourceParseError,
+                                  UnsupportedAssetsError, UnsupportedFormatError)
+from sim_node.core.world import World
+
+BODY = '<worldbody><body name="b"><freejoint/><geom size=".05"/></body></worldbody>'
+
+
+def cube_texture(**files) -> str:
+    attrs = ' '.join(f'{k}="{v}"' for k, v in files.items())
+    return (f'<mujoco><asset><texture name="t" type="cube" {attrs}/>'
+            f'<material name="m" texture="t"/></asset>'
+            f'<worldbody><body name="b"><freejoint/><geom size=".05" material="m"/></body>'
+            f'</worldbody></mujoco>')
+
+
+def png(path: Path, width: int = 4, height: int = 4) -> Path:
+    from PIL import Image
+    Image.new('RGB', (width, height), (200, 10, 10)).save(path)
+    return path
+
+
+def binary_stl(path: Path, n_faces: int) -> Path:
+    tri = np.zeros((n_faces, 12), dtype='<f4')
+    tri[:, 3:12] = np.tile([0, 0, 0, 0.01, 0, 0, 0, 0.01, 0], (n_faces, 1))
+    rec = np.zeros(n_faces, dtype=[('f', '<f4', 12), ('a', '<u2')])
+    rec['f'] = tri
+    with open(path, 'wb') as f:
+        f.write(b'\0' * 80 + struct.pack('<I', n_faces) + rec.tobytes())
+    return path
+
+
+@pytest.fixture
+def world():
+    return World.from_file(str(DEFAULT_SCENE))
+
+
+def assert_intact(world: World, names: list) -> None:
+    assert [e.name for e in world.entities()] == names
+    world.step(5)
+    assert np.isfinite(world.get_state().values).all()
+
+
+def refused(call, error, within: float = 2.0) -> str:
+    t0 = time.monotonic()
+    with pytest.raises(error) as info:
+        call()
+    assert time.monotonic() - t0 < within
+    return str(info.value)
+
+
+@pytest.mark.parametrize('attr', ['fileright', 'fileleft', 'fileup', 'filedown', 'filefront',
+                                  'fileback', 'file'])
+def test_every_texture_file_attribute_is_checked_and_existence_does_not_leak(tmp_path, attr):
+    roots = [str(tmp_path)]
+    a = refused(lambda: sources.from_model_text(cube_texture(**{attr: '/etc/passwd'}),
+                                                allowed_roots=roots), MissingAssetsError)
+    b = refused(lambda: sources.from_model_text(cube_texture(**{attr: '/etc/no_such_file'}),
+                                                allowed_roots=roots), MissingAssetsError)
+    assert a.replace('passwd', 'X') == b.replace('no_such_file', 'X')  # same answer either way
+
+
+def test_a_fifo_among_the_assets_is_refused_at_once(tmp_path, world):
+    fifo = tmp_path / 'face.png'
+    os.mkfifo(fifo)
+    model = tmp_path / 'm.xml'
+    model.write_text(cube_texture(fileright='face.png'))
+    names = [e.name for e in world.entities()]
+    refused(lambda: sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+            UnsupportedAssetsError)
+    include = tmp_path / 'inc.xml'
+    include.write_text('<mujoco><include file="face.png"/>' + BODY + '</mujoco>')
+    refused(lambda: sources.from_file(str(include), allowed_roots=[str(tmp_path)]),
+            UnsupportedAssetsError)
+    assert_intact(world, names)
+
+
+def test_includes_are_expanded_here_and_checked_like_any_file(tmp_path, world):
+    (tmp_path / 'parts').mkdir()
+    (tmp_path / 'parts' / 'body.xml').write_text(
+        '<mujoco><worldbody><body name="inc"><freejoint/><geom size=".04"/></body>'
+        '</worldbody></mujoco>')
+    model = tmp_path / 'm.xml'
+    model.write_text('<mujoco><include file="parts/body.xml"/></mujoco>')
+    world.spawn('included', sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+                position=[0, 1.5, 1])
+    assert 'included' in [e.name for e in world.entities()]
+    for target in ('/etc/passwd', '../outside.xml'):
+        model.write_text(f'<mujoco><include file="{target}"/>{BODY}</mujoco>')
+        refused(lambda: sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+                MissingAssetsError)
+    model.write_text('<mujoco><include file="m.xml"/></mujoco>')  # includes itself
+    refused(lambda: sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+            UnsupportedAssetsError)
+
+
+@pytest.mark.parametrize('text', [
+    '<!DOCTYPE mujoco [<!ENTITY a "aaaaaaaaaa">]><mujoco>' + BODY + '</mujoco>',
+    '<!DOCTYPE mujoco SYSTEM "file:///etc/passwd"><mujoco>' + BODY + '</mujoco>',
+    ('<?xml version="1.0"?><!DOCTYPE lolz [<!ENTITY lol "lol"><!ENTITY lol2 '
+     '"&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">]><mujoco><worldbody><body name="&lol2;">'
+     '<geom size=".1"/></body></worldbody></mujoco>'),
+])
+def test_doctype_and_entities_are_refused(text):
+    message = refused(lambda: sources.from_model_text(text), ResourceParseError)
+    assert 'DOCTYPE' in message or 'entit' in message
+
+
+def test_a_5000_deep_urdf_is_a_parse_error_not_a_crash():
+    links = ''.join(f'<link name="l{i}"/>' for i in range(2))
+    deep = '<robot name="r">' + links + '<a>' * 5000 + '</a>' * 5000 + '</robot>'
+    assert 'deeper' in refused(lambda: sources.from_model_text(deep), ResourceParseError)
+
+
+def test_a_mesh_over_the_face_budget_is_refused_by_mjcf_before_mujoco_builds_it(tmp_path):
+    binary_stl(tmp_path / 'big.stl', 300_000)  # 15 MB, under the byte budget
+    model = tmp_path / 'm.xml'
+    model.write_text('<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody>'
+                     '<body name="b"><freejoint/><geom type="mesh" mesh="m"/></body>'
+                     '</worldbody></mujoco>')
+    message = refused(lambda: sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+                      UnsupportedAssetsError, within=1.0)
+    assert '300000 faces' in message
+
+
+def test_resource_string_may_not_use_relative_paths_or_submodels(tmp_path):
+    refused(lambda: sources.from_model_text(cube_texture(file='x.png'),
+                                            allowed_roots=[str(tmp_path)]), MissingAssetsError)
+    sub = (f'<mujoco><asset><model name="s" file="{tmp_path}/s.xml"/></asset>{BODY}'
+           '</mujoco>')
+    refused(lambda: sources.from_model_text(sub, allowed_roots=[str(tmp_path)]),
+            UnsupportedFormatError)
+
+
+def test_a_huge_entity_name_is_refused_with_a_short_message(world):
+    message = refused(lambda: world.spawn('n' * 10_000_000, sources.primitive('box', [.05] * 3),
+                                          position=[0, 1, 1]), NameInvalidError)
+    assert len(message) < 500
+
+
+def test_a_legit_model_with_its_own_folders_still_spawns_as_written(tmp_path, world):
+    """The sandbox keeps MJCF's meaning: meshdir, texturedir, a cube texture, an include."""
+    (tmp_path / 'meshes').mkdir()
+    (tmp_path / 'textures').mkdir()
+    import trimesh
+    (tmp_path / 'meshes' / 'tri.stl').write_bytes(
+        trimesh.creation.icosphere(subdivisions=1, radius=0.03).export(file_type='stl'))
+    png(tmp_path / 'textures' / 'side.png')
+    (tmp_path / 'materials.xml').write_text(
+        '<mujoco><asset><texture name="t" type="cube" fileright="side.png" '
+        'fileleft="side.png" fileup="side.png" filedown="side.png" filefront="side.png" '
+        'fileback="side.png"/><material name="mat" texture="t"/></asset></mujoco>')
+    model = tmp_path / 'robot.xml'
+    model.write_text(
+        '<mujoco><compiler meshdir="meshes" texturedir="textures"/>'
+        '<include file="materials.xml"/><asset><mesh name="tri" file="tri.stl"/></asset>'
+        '<worldbody><body name="base"><freejoint/><geom type="box" size=".05 .05 .05" '
+        'material="mat"/><geom type="mesh" mesh="tri" mass=".1"/></body></worldbody>'
+        '</mujoco>')
+    src = sources.from_file(str(model), allowed_roots=[str(tmp_path)])
+    world.spawn('robot2', src, position=[0, 1.5, 0.5])
+    with world.locked() as (m, _):
+        assert m.ntex >= 1 and m.nmesh >= 1
+    world.spawn('robot3', sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+                position=[0, -1.5, 0.5])  # twice: its assets do not collide
+    world.delete('robot2')
+    world.step(10)
