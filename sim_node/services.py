@@ -7,6 +7,7 @@ of :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameter
 
 from msg_adapters import convert, markers
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from simulation_interfaces import srv as si_srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Result,
@@ -22,6 +23,10 @@ from .core.records import RESET_ALL
 from .core.world import World
 
 MAX_RESOURCE_STRING_BYTES = 5_000_000
+#: Requests queue here until an executor thread takes them: with ROS's default depth of 10, a
+#: burst of 50 clients lost most of their requests (never answered). Every request is kept.
+SERVICE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE)
 ERR_NO_WORLD = 'no world is loaded; call load_world first'
 
 
@@ -63,7 +68,7 @@ class SimServices:
             table['spawn_entities'] = (si_srv.SpawnEntities, self._srv_spawn_many)
         for name, (srv_type, handler) in table.items():
             self.create_service(srv_type, name, self._guard(srv_type, handler),
-                                callback_group=g)
+                                qos_profile=SERVICE_QOS, callback_group=g)
         self._action = ActionServer(
             self, SimulateSteps, 'simulate_steps', execute_callback=self._act_simulate,
             goal_callback=lambda goal: GoalResponse.ACCEPT,

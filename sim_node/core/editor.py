@@ -96,7 +96,7 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     difference). Its <compiler> settings (angle units, asset folders) apply to it alone.
 
     :returns: (frame name, names of the entity's top-level bodies, root first, the root body's
-        name in the model itself).
+        name in the model itself, the default classes it brought, outermost first).
     """
     child = source.spec.copy()
     planes = [g for g in child.worldbody.geoms if g.type == mujoco.mjtGeom.mjGEOM_PLANE]
@@ -108,6 +108,9 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     for key in list(child.keys):
         child.delete(key)
     name_unnamed(child)
+    # Its default classes come along as <name>/<class>; a delete must remove them too.
+    defaults = [f'{name}/main'] + [f'{name}/{c}' for c in source.default_classes
+                                   if c != 'main']
     tops = [b.name for b in child.worldbody.bodies]
     if not tops:  # MJCF text has its static geometry gathered into a body; a spec built in
         raise ResourceParseError(ERR_NO_BODY)  # code must do that itself
@@ -124,10 +127,12 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     _rename_body_references(spec, old_root, name)
     if source.assets:
         spec.assets = {**spec.assets, **source.assets}
-    return frame.name, (name,) + tuple(f'{name}/{t}' for t in tops[1:]), tops[0]
+    return (frame.name, (name,) + tuple(f'{name}/{t}' for t in tops[1:]), tops[0],
+            tuple(defaults))
 
 
-def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str]) -> None:
+def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str],
+           defaults: Sequence[str] = ()) -> None:
     """
     Remove an attached entity.
 
@@ -143,6 +148,10 @@ def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str]) ->
                 spec.delete(e)
     if assets:
         spec.assets = {k: v for k, v in spec.assets.items() if k not in assets}
+    for cls in reversed(defaults):  # innermost first; a class may have gone with its parent
+        found = spec.find_default(cls)
+        if found is not None:
+            spec.delete(found)
 
 
 def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,

@@ -92,6 +92,8 @@ class SpawnSource:
     assets: dict = field(default_factory=dict)
     kind: str = 'mjcf'
     description: str = ''
+    #: Its default classes, outermost first (attached as ``<entity>/<class>``).
+    default_classes: tuple = ()
 
     def __post_init__(self):
         if self.kind == 'mjcf':
@@ -213,7 +215,10 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     spec = _spec_from(root, files)
     kind = 'urdf' if is_urdf else 'mjcf'
     name = root.attrib.get('name') or root.attrib.get('model') or ''
-    return _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(), assets=files)
+    source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(), assets=files)
+    source.default_classes = tuple(d.attrib['class'] for d in root.iter('default')
+                                   if 'class' in d.attrib)
+    return source
 
 
 #: The body that a standalone model's static <worldbody> geoms and sites are gathered into.

@@ -77,7 +77,8 @@ class WorldEdits:
             meta = {'assets': tuple(source.assets), 'description': source.description}
 
             def edit(spec: mujoco.MjSpec) -> None:
-                meta['frame'], meta['bodies'], root = editor.attach(spec, name, source, pos, q)
+                (meta['frame'], meta['bodies'], root,
+                 meta['defaults']) = editor.attach(spec, name, source, pos, q)
                 # A URDF's root link keeps a frame of its own name (see ModelInfo.body_alias).
                 meta['root_link'] = f'{name}/{root}' if source.kind == 'urdf' else ''
                 if self._default_friction is not None or self._default_restitution is not None:
@@ -141,9 +142,10 @@ class WorldEdits:
             if meta is None:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
             self._edit_locked(
-                lambda spec: editor.remove(spec, name, meta['frame'], meta['assets']),
+                lambda spec: editor.remove(spec, name, meta['frame'], meta['assets'],
+                                           meta.get('defaults', ())),
                 spawned={k: v for k, v in self._spawned.items() if k != name},
-                overrides={k: v for k, v in self._overrides.items() if k != name})
+                overrides={k: v for k, v in self._overrides.items() if k != name}, removed=1)
 
     # ---------------------------------------------------------------- physics parameters
 
