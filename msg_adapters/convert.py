@@ -36,6 +36,7 @@ RESULT_CODES = (
     (errors.UnsupportedAssetsError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_ASSETS'),
     (errors.InvalidPoseError, Result.RESULT_OPERATION_FAILED, 'INVALID_POSE'),
     (errors.IncorrectStateError, Result.RESULT_INCORRECT_STATE, None),
+    (errors.CapacityError, Result.RESULT_OPERATION_FAILED, None),
     (errors.InvalidArgumentError, Result.RESULT_OPERATION_FAILED, None),
     (errors.DivergenceError, Result.RESULT_OPERATION_FAILED, None),
     (errors.SimError, Result.RESULT_OPERATION_FAILED, None),

@@ -205,3 +205,20 @@ def test_a_spawn_and_delete_storm_gives_its_memory_back(world):
     grown = _rss_mib() - before
     assert grown < 20, f'RSS grew {grown:.0f} MiB over 400 spawns and deletes'
     assert [e.name for e in world.entities()] == ['robot', 'table', 'box_a', 'box_b']
+
+
+def test_the_body_cap_refuses_a_spawn_past_it_and_says_which_limit():
+    from sim_node.core.config import WorldConfig
+    from sim_node.core.errors import CapacityError
+    w = World.from_file(str(DEFAULT_SCENE), WorldConfig(max_bodies=12))
+    names = [e.name for e in w.entities()]
+    n0 = w.model_info.body_names.__len__()
+    spawned = 0
+    with pytest.raises(CapacityError, match='max_bodies'):
+        for i in range(20):
+            w.spawn(f'c{i}', sources.primitive('box', [0.05] * 3), position=[i * 0.3 - 2, 2, 1])
+            spawned += 1
+    assert n0 + spawned == 12  # filled exactly to the limit, then refused
+    w.delete('c0')
+    w.spawn('again', sources.primitive('box', [0.05] * 3), position=[0, -2, 1])  # room again
+    assert [e.name for e in w.entities()][:len(names)] == names

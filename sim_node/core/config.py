@@ -36,6 +36,10 @@ class WorldConfig:
     max_resource_bytes: int = 20_000_000
     #: Largest mesh, in faces, a spawn may load.
     max_mesh_faces: int = 200_000
+    #: Most bodies the world may hold (scene and spawned, world body included): a spawn past it
+    #: is refused with a clear error. MuJoCo itself failed at about 5,000 ("Could not allocate
+    #: memory"), and every body costs stepping time.
+    max_bodies: int = 3000
     #: Wall seconds behind schedule after which pacing re-syncs instead of bursting.
     resync_after_sec: float = 0.25
     #: MuJoCo's arena (contacts and constraints) for scenes without <size memory>: this much

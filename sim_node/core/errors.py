@@ -55,6 +55,10 @@ class InvalidArgumentError(SimError):
     """A value that is out of range, non-finite or of the wrong length."""
 
 
+class CapacityError(SimError):
+    """A request that would take the world past one of its configured limits."""
+
+
 class IncorrectStateError(SimError):
     """A request that the simulation's current state does not allow."""
 

@@ -14,9 +14,12 @@ import numpy as np
 
 from . import checks, editor, quat, sources, state
 from .checks import check_finite, check_pose
-from .errors import IncorrectStateError, InvalidArgumentError, InvalidPoseError, NameNotUniqueError
+from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
+                     NameNotUniqueError)
 from .records import ROBOT, STATIC
 
+ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '
+                'max_bodies): delete entities first, or raise the limit')
 ERR_DUPLICATE = 'an entity or body named {name!r} exists; pick another name or allow renaming'
 ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth:.4f} m; move '
                         'it, or allow interpenetration')
@@ -32,6 +35,11 @@ class WorldEdits:
         """Return the name of the frame a spawned entity hangs from (None: a scene entity)."""
         meta = self._spawned.get(name)
         return meta['frame'] if meta else None
+
+    def _check_capacity_locked(self, new_bodies: int) -> None:
+        total = self._model.nbody + new_bodies
+        if total > self.config.max_bodies:
+            raise CapacityError(ERR_CAPACITY.format(n=total, limit=self.config.max_bodies))
 
     def unique_name(self, base: str) -> str:
         """Return `base`, or `base_<n>` with the smallest n not taken by an entity or body."""
@@ -68,6 +76,7 @@ class WorldEdits:
         overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
                       else allow_interpenetration)
         with self._locked():
+            self._check_capacity_locked(len(source.spec.bodies) - 1)
             if not name or name in self._index.body_ids:
                 if not allow_renaming:
                     raise NameNotUniqueError(ERR_DUPLICATE.format(name=name))
@@ -123,6 +132,7 @@ class WorldEdits:
             root = self._index.entity_of_body(parent)
             if root not in self._spawned:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
+            self._check_capacity_locked(1)
             full = f'{root}/{name}'
             if full in self._index.body_ids:
                 raise NameNotUniqueError(ERR_DUPLICATE.format(name=full))

@@ -1,0 +1,253 @@
+"""
+Hostile clients over the wire: bursts, duplicates, bad resources, and a soak from 4 clients.
+
+Every request gets an answer with its exact code, and afterwards the world is intact: the same
+entities, finite states, time moving on, the node answering. ``SIM_SOAK_SECONDS`` sets the
+soak's length (60 s by default; longer soaks for a release).
+"""
+
+import math
+import os
+from pathlib import Path
+import random
+import threading
+import time
+
+from conftest import NodeProcess, wait_for, Watcher
+import pytest
+from sim_node.client import SimClient, SimServiceError
+from simulation_interfaces.msg import Result, SimulationState
+from simulation_interfaces.srv import SetEntityState, SpawnEntities, SpawnEntity
+
+SCENE_ENTITIES = ['robot', 'table', 'box_a', 'box_b']
+SOAK_SECONDS = float(os.environ.get('SIM_SOAK_SECONDS', '60'))
+
+
+@pytest.fixture(scope='module')
+def files(tmp_path_factory) -> Path:
+    """Return a resource folder of the node's own, with a FIFO among a model's assets."""
+    folder = tmp_path_factory.mktemp('resources')
+    os.mkfifo(folder / 'face.png')
+    (folder / 'fifo_texture.xml').write_text(
+        '<mujoco><asset><texture name="t" type="cube" fileright="face.png"/>'
+        '<material name="m" texture="t"/></asset><worldbody><body name="b"><freejoint/>'
+        '<geom size=".05" material="m"/></body></worldbody></mujoco>')
+    return folder
+
+
+@pytest.fixture(scope='module')
+def node(files):
+    from conftest import installed_prefix
+    scenes = installed_prefix() / 'share' / 'sim' / 'scenes'
+    proc = NodeProcess(f"resource_paths:=['{scenes}', '{files}']")
+    yield proc
+    code, _ = proc.interrupt()
+    assert code == 0, proc.output()
+
+
+@pytest.fixture(scope='module')
+def client(node, rclpy_context):
+    c = SimClient(timeout_sec=30)
+    yield c
+    c.close()
+
+
+@pytest.fixture
+def sim(client):
+    client.reset()
+    if client.state() != SimulationState.STATE_PLAYING:
+        client.play()
+    return client
+
+
+def code_of(call) -> int:
+    try:
+        call()
+        return Result.RESULT_OK
+    except SimServiceError as exc:
+        return exc.code
+
+
+def assert_intact(sim: SimClient, extra: tuple = ()) -> None:
+    assert sorted(sim.entities()) == sorted(SCENE_ENTITIES + list(extra))
+    t0 = sim.entity_state('box_a')['stamp']
+    for name in SCENE_ENTITIES:
+        st = sim.entity_state(name)
+        assert all(math.isfinite(v) for v in st['position'] + st['orientation_xyzw'])
+    wait_for(lambda: sim.entity_state('box_a')['stamp'] > t0, timeout=5)  # time moves on
+
+
+def burst(n: int, make_request) -> list:
+    """N clients, each on its own node, all calling at once; returns their Result codes."""
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+    nodes = [rclpy.create_node(f'burst_{i}_{id(make_request):x}') for i in range(n)]
+    executor = MultiThreadedExecutor(num_threads=4)
+    try:
+        srv_type, service = make_request(None)
+        clients = [nd.create_client(srv_type, service) for nd in nodes]
+        for c in clients:
+            assert c.wait_for_service(timeout_sec=20)
+        # A client's response reader may match the server a moment after wait_for_service
+        # says the service is there (a DDS race of every ROS 2 client, ros2cli's too): give
+        # discovery that moment, or a first answer can be lost on the client's side.
+        time.sleep(1.0)
+        for nd in nodes:
+            executor.add_node(nd)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        futures = [c.call_async(make_request(i)) for i, c in enumerate(clients)]
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not all(f.done() for f in futures):
+            time.sleep(0.02)
+        return [f.result().result.result if f.done() else None for f in futures]
+    finally:
+        executor.shutdown()
+        for nd in nodes:
+            nd.destroy_node()
+
+
+def spawn_request(name: str, i: int) -> SpawnEntity.Request:
+    req = SpawnEntity.Request(name=name, uri='box')
+    p = req.initial_pose.pose.position
+    p.x, p.y, p.z = -2.5 + (i % 10) * 0.5, -2.5 + (i // 10) * 0.5, 1.5
+    return req
+
+
+def test_a_burst_of_fifty_clients_gets_fifty_answers(sim):
+    codes = burst(50, lambda i: (SpawnEntity, '/spawn_entity') if i is None
+                  else spawn_request(f'burst_{i}', i))
+    assert codes == [Result.RESULT_OK] * 50
+    from simulation_interfaces.srv import DeleteEntity
+    codes = burst(50, lambda i: (DeleteEntity, '/delete_entity') if i is None
+                  else DeleteEntity.Request(entity=f'burst_{i}'))
+    assert codes == [Result.RESULT_OK] * 50
+    assert_intact(sim)
+
+
+def test_concurrent_duplicate_names_give_one_entity_and_the_standard_code_to_the_rest(sim):
+    codes = burst(10, lambda i: (SpawnEntity, '/spawn_entity') if i is None
+                  else spawn_request('twin', i))
+    assert sorted(codes) == [Result.RESULT_OK] + [SpawnEntity.Response.NAME_NOT_UNIQUE] * 9
+    sim.delete('twin')
+    assert_intact(sim)
+
+
+def test_hostile_requests_get_their_codes_and_leave_the_world_intact(sim, files):
+    box = ('<mujoco><worldbody><body name="b"><freejoint/><geom size=".05"/></body>'
+           '</worldbody></mujoco>')
+    t0 = time.monotonic()
+    cases = [
+        (lambda: sim.spawn('x', resource_string='<!DOCTYPE m [<!ENTITY a "b">]>' + box),
+         SpawnEntity.Response.RESOURCE_PARSE_ERROR),
+        (lambda: sim.spawn('x', resource_string=box.replace(
+            '<worldbody>', '<asset><texture name="t" type="cube" fileright="/etc/passwd"/>'
+            '</asset><worldbody>')), SpawnEntity.Response.MISSING_ASSETS),
+        (lambda: sim.spawn('x', uri=(files / 'fifo_texture.xml').as_uri()),
+         SpawnEntity.Response.UNSUPPORTED_ASSETS),
+        (lambda: sim.spawn('n' * 1_000_000, uri='box'), SpawnEntity.Response.NAME_INVALID),
+        (lambda: sim.spawn('x', uri='box', position=(0, math.nan, 1)),
+         SpawnEntity.Response.INVALID_POSE),
+        (lambda: sim.spawn('x', uri='box', orientation_xyzw=(0, 0, 0, 0)),
+         SpawnEntity.Response.INVALID_POSE),
+        (lambda: sim.set_entity_state('box_a', (0, 0, math.inf)),
+         SetEntityState.Response.INVALID_POSE),
+        (lambda: sim.set_entity_state('no_such_entity', (0, 0, 1)), Result.RESULT_NOT_FOUND),
+        (lambda: sim.delete('table'), Result.RESULT_INCORRECT_STATE),  # part of the scene
+        (lambda: sim.reset(8), Result.RESULT_OPERATION_FAILED),
+        (lambda: sim.entities(pattern='(unclosed'), Result.RESULT_OPERATION_FAILED),
+    ]
+    got = [code_of(call) for call, _ in cases]
+    assert got == [code for _, code in cases]
+    assert time.monotonic() - t0 < 30  # nothing blocked (the FIFO least of all)
+    assert_intact(sim)
+
+
+def test_spawn_entities_answers_once_per_request_and_keeps_the_good_ones(sim):
+    from simulation_interfaces.msg import SpawnEntity as SpawnItem
+    items = []
+    for i, (uri, name) in enumerate([('box', 'good_1'), ('nope_nope', 'bad'),
+                                     ('box', 'good_2'), ('', 'empty')]):
+        item = SpawnItem(name=name)
+        item.entity_resource.uri = uri
+        item.initial_pose.pose.position.x, item.initial_pose.pose.position.z = i * 0.5 - 1, 1.5
+        items.append(item)
+    response = sim.call('spawn_entities', SpawnEntities,
+                        SpawnEntities.Request(spawn_requests=items), check=False)
+    assert response.result.result == SpawnEntities.Response.ENTITIES_SPAWN_FAILED
+    assert [r.result.result for r in response.results] == [
+        Result.RESULT_OK, Result.RESULT_NOT_FOUND, Result.RESULT_OK,
+        SpawnEntity.Response.NO_RESOURCE]
+    assert {'good_1', 'good_2'} <= set(sim.entities())  # not atomic: the good ones stay
+    sim.reset(4)
+    assert_intact(sim)
+
+
+def _rss_mib(pid: int) -> float:
+    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS'):
+            return int(line.split()[1]) / 1024
+    raise RuntimeError('no VmRSS')
+
+
+def test_soak_four_clients_at_random_every_request_answered_memory_bounded(node, sim):
+    """Random spawns, deletes, resets and steps from 4 clients for SIM_SOAK_SECONDS."""
+    allowed = {Result.RESULT_OK, Result.RESULT_NOT_FOUND, Result.RESULT_INCORRECT_STATE,
+               SpawnEntity.Response.NAME_NOT_UNIQUE}
+    counts, unexpected, errors = [0] * 4, [], []
+    watch = Watcher()
+    before = _rss_mib(node.proc.pid)
+    stop = time.monotonic() + SOAK_SECONDS
+
+    def worker(k: int) -> None:
+        rng = random.Random(k)
+        try:
+            c = SimClient(timeout_sec=30)
+            try:
+                while time.monotonic() < stop:
+                    action = rng.choice(['spawn', 'spawn', 'delete', 'step', 'reset', 'state'])
+                    name = f'soak_{k}_{rng.randrange(12)}'
+                    if action == 'spawn':
+                        x, y = rng.uniform(-2.5, 2.5), rng.uniform(-2.5, 2.5)
+                        code = code_of(lambda: c.spawn(name, uri=rng.choice(['box', 'sphere']),
+                                                       position=(x, y, 2.0)))
+                        if code == SpawnEntity.Response.INVALID_POSE:
+                            code = Result.RESULT_OK  # landed in another object: refused, fine
+                    elif action == 'delete':
+                        code = code_of(lambda: c.delete(name))
+                    elif action == 'step':
+                        code = code_of(lambda: c.step(5))  # only while paused
+                    elif action == 'reset':
+                        code = code_of(lambda: c.reset(rng.choice([1, 4])))
+                    else:
+                        code = code_of(lambda: c.set_state(rng.choice(
+                            [SimulationState.STATE_PAUSED, SimulationState.STATE_PLAYING])))
+                        if code in (101,):  # ALREADY_IN_TARGET_STATE
+                            code = Result.RESULT_OK
+                    counts[k] += 1
+                    if code not in allowed:
+                        unexpected.append((action, code))
+            finally:
+                c.close()
+        except Exception as exc:  # a request that never got its answer, above all
+            errors.append(repr(exc))
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(SOAK_SECONDS + 120)
+    try:
+        assert not errors, errors
+        assert not unexpected, unexpected[:10]
+        assert min(counts) > 5, counts
+        sim.reset()
+        code_of(sim.play)
+        grown = _rss_mib(node.proc.pid) - before
+        assert grown < 150, f'node RSS grew {grown:.0f} MiB over {sum(counts)} requests'
+        assert_intact(sim)
+        bad = [k for k, (_, _, pos, _) in watch.tf.items()
+               if not all(math.isfinite(v) for v in pos)]
+        assert not bad, bad
+    finally:
+        watch.close()
