@@ -13,7 +13,8 @@ import threading
 import time
 from typing import Optional
 
-from msg_adapters import convert, markers
+from diagnostic_msgs.msg import DiagnosticArray
+from msg_adapters import convert, diagnostics, markers
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
@@ -94,6 +95,9 @@ class SimNode(SimServices, Node):
         self._tf_static_pub = self.create_publisher(TFMessage, '/tf_static', latched)
         self._marker_pub = self.create_publisher(MarkerArray, 'markers', latched)
         self._joint_pub = self.create_publisher(JointState, 'joint_states', 10)
+        self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._diagnostics_name = f'{self.get_fully_qualified_name()}: physics'
+        self._diagnosed = (None, 0.0)  # (divergence report, wall time) last published
         self.create_subscription(JointState, 'joint_commands', self._on_joint_command, 10,
                                  callback_group=self._pub_group)
         # Publishing runs on a thread of its own, paced to absolute deadlines: rclpy timers
@@ -271,6 +275,20 @@ class SimNode(SimServices, Node):
     def _housekeeping(self) -> None:
         self._sync_paused_parameter()
         self._drain_logs()
+        self._publish_diagnostics()
+
+    def _publish_diagnostics(self) -> None:
+        """/diagnostics once a second, and at once when the physics diverges."""
+        sim = self._sim
+        if sim is None:
+            return
+        status = sim.loop.status()
+        now = time.monotonic()
+        last_report, last_time = self._diagnosed
+        if status.divergence is last_report and now - last_time < 1.0:
+            return
+        self._diagnosed = (status.divergence, now)
+        self._diagnostics_pub.publish(diagnostics.diagnostics(status, self._diagnostics_name))
 
     def _drain_logs(self) -> None:
         log = self.get_logger()

@@ -88,6 +88,9 @@ def declare(node: Node, scenes_dir: str) -> None:
         fmin=0, fmax=1e6))
     node.declare_parameter('allow_interpenetration', c.allow_interpenetration, d(
         'allow spawning into overlapping geometry', read_only=True))
+    node.declare_parameter('divergence_policy', c.divergence_policy, d(
+        "when the physics diverges while playing: 'pause', 'remove' the entity it happened in "
+        "(if spawned) and play on, or 'reset' the state and play on", read_only=True))
     node.declare_parameter('max_bodies', c.max_bodies, d(
         'most bodies the world may hold; a spawn past it is refused', read_only=True,
         imin=2, imax=100_000))
@@ -103,4 +106,4 @@ def world_config(node: Node) -> WorldConfig:
         # Twice the fastest publisher, so that every publishing tick finds a new snapshot.
         snapshot_rate_hz=2 * max(p('tf_rate_hz'), p('joint_states_rate_hz')),
         kp=p('kp'), kd=p('kd'), allow_interpenetration=p('allow_interpenetration'),
-        max_bodies=p('max_bodies'))
+        max_bodies=p('max_bodies'), divergence_policy=p('divergence_policy'))

@@ -91,6 +91,48 @@ def test_divergence_pauses_the_loop_with_a_report(make_loop):
     assert not loop.paused
 
 
+# A slide joint far too stiff for the time step: it diverges within a few steps, every time.
+STIFF = """<mujoco><worldbody><body name="spring"><joint name="s" type="slide" axis="0 0 1"
+  stiffness="1e9"/><geom type="box" size=".05 .05 .05" mass=".01" contype="0" conaffinity="0"/>
+  </body></worldbody></mujoco>"""
+
+
+def _wait(predicate, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return predicate()
+
+
+@pytest.mark.parametrize('policy', ['pause', 'remove', 'reset'])
+def test_divergence_names_the_culprit_entity_and_the_policy_acts_on_it(make_loop, policy):
+    from sim_node.core import sources
+    loop = make_loop(real_time_factor=0, divergence_policy=policy)
+    loop.world.spawn('stiff', sources.from_model_text(STIFF), position=[2, 2, 1])
+    assert _wait(lambda: loop.status().divergence is not None)
+    st = loop.status()
+    assert st.divergence['entity'] == 'stiff' and "'stiff'" in st.stop_reason
+    assert st.divergence['action'] == policy
+    if policy == 'pause':
+        assert loop.paused and 'stiff' in loop.world.spawned_names()
+        return
+    assert not loop.paused  # it played on
+    t0 = loop.world.time
+    assert _wait(lambda: loop.world.time > t0 + 0.5)
+    if policy == 'remove':
+        assert 'stiff' not in loop.world.spawned_names()
+        assert loop.status().divergence['entity'] == 'stiff'  # still reported
+
+
+def test_the_remove_policy_pauses_when_the_culprit_belongs_to_the_scene(make_loop):
+    loop = make_loop(real_time_factor=0, divergence_policy='remove')
+    with loop.world.locked() as (m, d):
+        d.qvel[-1] = 1e12  # box_b, part of the scene: it cannot be removed
+    assert _wait(lambda: loop.paused)
+    assert loop.status().divergence['entity'] == 'box_b'
+    assert loop.status().divergence['action'] == 'pause'
+
+
 def test_commands_from_many_threads_while_the_loop_runs(make_loop):
     import threading
     loop = make_loop(real_time_factor=0)

@@ -4,13 +4,16 @@ ROS conventions as users meet them.
 Integers typed for double parameters, and /clock that goes on while the simulation is paused.
 """
 
+import threading
 import time
 
 from conftest import NodeProcess, wait_for, Watcher
+import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from sim_node.client import SimClient
+from simulation_interfaces.msg import SimulationState
 
 
 def set_param(sim: SimClient, name: str, value: ParameterValue):
@@ -76,3 +79,61 @@ def test_two_worlds_in_one_domain_do_not_collide(rclpy_context):
         watch.close()
         second.close()
         first.close()
+
+
+STIFF = ('<mujoco><worldbody><body name="spring"><joint name="s" type="slide" axis="0 0 1" '
+         'stiffness="1e9"/><geom type="box" size=".05 .05 .05" mass=".01" contype="0" '
+         'conaffinity="0"/></body></worldbody></mujoco>')
+
+
+class DiagnosticsWatcher:
+    """The newest /diagnostics status of the sim node, received on a thread of its own."""
+
+    def __init__(self):
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.executors import SingleThreadedExecutor
+        self.latest = None
+        self.node = rclpy.create_node(f'diag_watch_{id(self):x}')
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on, 10)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _on(self, msg) -> None:
+        for st in msg.status:
+            if st.name.endswith(': physics'):
+                self.latest = (st.level, st.message, {kv.key: kv.value for kv in st.values})
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+@pytest.mark.parametrize('policy', ['pause', 'remove'])
+def test_divergence_names_the_culprit_on_diagnostics_and_the_policy_acts(rclpy_context, policy):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = NodeProcess(f'divergence_policy:={policy}')
+    watch = DiagnosticsWatcher()
+    sim = SimClient(timeout_sec=30)
+    try:
+        wait_for(lambda: watch.latest is not None and watch.latest[0] == DiagnosticStatus.OK,
+                 timeout=15)
+        sim.spawn('stiff', resource_string=STIFF, position=(2, 2, 1))
+        wait_for(lambda: watch.latest[2].get('divergence_entity') == 'stiff', timeout=10)
+        level, message, values = watch.latest
+        assert "'stiff'" in message and values['divergence_action'] == policy
+        if policy == 'pause':
+            assert level == DiagnosticStatus.ERROR
+            assert sim.state() == SimulationState.STATE_PAUSED
+            assert 'stiff' in sim.entities()
+        else:
+            assert level == DiagnosticStatus.WARN
+            assert sim.state() == SimulationState.STATE_PLAYING
+            assert 'stiff' not in sim.entities()
+    finally:
+        sim.close()
+        watch.close()
+        code, _ = node.interrupt()
+        assert code == 0, node.output()

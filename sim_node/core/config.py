@@ -40,6 +40,10 @@ class WorldConfig:
     #: is refused with a clear error. MuJoCo itself failed at about 5,000 ("Could not allocate
     #: memory"), and every body costs stepping time.
     max_bodies: int = 3000
+    #: What the loop does when the physics diverges while playing (the state before the bad
+    #: step is always restored first): 'pause'; 'remove' the entity it happened in (if it was
+    #: spawned, else pause) and play on; or 'reset' the state to the home keyframe and play on.
+    divergence_policy: str = 'pause'
     #: Wall seconds behind schedule after which pacing re-syncs instead of bursting.
     resync_after_sec: float = 0.25
     #: MuJoCo's arena (contacts and constraints) for scenes without <size memory>: this much

@@ -22,8 +22,8 @@ from typing import Callable, Optional
 import weakref
 
 from .config import WorldConfig
-from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError
-from .records import LoopStatus, Snapshot
+from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError, SimError
+from .records import LoopStatus, RESET_STATE, Snapshot
 from .world import World
 
 log = logging.getLogger(__name__)
@@ -34,6 +34,9 @@ STOPPED = 'stopped'
 # Longest the loop holds the world lock per batch when running as fast as possible (s).
 MAX_BATCH_WALL_SEC = 0.005
 MAX_BATCH_STEPS = 1000
+#: Divergence policies and what each did, for the stop reason.
+ACTIONS = {'pause': 'paused', 'remove': 'removed that entity and played on',
+           'reset': 'reset the state and played on'}
 
 # Simulated time is a sum of timesteps, with rounding error: a time within this fraction of a
 # step of a limit counts as having reached it (so T = 100 steps never needs a 101st).
@@ -91,6 +94,10 @@ class SimLoop:
         self._max_sim_time = float(cfg.max_sim_time)
         self._snapshot_period = 1.0 / cfg.snapshot_rate_hz if cfg.snapshot_rate_hz > 0 else 0.0
         self._resync = float(cfg.resync_after_sec)
+        if cfg.divergence_policy not in ACTIONS:
+            raise InvalidArgumentError(f'divergence_policy must be one of {sorted(ACTIONS)}, '
+                                       f'got {cfg.divergence_policy!r}')
+        self._policy = cfg.divergence_policy
         self._cv = threading.Condition()
         self._paused = bool(cfg.paused)
         self._stopping = False
@@ -257,6 +264,23 @@ class SimLoop:
                                       div)
         return n - remaining
 
+    def _after_divergence(self, report: dict) -> str:
+        """Apply the divergence policy; returns what was done: 'pause', 'remove' or 'reset'."""
+        policy = self._policy
+        try:
+            if policy == 'remove' and report.get('entity') in self.world.spawned_names():
+                self.world.delete(report['entity'])
+                log.warning('removed %r, where the physics diverged; playing on',
+                            report['entity'])
+                return 'remove'
+            if policy == 'reset':
+                self.world.reset(RESET_STATE)
+                log.warning('reset the state after the physics diverged; playing on')
+                return 'reset'
+        except SimError as exc:  # the policy could not act: pause, as by default
+            log.error('divergence policy %r failed: %s', policy, exc)
+        return 'pause'
+
     # ------------------------------------------------------------------ status, snapshots
 
     def status(self) -> LoopStatus:
@@ -395,10 +419,11 @@ class SimLoop:
             self.world.step(n)
         except DivergenceError as exc:
             log.error('%s', exc)
+            action = self._after_divergence(exc.report)
             with self._cv:
-                self._paused = True
-                self._divergence = exc.report
-                self._stop_reason = str(exc)
+                self._paused = self._paused or action == 'pause'
+                self._divergence = dict(exc.report, action=action)
+                self._stop_reason = f'{exc}; {ACTIONS[action]}'
                 self._pending_steps = 0
                 self._steps_done_cv.notify_all()
             self.refresh_snapshot()

@@ -183,6 +183,11 @@ class World(StateWrites, WorldEdits):
         with self._locked():
             return self._index.entity(name)
 
+    def spawned_names(self) -> list:
+        """Return the entities spawned since load (the ones that can be deleted)."""
+        with self._locked():
+            return list(self._spawned)
+
     def joint_names(self) -> list:
         """Hinge and slide joints, the ones joint commands and joint_states cover."""
         with self._locked():
@@ -352,9 +357,36 @@ class World(StateWrites, WorldEdits):
             # the state after the last clean batch.
             good = self._last_good if self._last_good is not None else good
         self._set_state_locked(good, self._step_count)
-        raise DivergenceError(f'physics diverged at step {bad_step} (t={report["time"]:.4f} s): '
-                              f'{report["warnings"] or "non-finite state"}; restored the state '
-                              'before it', bad_step, report)
+        report['entity'], report['body'] = self._culprit_locked(report['warnings'])
+        where = (f' in entity {report["entity"]!r} (body {report["body"]!r})'
+                 if report['entity'] else '')
+        raise DivergenceError(f'physics diverged at step {bad_step} (t={report["time"]:.4f} s)'
+                              f'{where}: {report["warnings"] or "non-finite state"}; restored '
+                              'the state before it', bad_step, report)
+
+    def _culprit_locked(self, warnings: dict) -> tuple:
+        """
+        Return (entity, body) that MuJoCo's bad-state warning points at, or ('', '').
+
+        The warning's ``lastinfo`` is the bad dof (qacc, qvel) or qpos entry: dof -> body, or
+        qpos entry -> joint -> body, then the body's entity.
+        """
+        m, idx = self._model, self._index
+        body = -1
+        for name in ('mjWARN_BADQACC', 'mjWARN_BADQVEL', 'mjWARN_BADQPOS'):
+            i = warnings.get(name)
+            if i is None:
+                continue
+            if name != 'mjWARN_BADQPOS' and 0 <= i < m.nv:
+                body = int(m.dof_bodyid[i])
+            elif name == 'mjWARN_BADQPOS' and 0 <= i < m.nq and m.njnt:
+                joint = int(np.searchsorted(m.jnt_qposadr, i, side='right')) - 1
+                body = int(m.jnt_bodyid[max(joint, 0)])
+            if body > 0:
+                break
+        if body <= 0:
+            return '', ''
+        return idx.body_names[int(idx.info.body_root[body])], idx.body_names[body]
 
     def step_kinematic(self, positions: dict, n: int = 1) -> int:
         """

@@ -1,0 +1,38 @@
+"""The loop's status as diagnostic_msgs/DiagnosticArray, for /diagnostics (rqt_robot_monitor)."""
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from sim_node.core.records import LoopStatus
+
+from .convert import stamp
+
+
+def diagnostics(status: LoopStatus, name: str) -> DiagnosticArray:
+    """
+    Return one status named `name`, with the culprit entity of a divergence as a value.
+
+    OK; WARN when lagging, or after a divergence handled by playing on; ERROR when paused or
+    stopped by a divergence or a failure.
+    """
+    level, message = DiagnosticStatus.OK, status.state
+    if status.lag:
+        level, message = DiagnosticStatus.WARN, status.lag
+    div = status.divergence
+    if div is not None:
+        handled = div.get('action') in ('remove', 'reset') and status.state == 'playing'
+        level = DiagnosticStatus.WARN if handled else DiagnosticStatus.ERROR
+        message = status.stop_reason or 'the physics diverged'
+    elif status.state == 'stopped' and status.stop_reason:
+        level, message = DiagnosticStatus.ERROR, status.stop_reason
+    values = {'state': status.state, 'step': status.step, 'time': f'{status.time:.6f}',
+              'real_time_factor': status.real_time_factor,
+              'achieved_real_time_factor': f'{status.achieved_real_time_factor:.3f}'}
+    if div is not None:
+        values.update({'divergence_' + k: div.get(k, '') for k in (
+            'entity', 'body', 'step', 'time', 'warnings', 'action')})
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp(status.time)
+    msg.status = [DiagnosticStatus(level=level, name=name, message=message[:1000],
+                                   hardware_id='mujoco',
+                                   values=[KeyValue(key=k, value=str(v))
+                                           for k, v in values.items()])]
+    return msg
