@@ -1,6 +1,8 @@
 """Entry point of `ros2 run sim node`: start the node and its loop; stop cleanly on SIGINT."""
 
+import os
 import sys
+import threading
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
@@ -21,24 +23,41 @@ def main(args=None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except SimError as exc:
+        print(f'[sim] cannot start: {exc}', file=sys.stderr)
+        code = 2
     except Exception:  # noqa: B902
         if rclpy.ok():
             raise
         # SIGINT or SIGTERM shut the context down while the executor was building its wait
         # set: rclpy raises from there. That is a normal shutdown, not a failure.
-    except SimError as exc:
-        print(f'[sim] cannot start: {exc}', file=sys.stderr)
-        code = 2
     finally:
         # Order matters: the loop first, then the executor, then the node.
         if node is not None:
             node.shutdown()
         if executor is not None:
-            executor.shutdown(timeout_sec=1.0)
+            executor.shutdown(timeout_sec=0.5)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    _exit_if_busy(code)
     return code
+
+
+def _exit_if_busy(code: int) -> None:
+    """
+    Exit now if a callback is still working (a spawn compiling a large model, say).
+
+    Python would otherwise wait for the executor's worker threads at exit: SIGTERM 1.5 s into
+    a long spawn left the process alive for seconds. Everything that needs an orderly end
+    (the loop, the publishers, the node, rclpy) has ended by now.
+    """
+    busy = [t for t in threading.enumerate()
+            if t is not threading.main_thread() and not t.daemon and t.is_alive()]
+    if busy:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
 
 
 if __name__ == '__main__':

@@ -177,7 +177,9 @@ class SimNode(SimServices, Node):
         """Stop the stepping loop and the publisher first (before the executor and the node)."""
         with self._sim_lock:
             if self._sim is not None:
-                self._sim.loop.stop()
+                # Short: a spawn still compiling holds the world lock and the loop waits for it;
+                # the process exits anyway (see main), so SIGTERM ends it within 2 s.
+                self._sim.loop.stop(timeout=0.5)
         self._publishing.clear()
         if self._publisher_thread is not None:
             self._publisher_thread.join(2.0)

@@ -33,3 +33,36 @@ def test_sigterm_ends_a_busy_node_cleanly_within_two_seconds(start_node, watcher
         assert code == 0 and time.monotonic() - t0 < 2.0, node.output()
         assert 'Traceback' not in node.output()
         watcher.clock.clear()
+
+
+def test_sigterm_during_a_long_spawn_ends_the_node_within_two_seconds(start_node, client,
+                                                                      tmp_path):
+    """A spawn compiling a 190k-face mesh (about 3 s here) is abandoned, not waited for."""
+    import signal
+    import threading
+    import time
+    import trimesh
+    sphere = trimesh.creation.icosphere(subdivisions=7)
+    big = trimesh.Trimesh(sphere.vertices, sphere.faces[:190_000], process=False)
+    (tmp_path / 'big.stl').write_bytes(big.export(file_type='stl'))
+    (tmp_path / 'big.xml').write_text(
+        '<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody><body name="b">'
+        '<freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+    node = start_node(f"resource_paths:=['{tmp_path}']")
+    client.entities()  # up and answering
+    spawner = threading.Thread(target=lambda: _ignore(lambda: client.spawn(
+        'big', uri=(tmp_path / 'big.xml').as_uri(), position=(0, 2, 1))), daemon=True)
+    spawner.start()
+    time.sleep(0.7)
+    t0 = time.monotonic()
+    node.proc.send_signal(signal.SIGTERM)
+    code = node.proc.wait(10)
+    assert code == 0 and time.monotonic() - t0 < 2.0, node.output()
+    assert 'Traceback' not in node.output()
+
+
+def _ignore(call) -> None:
+    try:
+        call()
+    except Exception:  # noqa: B902 (the node went away mid-call, as intended)
+        pass
