@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test bench bench-gym bench-scale clean
+.PHONY: setup run test bench bench-gym bench-scale bench-flood clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -25,6 +25,9 @@ bench-gym: setup
 
 bench-scale: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/scale.py
+
+bench-flood: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/command_flood.py
 
 clean:
 	rm -rf .venv .build .pytest_cache

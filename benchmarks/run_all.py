@@ -10,6 +10,8 @@ Benchmarks of the world core, each a ratio measured side by side in this one run
    files, and over a MujocoEnv subclass running the same Task code (gym_step.py).
 5. Scale: the node free-running on 1,000 boxes and on the default scene over bare mj_step,
    /tf and marker costs, spawn latency at 1,000 bodies, peak RSS (scale.py).
+6. A 10 kHz joint-command flood: the node's rate under it over its rate without
+   (command_flood.py).
 
 Run with `make bench`; set SIM_BENCH_RT_SEC to shorten the real-time run (default 20 s).
 """
@@ -166,6 +168,8 @@ def main() -> None:
     gym_step.main()
     import scale
     scale.main()
+    import command_flood
+    command_flood.main()
 
 
 if __name__ == '__main__':

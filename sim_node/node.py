@@ -26,6 +26,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from . import params, resources
+from .command_drain import CommandDrain
 from .core.config import WorldConfig
 from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
@@ -98,8 +99,8 @@ class SimNode(SimServices, Node):
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._diagnostics_name = f'{self.get_fully_qualified_name()}: physics'
         self._diagnosed = (None, 0.0)  # (divergence report, wall time) last published
-        self.create_subscription(JointState, 'joint_commands', self._on_joint_command, 10,
-                                 callback_group=self._pub_group)
+        # Taken in batches on a thread, not by the executor (see command_drain).
+        self._commands = CommandDrain(self, 'joint_commands', self._on_joint_command)
         # Publishing runs on a thread of its own, paced to absolute deadlines: rclpy timers
         # woke the executor 150 times a second (each wake rebuilds its wait set while holding
         # the GIL), which cost the physics several percent, and drift below their rate.
@@ -158,6 +159,7 @@ class SimNode(SimServices, Node):
         self._publisher_thread = threading.Thread(target=self._publish_loop,
                                                   name='sim-publisher', daemon=True)
         self._publisher_thread.start()
+        self._commands.start()
 
     def _install(self, world: World, name: str, uri: str, paused: bool = False) -> None:
         loop = SimLoop(world)
@@ -181,6 +183,7 @@ class SimNode(SimServices, Node):
                 # the process exits anyway (see main), so SIGTERM ends it within 2 s.
                 self._sim.loop.stop(timeout=0.5)
         self._publishing.clear()
+        self._commands.stop()
         if self._publisher_thread is not None:
             self._publisher_thread.join(2.0)
 

@@ -154,6 +154,26 @@ def test_position_command_reaches_target_in_joint_states(sim, watch):
     assert set(js.name) == {'left_shoulder', 'left_elbow', 'right_shoulder', 'right_elbow'}
 
 
+def test_a_command_flood_is_coalesced_and_the_latest_command_per_joint_wins(sim, watch):
+    """5,000 commands as fast as they go, two joints interleaved: each ends at its last one."""
+    from sensor_msgs.msg import JointState
+    pub = watch.node.create_publisher(JointState, 'joint_commands', 1000)
+    wait_for(lambda: pub.get_subscription_count() > 0, timeout=10)
+    t0 = sim.entity_state('box_a')['stamp']
+    for i in range(5000):
+        pub.publish(JointState(name=['left_elbow'], position=[0.4 if i % 2 else -0.4]))
+        pub.publish(JointState(name=['right_elbow'], position=[-0.3 if i % 2 else 0.3]))
+    pub.publish(JointState(name=['left_elbow'], position=[-0.7]))  # the last word
+
+    def settled():
+        js = watch.joint_states
+        pos = dict(zip(js.name, js.position)) if js else {}
+        return (abs(pos.get('left_elbow', 9) + 0.7) < 0.03
+                and abs(pos.get('right_elbow', 9) + 0.3) < 0.03)
+    wait_for(settled, timeout=15, interval=0.1)
+    assert sim.entity_state('box_a')['stamp'] > t0  # the simulation kept running
+
+
 def test_set_get_entity_state_round_trip(sim):
     sim.pause()
     sim.set_entity_state('box_b', position=(0.2, 1.0, 0.8),
