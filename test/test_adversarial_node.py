@@ -80,9 +80,11 @@ def assert_intact(sim: SimClient, extra: tuple = ()) -> None:
 def burst(n: int, make_request) -> list:
     """N clients, each on its own node, all calling at once; returns their Result codes."""
     import rclpy
-    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor
     nodes = [rclpy.create_node(f'burst_{i}_{id(make_request):x}') for i in range(n)]
-    executor = MultiThreadedExecutor(num_threads=4)
+    # One thread: rclpy's MultiThreadedExecutor over 50 client nodes lost some responses when
+    # many arrived at once (the requests were served: the entities were gone).
+    executor = SingleThreadedExecutor()
     try:
         srv_type, service = make_request(None)
         clients = [nd.create_client(srv_type, service) for nd in nodes]
@@ -90,7 +92,7 @@ def burst(n: int, make_request) -> list:
             assert c.wait_for_service(timeout_sec=20)
         # A client's response reader may match the server a moment after wait_for_service
         # says the service is there (a DDS race of every ROS 2 client, ros2cli's too): give
-        # discovery that moment, or a first answer can be lost on the client's side.
+        # discovery that moment, or a first answer can be lost on the way back.
         time.sleep(1.0)
         for nd in nodes:
             executor.add_node(nd)

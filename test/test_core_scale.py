@@ -69,3 +69,70 @@ def test_no_lag_is_reported_when_the_factor_is_kept():
     finally:
         loop.stop()
     assert st.achieved_real_time_factor == pytest.approx(1.0, abs=0.02) and st.lag == ''
+
+
+@pytest.fixture
+def slow_source(tmp_path):
+    """Return a model whose 150k-face mesh takes about a second or more to compile."""
+    from sim_node.core import sources
+    import trimesh
+    sphere = trimesh.creation.icosphere(subdivisions=7)
+    big = trimesh.Trimesh(sphere.vertices, sphere.faces[:150_000], process=False)
+    (tmp_path / 'big.stl').write_bytes(big.export(file_type='stl'))
+    (tmp_path / 'big.xml').write_text(
+        '<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody><body name="b">'
+        '<freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+    return sources.from_file(str(tmp_path / 'big.xml'), allowed_roots=[str(tmp_path)])
+
+
+def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping(slow_source):
+    """A 150k-face mesh takes seconds to compile; the loop must not stall for it."""
+    import threading
+    src = slow_source
+    loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
+    loop.start()
+    stalls, done = [0.0], threading.Event()
+
+    def watch() -> None:  # the longest wall time the simulated time stood still
+        last_t, since = loop.latest_snapshot().time, time.monotonic()
+        while not done.is_set():
+            t = loop.latest_snapshot().time
+            now = time.monotonic()
+            if t != last_t:
+                last_t, since = t, now
+            stalls[0] = max(stalls[0], now - since)
+            time.sleep(0.002)
+    watcher = threading.Thread(target=watch)
+    try:
+        time.sleep(0.3)
+        watcher.start()
+        t0 = time.monotonic()
+        loop.world.spawn('big', src, position=[0, 2, 1])
+        took = time.monotonic() - t0
+        done.set()
+        watcher.join()
+        assert took > 0.5  # slow enough to mean something
+        assert stalls[0] < 0.3, f'the loop stood still {stalls[0]:.2f} s of a {took:.2f} s spawn'
+    finally:
+        done.set()
+        loop.stop()
+
+
+def test_an_edit_during_a_slow_spawn_is_kept_and_the_spawn_lands_on_the_new_world(slow_source):
+    """A delete while the spawn compiles: the spawn starts over; nothing deleted comes back."""
+    import threading
+
+    from sim_node.core import sources
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('victim', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
+    w.command(['left_elbow'], [0.5], 'position')
+    spawner = threading.Thread(target=lambda: w.spawn('big', slow_source, position=[0, 2, 1]))
+    spawner.start()
+    time.sleep(0.3)  # compiling now
+    w.delete('victim')
+    w.step(200)  # and the world moves on meanwhile
+    spawner.join()
+    names = [e.name for e in w.entities()]
+    assert 'big' in names and 'victim' not in names
+    w.step(300)  # the command held through both edits
+    assert w.get_joint_states()['left_elbow'][0] == pytest.approx(0.5, abs=0.02)

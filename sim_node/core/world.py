@@ -10,14 +10,16 @@ divergence check to :mod:`.guard`, spec edits to :mod:`.editor`, state reads and
 import contextlib
 import ctypes
 import logging
+import threading
 from typing import Callable, Iterator, Optional, Sequence
+import warnings
 
 import mujoco
 import numpy as np
 
 from . import checks, editor, guard
 from . import index as model_index
-from . import sources, state
+from . import sources, state, transfer
 from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
@@ -76,6 +78,7 @@ class World(StateWrites, WorldEdits):
         self.config = config
         self.source = source
         self._lock_cm = WorldLock()
+        self._spawn_lock = threading.Lock()  # spawns compile outside the world lock, in turn
         self._lock = self._lock_cm.lock
         self._control = Control(config.kp, config.kd)
         self._guard = DivergenceGuard()
@@ -488,6 +491,36 @@ class World(StateWrites, WorldEdits):
 
     # ---------------------------------------------------------------- model edits
 
+    def _compile_outside_lock(self, trial: mujoco.MjSpec,
+                              edit: Callable[[mujoco.MjSpec], object]) -> mujoco.MjModel:
+        """Apply `edit` to `trial` (a copy of the spec) and compile it; no lock is held."""
+        edit(trial)
+        self._size_arena(trial)
+        with warnings.catch_warnings(record=True) as conflicts:
+            warnings.simplefilter('always')
+            try:
+                model = trial.compile()
+            except ValueError as exc:
+                raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
+        for w in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
+            log.info('the world keeps its own settings: %s', ' '.join(str(w.message).split()))
+        return model
+
+    def _commit_compiled_locked(self, trial: mujoco.MjSpec, model: mujoco.MjModel,
+                                check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]],
+                                spawned: dict) -> None:
+        """
+        Make a spec compiled outside the lock the world, carrying the live state over by names.
+
+        The world must not have changed since `trial` was copied (same generation): the caller
+        checks. A failed check leaves the world exactly as it was.
+        """
+        data = transfer.transfer(self._model, self._data, model)
+        mujoco.mj_forward(model, data)
+        if check is not None:
+            check(model, data)
+        self._switch_locked(trial, model, data, spawned, None, 0)
+
     def _edit_locked(self, edit: Callable[[mujoco.MjSpec], object],
                      check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]] = None,
                      spawned: Optional[dict] = None, overrides: Optional[dict] = None,
@@ -511,6 +544,11 @@ class World(StateWrites, WorldEdits):
             raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
         if check is not None:
             check(model, data)
+        self._switch_locked(trial, model, data, spawned, overrides, removed)
+
+    def _switch_locked(self, trial: mujoco.MjSpec, model: mujoco.MjModel, data: mujoco.MjData,
+                       spawned: Optional[dict], overrides: Optional[dict], removed: int) -> None:
+        """Switch the world to a new spec, model and data together, or not at all."""
         saved = (self._spec, self._spawned, self._overrides, self._generation, self._model,
                  self._data, self._control.held_copy())
         try:

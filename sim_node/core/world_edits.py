@@ -7,6 +7,7 @@ validates, and hands a spec edit to ``World._edit_locked`` (the recompile and ge
 ``world.py``).
 """
 
+from types import SimpleNamespace
 from typing import Optional, Sequence
 
 import mujoco
@@ -18,6 +19,8 @@ from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, I
                      NameNotUniqueError)
 from .records import ROBOT, STATIC
 
+#: Times a spawn compiles outside the lock before it does so under it (see World.spawn).
+SPAWN_ATTEMPTS = 3
 ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '
                 'max_bodies): delete entities first, or raise the limit')
 ERR_DUPLICATE = 'an entity or body named {name!r} exists; pick another name or allow renaming'
@@ -75,36 +78,60 @@ class WorldEdits:
             checks.check_name(name)
         overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
                       else allow_interpenetration)
-        with self._locked():
-            self._check_capacity_locked(len(source.spec.bodies) - 1)
-            if not name or name in self._index.body_ids:
-                if not allow_renaming:
-                    raise NameNotUniqueError(ERR_DUPLICATE.format(name=name))
-                name = self._unique_name_locked(name or source.kind)
-            if reference:
-                pos, q = quat.from_frame(*self._pose_frame_locked(reference), pos, q)
-            meta = {'assets': tuple(source.assets), 'description': source.description}
+        # The compile, the slow part, runs outside the world lock: the loop steps and /clock
+        # goes on meanwhile. Spawns take turns; if another edit changed the world in the
+        # meantime (a delete, say), the spawn starts over from the new world.
+        with self._spawn_lock:
+            for _ in range(SPAWN_ATTEMPTS):
+                with self._locked():
+                    generation = self._generation
+                    plan = self._plan_spawn_locked(name, source, pos, q, reference,
+                                                   allow_renaming, overlap_ok)
+                    trial = self._spec.copy()
+                model = self._compile_outside_lock(trial, plan.edit)
+                with self._locked():
+                    if self._generation == generation:
+                        self._commit_compiled_locked(trial, model, plan.check, plan.spawned)
+                        return plan.name
+            with self._locked():  # the world kept changing: do it all under the lock
+                plan = self._plan_spawn_locked(name, source, pos, q, reference, allow_renaming,
+                                               overlap_ok)
+                self._edit_locked(plan.edit, plan.check, spawned=plan.spawned)
+                return plan.name
 
-            def edit(spec: mujoco.MjSpec) -> None:
-                (meta['frame'], meta['bodies'], root,
-                 meta['defaults']) = editor.attach(spec, name, source, pos, q)
-                # A URDF's root link keeps a frame of its own name (see ModelInfo.body_alias).
-                meta['root_link'] = f'{name}/{root}' if source.kind == 'urdf' else ''
-                if self._default_friction is not None or self._default_restitution is not None:
-                    geoms = [g.name for b in meta['bodies']
-                             for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
-                    editor.apply_contact(spec, geoms, *self._contact_of({}))
+    def _plan_spawn_locked(self, name: str, source: sources.SpawnSource, pos: np.ndarray,
+                           q: np.ndarray, reference: str, allow_renaming: bool,
+                           overlap_ok: bool) -> SimpleNamespace:
+        """Return the checked name, the spec edit, the overlap check and the new table."""
+        self._check_capacity_locked(len(source.spec.bodies) - 1)
+        if not name or name in self._index.body_ids:
+            if not allow_renaming:
+                raise NameNotUniqueError(ERR_DUPLICATE.format(name=name))
+            name = self._unique_name_locked(name or source.kind)
+        if reference:
+            pos, q = quat.from_frame(*self._pose_frame_locked(reference), pos, q)
+        meta = {'assets': tuple(source.assets), 'description': source.description}
+        contact = (self._contact_of({}) if self._default_friction is not None
+                   or self._default_restitution is not None else None)
 
-            def check(model: mujoco.MjModel, data: mujoco.MjData) -> None:
-                hit = editor.find_overlap(model, data, name,
-                                          self.config.interpenetration_tolerance)
-                if hit is not None:
-                    raise InvalidPoseError(ERR_INTERPENETRATION.format(
-                        name=name, other=hit[0], depth=hit[1]))
+        def edit(spec: mujoco.MjSpec) -> None:
+            (meta['frame'], meta['bodies'], root,
+             meta['defaults']) = editor.attach(spec, name, source, pos, q)
+            # A URDF's root link keeps a frame of its own name (see ModelInfo.body_alias).
+            meta['root_link'] = f'{name}/{root}' if source.kind == 'urdf' else ''
+            if contact is not None:
+                geoms = [g.name for b in meta['bodies']
+                         for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
+                editor.apply_contact(spec, geoms, *contact)
 
-            self._edit_locked(edit, None if overlap_ok else check,
-                              spawned={**self._spawned, name: meta})
-            return name
+        def check(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+            hit = editor.find_overlap(model, data, name, self.config.interpenetration_tolerance)
+            if hit is not None:
+                raise InvalidPoseError(ERR_INTERPENETRATION.format(
+                    name=name, other=hit[0], depth=hit[1]))
+
+        return SimpleNamespace(name=name, edit=edit, check=None if overlap_ok else check,
+                               spawned={**self._spawned, name: meta})
 
     def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
                  position: Sequence[float] = (0.0, 0.0, 0.0),
