@@ -96,12 +96,43 @@ def start_node():
         p.close()
 
 
+@pytest.fixture(scope='module')
+def module_client(node, rclpy_context):
+    """One client for a module that starts its own `node`: discovery happens once."""
+    from sim_node.client import SimClient
+    c = SimClient(timeout_sec=30)
+    yield c
+    c.close()
+
+
+@pytest.fixture
+def sim(module_client):
+    """Return the module's client with its world reset (spawned entities too) and playing."""
+    from simulation_interfaces.msg import SimulationState
+    module_client.reset()
+    if module_client.state() != SimulationState.STATE_PLAYING:
+        module_client.play()
+    return module_client
+
+
 @pytest.fixture
 def client(rclpy_context):
     from sim_node.client import SimClient
     c = SimClient()
     yield c
     c.close()
+
+
+def write_mesh_model(folder: Path, faces: int) -> Path:
+    """Write an MJCF model of one mesh with `faces` faces (slow to compile) into `folder`."""
+    import trimesh
+    sphere = trimesh.creation.icosphere(subdivisions=7)  # 327,680 faces to cut from
+    mesh = trimesh.Trimesh(sphere.vertices, sphere.faces[:faces], process=False)
+    (folder / 'big.stl').write_bytes(mesh.export(file_type='stl'))
+    (folder / 'big.xml').write_text(
+        '<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody><body name="b">'
+        '<freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+    return folder / 'big.xml'
 
 
 def wait_for(predicate, timeout: float = 10.0, interval: float = 0.05):

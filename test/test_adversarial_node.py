@@ -45,21 +45,6 @@ def node(files):
     assert code == 0, proc.output()
 
 
-@pytest.fixture(scope='module')
-def client(node, rclpy_context):
-    c = SimClient(timeout_sec=30)
-    yield c
-    c.close()
-
-
-@pytest.fixture
-def sim(client):
-    client.reset()
-    if client.state() != SimulationState.STATE_PLAYING:
-        client.play()
-    return client
-
-
 def code_of(call) -> int:
     try:
         call()

@@ -74,15 +74,10 @@ def test_no_lag_is_reported_when_the_factor_is_kept():
 @pytest.fixture
 def slow_source(tmp_path):
     """Return a model whose 150k-face mesh takes about a second or more to compile."""
+    from conftest import write_mesh_model
     from sim_node.core import sources
-    import trimesh
-    sphere = trimesh.creation.icosphere(subdivisions=7)
-    big = trimesh.Trimesh(sphere.vertices, sphere.faces[:150_000], process=False)
-    (tmp_path / 'big.stl').write_bytes(big.export(file_type='stl'))
-    (tmp_path / 'big.xml').write_text(
-        '<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody><body name="b">'
-        '<freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
-    return sources.from_file(str(tmp_path / 'big.xml'), allowed_roots=[str(tmp_path)])
+    model = write_mesh_model(tmp_path, 150_000)
+    return sources.from_file(str(model), allowed_roots=[str(tmp_path)])
 
 
 def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping(slow_source):

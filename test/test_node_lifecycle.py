@@ -41,17 +41,12 @@ def test_sigterm_during_a_long_spawn_ends_the_node_within_two_seconds(start_node
     import signal
     import threading
     import time
-    import trimesh
-    sphere = trimesh.creation.icosphere(subdivisions=7)
-    big = trimesh.Trimesh(sphere.vertices, sphere.faces[:190_000], process=False)
-    (tmp_path / 'big.stl').write_bytes(big.export(file_type='stl'))
-    (tmp_path / 'big.xml').write_text(
-        '<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody><body name="b">'
-        '<freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+    from conftest import write_mesh_model
+    model = write_mesh_model(tmp_path, 190_000)
     node = start_node(f"resource_paths:=['{tmp_path}']")
     client.entities()  # up and answering
     spawner = threading.Thread(target=lambda: _ignore(lambda: client.spawn(
-        'big', uri=(tmp_path / 'big.xml').as_uri(), position=(0, 2, 1))), daemon=True)
+        'big', uri=model.as_uri(), position=(0, 2, 1))), daemon=True)
     spawner.start()
     time.sleep(0.7)
     t0 = time.monotonic()

@@ -27,22 +27,6 @@ def node():
     assert code == 0, proc.output()
 
 
-@pytest.fixture(scope='module')
-def client(node, rclpy_context):
-    """One client for the module: discovery happens once, not per test."""
-    c = SimClient(timeout_sec=30)
-    yield c
-    c.close()
-
-
-@pytest.fixture
-def sim(client):
-    client.reset()  # scope default: everything, spawned entities included
-    if client.state() != SimulationState.STATE_PLAYING:
-        client.play()
-    return client
-
-
 @pytest.fixture
 def watch(node, rclpy_context):
     w = Watcher()

@@ -83,6 +83,13 @@ def parse(text: str) -> ET.Element:
     return root
 
 
+def inside_roots(path, roots: Sequence[str]) -> bool:
+    """Return True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
+    real = Path(os.path.realpath(path))
+    reals = [Path(os.path.realpath(r)) for r in roots]
+    return any(real == r or r in real.parents for r in reals)
+
+
 def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[Sequence[str]],
             budget: Budget) -> dict:
     """
@@ -180,8 +187,7 @@ class _Reader:
     """Reads files for one model: checked, budgeted, each file once."""
 
     def __init__(self, allowed_roots: Optional[Sequence[str]], budget: Budget):
-        self.roots = ([Path(os.path.realpath(r)) for r in allowed_roots]
-                      if allowed_roots is not None else None)
+        self.roots = allowed_roots
         self.budget = budget
         self.assets: dict = {}
         self._names: dict = {}  # real path -> asset name
@@ -208,7 +214,7 @@ class _Reader:
         if '..' in Path(value).parts:
             raise MissingAssetsError(f"'..' is not allowed in file names: {value!r}")
         for path in candidates:
-            if not self._inside(path):
+            if self.roots is not None and not inside_roots(path, self.roots):
                 raise MissingAssetsError(ERR_OUTSIDE.format(value=value))
             try:
                 path.lstat()
@@ -216,12 +222,6 @@ class _Reader:
             except (OSError, ValueError):
                 continue
         raise MissingAssetsError(ERR_NOT_FOUND.format(value=value))
-
-    def _inside(self, path: Path) -> bool:
-        if self.roots is None:
-            return True
-        real = Path(os.path.realpath(path))
-        return any(real == r or r in real.parents for r in self.roots)
 
     def _load_checked(self, value: str, path: Path) -> bytes:
         limit = self.budget.max_file_bytes

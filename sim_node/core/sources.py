@@ -10,7 +10,6 @@ touches a live world.
 from dataclasses import dataclass, field
 import logging
 import math
-import os
 from pathlib import Path
 import stat
 from typing import Optional, Sequence
@@ -21,6 +20,7 @@ import mujoco
 import numpy as np
 
 from . import assets
+from .assets import inside_roots  # noqa: F401 (part of this module's interface)
 from .config import WorldConfig
 from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError, ResourceParseError,
                      UnsupportedAssetsError, UnsupportedFormatError)
@@ -98,13 +98,6 @@ class SpawnSource:
     def __post_init__(self):
         if self.kind == 'mjcf':
             warn_radian_like_ranges(self.spec, self.description or 'the model')
-
-
-def inside_roots(path: str, roots: Sequence[str]) -> bool:
-    """Return True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
-    real = Path(os.path.realpath(path))
-    reals = [Path(os.path.realpath(r)) for r in roots]
-    return any(real == r or r in real.parents for r in reals)
 
 
 def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
