@@ -32,6 +32,7 @@ from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
 from .core.records import EFFORT, POSITION, VELOCITY
 from .core.world import World
+from .perception import Perception
 from .services import ERR_NO_WORLD, Sim, SimServices
 
 NODE_NAME = 'sim'
@@ -110,6 +111,8 @@ class SimNode(SimServices, Node):
         self._publisher_thread: Optional[threading.Thread] = None
         self._housekeeping_timer = self.create_timer(0.2, self._housekeeping,
                                                      callback_group=self._pub_group)
+        self.perception = Perception(self, params.perception_config(self), self._world_frame,
+                                     self._frame_prefix, lambda: self._sim)
         self._make_services()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -160,6 +163,7 @@ class SimNode(SimServices, Node):
                                                   name='sim-publisher', daemon=True)
         self._publisher_thread.start()
         self._commands.start()
+        self.perception.start()
 
     def _install(self, world: World, name: str, uri: str, paused: bool = False) -> None:
         loop = SimLoop(world)
@@ -183,6 +187,7 @@ class SimNode(SimServices, Node):
                 # the process exits anyway (see main), so SIGTERM ends it within 2 s.
                 self._sim.loop.stop(timeout=0.5)
         self._publishing.clear()
+        self.perception.stop()
         self._commands.stop()
         if self._publisher_thread is not None:
             self._publisher_thread.join(2.0)
@@ -247,8 +252,9 @@ class SimNode(SimServices, Node):
         self._frames = convert.frame_names(info, self._world_frame, self._frame_prefix)
         self._tf_template = convert.moving_tf_template(info, self._moving, self._frames,
                                                        self._frame_prefix)
-        self._tf_static_pub.publish(convert.static_transforms(info, sim_time, self._frames,
-                                                              self._frame_prefix))
+        static = convert.static_transforms(info, sim_time, self._frames, self._frame_prefix)
+        static.transforms += self.perception.static_transforms(info, sim_time, self._frames)
+        self._tf_static_pub.publish(static)  # one latched message holds every static frame
         self._marker_pub.publish(markers.markers(info, sim_time, self._frames))
 
     def _publish_joint_states(self) -> None:
@@ -258,6 +264,8 @@ class SimNode(SimServices, Node):
         snap = sim.loop.latest_snapshot()
         if snap.info.joint_names:
             self._joint_pub.publish(convert.joint_state(snap.info, snap))
+        if snap.info.sensors:
+            self.perception.publish_sensors(snap)
 
     def _sync_paused_parameter(self) -> None:
         """

@@ -5,13 +5,14 @@ Declared from :class:`~sim_node.core.config.WorldConfig` with descriptors (descr
 read-only where a change needs a restart).
 """
 
+import dataclasses
 from typing import List
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from .core.config import WorldConfig
+from .core.config import PerceptionConfig, WorldConfig
 
 
 def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
@@ -28,7 +29,8 @@ def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
 #: Parameters of type double: an integer given for one (``real_time_factor:=0``, ``ros2 param
 #: set /sim real_time_factor 1``) is taken as that number, as users type them.
 DOUBLES = ('real_time_factor', 'timestep', 'max_sim_time', 'tf_rate_hz', 'joint_states_rate_hz',
-           'kp', 'kd')
+           'kp', 'kd', 'camera_rate_hz', 'lidar_rate_hz', 'lidar_angle_min', 'lidar_angle_max',
+           'lidar_range_min', 'lidar_range_max')
 
 
 def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
@@ -70,7 +72,7 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('tf_rate_hz', 100.0, d(
         'rate of /clock and /tf (wall Hz)', read_only=True, fmin=1, fmax=1000))
     node.declare_parameter('joint_states_rate_hz', 50.0, d(
-        'rate of joint_states (wall Hz)', read_only=True, fmin=1, fmax=1000))
+        'rate of joint_states and sensor messages (wall Hz)', read_only=True, fmin=1, fmax=1000))
     node.declare_parameter('world_frame', 'world', d(
         'TF frame of the MuJoCo world body', read_only=True))
     node.declare_parameter('frame_prefix', '', d(
@@ -94,6 +96,48 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('max_bodies', c.max_bodies, d(
         'most bodies the world may hold; a spawn past it is refused', read_only=True,
         imin=2, imax=100_000))
+    _declare_perception(node)
+
+
+def _declare_perception(node: Node) -> None:
+    c = PerceptionConfig()
+    d = _descriptor
+    ro = {'read_only': True}
+    node.declare_parameter('cameras', list(c.cameras), d(
+        "cameras to publish (shell-style name patterns; one that matches nothing, e.g. 'none', "
+        'turns cameras off)', **ro))
+    node.declare_parameter('camera_width', c.camera_width, d(
+        'camera image width (pixels)', imin=1, imax=4096, **ro))
+    node.declare_parameter('camera_height', c.camera_height, d(
+        'camera image height (pixels)', imin=1, imax=4096, **ro))
+    node.declare_parameter('camera_rate_hz', c.camera_rate_hz, d(
+        'camera images per simulated second', fmin=0.01, fmax=1000, **ro))
+    node.declare_parameter('camera_depth', c.camera_depth, d(
+        'also publish depth images (32FC1, metres)', **ro))
+    node.declare_parameter('lidar_sites', list(c.lidar_sites), d(
+        'sites that carry a planar laser scanner (shell-style name patterns)', **ro))
+    node.declare_parameter('lidar_rate_hz', c.lidar_rate_hz, d(
+        'laser scans per simulated second', fmin=0.01, fmax=1000, **ro))
+    node.declare_parameter('lidar_angle_min', c.lidar_angle_min, d(
+        'first ray of a scan, about the site z axis from its x axis (rad)',
+        fmin=-6.3, fmax=6.3, **ro))
+    node.declare_parameter('lidar_angle_max', c.lidar_angle_max, d(
+        'last ray of a scan (rad)', fmin=-6.3, fmax=6.3, **ro))
+    node.declare_parameter('lidar_samples', c.lidar_samples, d(
+        'rays per scan', imin=1, imax=100_000, **ro))
+    node.declare_parameter('lidar_range_min', c.lidar_range_min, d(
+        'closer hits read -inf (m)', fmin=0, fmax=1e4, **ro))
+    node.declare_parameter('lidar_range_max', c.lidar_range_max, d(
+        'farther read +inf (m)', fmin=1e-3, fmax=1e4, **ro))
+
+
+def perception_config(node: Node) -> PerceptionConfig:
+    """Return the cameras and sensors configuration of the node's parameters."""
+    names = [f.name for f in dataclasses.fields(PerceptionConfig)]
+    values = {n: node.get_parameter(n).value for n in names}
+    values['cameras'] = tuple(values['cameras'])
+    values['lidar_sites'] = tuple(values['lidar_sites'])
+    return PerceptionConfig(**values)
 
 
 def world_config(node: Node) -> WorldConfig:

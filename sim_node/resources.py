@@ -33,7 +33,7 @@ def installed_scenes_dir() -> Path:
     try:
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory(PACKAGE)) / 'scenes'
-    except (ImportError, LookupError, ValueError):
+    except (ImportError, LookupError, ValueError, OSError):  # no ament index: a source tree
         return source_scenes_dir()
 
 

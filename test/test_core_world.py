@@ -102,7 +102,7 @@ def test_spawned_model_brings_its_actuators_sensors_and_excludes_and_delete_remo
     assert world.entity('arm').category == 'robot'
     world.delete('arm')
     with world.locked() as (m, _):
-        assert m.nu == 4 and m.nsensor == 0 and m.nexclude == 0
+        assert m.nu == 4 and m.nsensor == 3 and m.nexclude == 0  # the base's IMU
 
 
 @pytest.mark.parametrize('make_source, error', [

@@ -64,7 +64,7 @@ def test_core_imports_no_ros():
 #: rosdep keys of the Python packages the code imports (ROS packages are their own keys).
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'mujoco': 'python3-mujoco-pip',
                'trimesh': 'python3-trimesh-pip', 'gymnasium': 'python3-gymnasium-pip',
-               'regex': 'python3-regex', 'defusedxml': 'python3-defusedxml'}
+               'regex': 'python3-regex', 'defusedxml': 'python3-defusedxml', 'PIL': 'python3-pil'}
 
 
 def test_package_xml_declares_exactly_what_the_code_imports():
@@ -81,7 +81,8 @@ def test_package_xml_declares_exactly_what_the_code_imports():
     assert 'launch_ros' in imported
     third_party = {m for m in imported - set(sys.stdlib_module_names)
                    if m not in ('sim_node', 'msg_adapters')}
-    wanted = {ROSDEP_KEYS.get(m, m) for m in third_party} | {'rviz2'}  # the launch file runs it
+    # The launch file runs rviz2; MuJoCo's headless GL contexts import PyOpenGL.
+    wanted = {ROSDEP_KEYS.get(m, m) for m in third_party} | {'rviz2', 'python3-opengl'}
     root = ET.parse(ROOT / 'package.xml').getroot()
     declared = {e.text for e in root.iter('exec_depend')}
     assert declared == wanted, (f'undeclared: {sorted(wanted - declared)}, '

@@ -51,3 +51,30 @@ class WorldConfig:
     #: grows with the square of the bodies (1.8 GB at 1,000); a resting box needs about 7 kB.
     arena_base_bytes: int = 16 * 2 ** 20
     arena_bytes_per_body: int = 64 * 2 ** 10
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    """
+    What the node renders and senses: cameras, laser scanners, sensor messages.
+
+    Rates are in simulated Hz: a camera at 10 Hz gives an image per 0.1 s of simulated time
+    (fewer when the renderer cannot keep up; the physics never waits for it).
+    """
+
+    #: Camera names to publish, shell-style patterns; a pattern that matches nothing (e.g.
+    #: 'none') turns cameras off.
+    cameras: tuple = ('*',)
+    camera_width: int = 320
+    camera_height: int = 240
+    camera_rate_hz: float = 10.0
+    #: Also publish depth images (32FC1, metres along the optical axis).
+    camera_depth: bool = True
+    #: Sites that carry a laser scanner, shell-style patterns on site names.
+    lidar_sites: tuple = ('*lidar*',)
+    lidar_rate_hz: float = 10.0
+    lidar_angle_min: float = -3.141592653589793
+    lidar_angle_max: float = 3.141592653589793
+    lidar_samples: int = 360
+    lidar_range_min: float = 0.05
+    lidar_range_max: float = 10.0

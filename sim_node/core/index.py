@@ -12,6 +12,7 @@ from typing import Iterable
 import mujoco
 import numpy as np
 
+from . import devices
 from .errors import NotFoundError
 from .records import (DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT,
                       STATIC, VELOCITY)
@@ -117,7 +118,8 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
         generation=generation, timestep=float(m.opt.timestep), body_names=names,
         body_parent=parent, body_root=root_of, body_has_joint=m.body_jntnum > 0,
         body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
-        body_alias=tuple(alias), joint_names=jnames, geoms=_geom_visuals(m), entities=entities)
+        body_alias=tuple(alias), joint_names=jnames, geoms=_geom_visuals(m), entities=entities,
+        cameras=devices.cameras(m), sensors=devices.sensors(m), sites=devices.sites(m))
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

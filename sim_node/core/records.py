@@ -56,6 +56,62 @@ class GeomVisual:
 
 
 @dataclass(frozen=True)
+class CameraSpec:
+    """
+    A camera of the model (MuJoCo's convention: looks down its -z axis, y up).
+
+    :param name: its MuJoCo name (a spawned entity's carry ``<entity>/``); unnamed cameras are
+        called ``camera<id>``.
+    :param pos: (3,) in its body's frame; likewise `quat_wxyz` (4,).
+    :param fixed: it keeps that pose in its body (MuJoCo's ``mode="fixed"``); tracking cameras
+        move relative to their body.
+    """
+
+    name: str
+    cam_id: int
+    body: int
+    pos: tuple
+    quat_wxyz: tuple
+    fovy_deg: float
+    fixed: bool
+    orthographic: bool = False
+
+
+@dataclass(frozen=True)
+class SiteSpec:
+    """A site that carries a sensor or a laser scanner: a frame fixed in its body."""
+
+    name: str
+    site_id: int
+    body: int
+    pos: tuple  # (3,) in the body frame
+    quat_wxyz: tuple  # (4,)
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """
+    One group of MuJoCo sensors published as one message.
+
+    :param kind: 'imu' (framequat, gyro, accelerometer on one site), 'wrench' (force and
+        torque on one site), 'range' (a rangefinder), or 'generic' (any other sensor).
+    :param adr: name -> (start, size) in ``sensordata``; for 'imu' the names are 'quat',
+        'gyro', 'accelerometer' (any may be missing), for 'wrench' 'force' and 'torque', for
+        'range' and 'generic' 'value'.
+    :param site: the site the values are measured in (None for generic sensors).
+    :param cutoff: a rangefinder's largest distance (0: none).
+    :param type_name: MuJoCo's sensor type, e.g. 'touch'.
+    """
+
+    kind: str
+    name: str
+    adr: dict
+    site: Optional[SiteSpec] = None
+    cutoff: float = 0.0
+    type_name: str = ''
+
+
+@dataclass(frozen=True)
 class ModelInfo:
     """Names and structure of one compiled model; replaced on every recompile (generation)."""
 
@@ -74,6 +130,9 @@ class ModelInfo:
     joint_names: tuple  # hinge and slide joints only, in model order
     geoms: tuple  # GeomVisual for every visible geom
     entities: tuple  # EntityRecord
+    cameras: tuple = ()  # CameraSpec
+    sensors: tuple = ()  # SensorSpec
+    sites: tuple = ()  # SiteSpec of every named site
 
 
 @dataclass(frozen=True)
@@ -98,6 +157,7 @@ class Snapshot:
     body_xquat_wxyz: np.ndarray
     seq: int = 0
     info: Optional['ModelInfo'] = None  # names and structure of `generation`
+    sensordata: Optional[np.ndarray] = None  # (nsensordata,) MuJoCo's sensor values
 
 
 @dataclass(frozen=True)

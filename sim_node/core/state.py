@@ -28,7 +28,7 @@ def snapshot(data: mujoco.MjData, index: ModelIndex, step: int, seq: int) -> Sna
                     joint_velocity=data.qvel[dof],
                     joint_effort=data.qfrc_actuator[dof] + data.qfrc_applied[dof],
                     body_xpos=data.xpos.copy(), body_xquat_wxyz=data.xquat.copy(), seq=seq,
-                    info=index.info)
+                    info=index.info, sensordata=data.sensordata.copy())
 
 
 def entity_state(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecord,

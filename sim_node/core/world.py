@@ -11,7 +11,7 @@ import contextlib
 import ctypes
 import logging
 import threading
-from typing import Callable, Iterator, Optional, Sequence
+from typing import Callable, Iterator, Optional, Sequence, TypeVar
 import warnings
 
 import mujoco
@@ -32,6 +32,8 @@ from .records import (EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_
                       RESET_STATE, RESET_TIME, Snapshot)
 from .world_edits import WorldEdits
 from .world_writes import StateWrites
+
+T = TypeVar('T')
 
 log = logging.getLogger(__name__)
 
@@ -148,6 +150,19 @@ class World(StateWrites, WorldEdits):
             self._cached = None  # the caller may change anything
             yield self._model, self._data
             self._stale_kinematics = self._stale_dynamics = True
+
+    def observe(self, read: Callable[[mujoco.MjModel, mujoco.MjData, int], T]) -> T:
+        """
+        Call ``read(model, data, generation)`` under the world lock with poses up to date.
+
+        For sensors that look at the world (cameras, ray casts): body, geom, site and camera
+        poses describe the current state. `read` must change nothing and be quick: the loop
+        waits meanwhile.
+        """
+        with self._locked():
+            self._kinematics_locked()
+            mujoco.mj_camlight(self._model, self._data)
+            return read(self._model, self._data, self._index.generation)
 
     # ---------------------------------------------------------------- introspection
 

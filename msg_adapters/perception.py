@@ -1,0 +1,220 @@
+"""
+Pure conversions for what the robot sees and feels.
+
+Images, camera info, IMU, wrench, range, laser scans, generic sensor values, and the TF frames
+they are given in.
+
+Frames of cameras and sensor sites are named by the one frame rule (see
+:func:`msg_adapters.convert.frame_names`): ``<entity>/<element>`` for an element of an entity,
+``<element>`` on the world body; a camera's optical frame (REP 103: z forward, x right, y
+down) is ``<that>_optical_frame``, a rangefinder's ``<sensor>`` frame has x along the ray, as
+sensor_msgs/Range measures.
+"""
+
+import array
+import math
+import re
+from typing import Optional, Sequence
+
+from geometry_msgs.msg import WrenchStamped
+import numpy as np
+from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, Range
+from sim_node.core import quat
+from sim_node.core.cameras import intrinsics, OPTICAL_FROM_MUJOCO_WXYZ
+from sim_node.core.lidar import LaserConfig, LaserReading
+from sim_node.core.records import CameraSpec, ModelInfo, SensorSpec, SiteSpec
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from tf2_msgs.msg import TFMessage
+
+from .convert import _transform, quat_to_msg, stamp, vec
+
+#: A rangefinder's frame from its site's: MuJoCo measures along the site's z, Range along x
+#: (a quarter turn about y, w x y z).
+RANGE_FROM_SITE_WXYZ = (math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0)
+_NOT_IN_NAME = re.compile(r'[^A-Za-z0-9_/]')
+
+
+def topic_token(name: str) -> str:
+    """Turn a MuJoCo name into valid ROS name tokens (``a b/1x`` -> ``a_b/_1x``)."""
+    parts = [p for p in _NOT_IN_NAME.sub('_', name).split('/') if p]
+    return '/'.join('_' + p if p[0].isdigit() else p for p in parts) or '_'
+
+
+def element_frame(info: ModelInfo, body: int, name: str, prefix: str = '') -> str:
+    """Return the TF frame of an element (camera, site, sensor) called `name` on `body`."""
+    root = int(info.body_root[body])
+    if root != 0 and not name.startswith(info.body_names[root] + '/'):
+        name = f'{info.body_names[root]}/{name}'
+    return prefix + name
+
+
+def camera_frame(info: ModelInfo, cam: CameraSpec, prefix: str = '') -> str:
+    return element_frame(info, cam.body, cam.name, prefix) + '_optical_frame'
+
+
+def range_frame(info: ModelInfo, sensor: SensorSpec, prefix: str = '') -> str:
+    return element_frame(info, sensor.site.body, sensor.name, prefix)
+
+
+def site_frame(info: ModelInfo, site: SiteSpec, prefix: str = '') -> str:
+    return element_frame(info, site.body, site.name, prefix)
+
+
+def device_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
+                      cameras: Sequence[CameraSpec], sites: Sequence[SiteSpec],
+                      ranges: Sequence[SensorSpec], prefix: str = '') -> list:
+    """
+    Return the fixed frames of devices in their bodies, for /tf_static.
+
+    Fixed cameras' optical frames, sensor and scanner sites, rangefinders.
+
+    :param frames: (nbody,) body frames from :func:`msg_adapters.convert.frame_names`.
+    """
+    t = stamp(sim_time)
+    out = []
+    for cam in cameras:
+        if cam.fixed:
+            q = quat.mul(np.asarray(cam.quat_wxyz), np.asarray(OPTICAL_FROM_MUJOCO_WXYZ))
+            out.append(_transform(frames[cam.body], camera_frame(info, cam, prefix),
+                                  cam.pos, q, t))
+    seen = set()
+    for site in sites:
+        if site.site_id not in seen:
+            seen.add(site.site_id)
+            out.append(_transform(frames[site.body], site_frame(info, site, prefix),
+                                  site.pos, site.quat_wxyz, t))
+    for sensor in ranges:
+        q = quat.mul(np.asarray(sensor.site.quat_wxyz), np.asarray(RANGE_FROM_SITE_WXYZ))
+        out.append(_transform(frames[sensor.site.body], range_frame(info, sensor, prefix),
+                              sensor.site.pos, q, t))
+    return out
+
+
+def moving_camera_tf(frame: str, world_frame: str, pos, q_wxyz, sim_time: float) -> TFMessage:
+    """Return a tracking camera's optical frame in the world, at the time of its image."""
+    return TFMessage(transforms=[_transform(world_frame, frame, pos, q_wxyz, stamp(sim_time))])
+
+
+def image(rgb: np.ndarray, sim_time: float, frame: str) -> Image:
+    """(h, w, 3) uint8 -> sensor_msgs/Image rgb8."""
+    h, w = rgb.shape[:2]
+    msg = Image(height=h, width=w, encoding='rgb8', is_bigendian=0, step=3 * w)
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    msg.data = array.array('B', rgb.tobytes())
+    return msg
+
+
+def depth_image(depth: np.ndarray, sim_time: float, frame: str) -> Image:
+    """(h, w) float32 metres -> sensor_msgs/Image 32FC1 (little-endian, as on this machine)."""
+    h, w = depth.shape
+    msg = Image(height=h, width=w, encoding='32FC1', is_bigendian=0, step=4 * w)
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    msg.data = array.array('B', depth.astype('<f4').tobytes())
+    return msg
+
+
+def camera_info(cam: CameraSpec, width: int, height: int, sim_time: float,
+                frame: str) -> CameraInfo:
+    """Pinhole model of a MuJoCo camera: K and P from fovy, no distortion (plumb_bob, zeros)."""
+    fx, fy, cx, cy = intrinsics(cam.fovy_deg, width, height)
+    msg = CameraInfo(height=height, width=width, distortion_model='plumb_bob')
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    msg.d = [0.0] * 5
+    msg.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
+    msg.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    msg.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return msg
+
+
+def _values(sensordata: np.ndarray, adr: Optional[tuple]) -> Optional[np.ndarray]:
+    if adr is None:
+        return None
+    start, size = adr
+    return sensordata[start:start + size]
+
+
+def imu(sensor: SensorSpec, sensordata: np.ndarray, sim_time: float, frame: str) -> Imu:
+    """
+    One site's framequat, gyro and accelerometer as sensor_msgs/Imu.
+
+    A missing part has its covariance's first element at -1, as Imu.msg asks.
+    """
+    msg = Imu()
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    q = _values(sensordata, sensor.adr.get('quat'))
+    gyro = _values(sensordata, sensor.adr.get('gyro'))
+    acc = _values(sensordata, sensor.adr.get('accelerometer'))
+    if q is not None:
+        msg.orientation = quat_to_msg(q)
+    else:
+        msg.orientation_covariance[0] = -1.0
+    if gyro is not None:
+        msg.angular_velocity = vec(gyro)
+    else:
+        msg.angular_velocity_covariance[0] = -1.0
+    if acc is not None:
+        msg.linear_acceleration = vec(acc)
+    else:
+        msg.linear_acceleration_covariance[0] = -1.0
+    return msg
+
+
+def wrench(sensor: SensorSpec, sensordata: np.ndarray, sim_time: float,
+           frame: str) -> WrenchStamped:
+    """One site's force and torque sensors (either may be missing: zeros)."""
+    msg = WrenchStamped()
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    force = _values(sensordata, sensor.adr.get('force'))
+    torque = _values(sensordata, sensor.adr.get('torque'))
+    if force is not None:
+        msg.wrench.force = vec(force)
+    if torque is not None:
+        msg.wrench.torque = vec(torque)
+    return msg
+
+
+def range_reading(sensor: SensorSpec, sensordata: np.ndarray, sim_time: float,
+                  frame: str) -> Range:
+    """
+    Convert a rangefinder to sensor_msgs/Range: one ray (field of view 0).
+
+    +inf when MuJoCo saw nothing (-1), as REP 117 asks.
+    """
+    value = float(_values(sensordata, sensor.adr['value'])[0])
+    msg = Range(radiation_type=Range.INFRARED, field_of_view=0.0, min_range=0.0,
+                max_range=sensor.cutoff if sensor.cutoff > 0 else math.inf,
+                range=value if value >= 0 else math.inf)
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    return msg
+
+
+def generic(sensor: SensorSpec, sensordata: np.ndarray) -> Float64MultiArray:
+    """
+    Any other sensor: its values as MuJoCo gives them, labelled with its type.
+
+    Unstamped (std_msgs has no stamped array): the values are those of /clock's time.
+    """
+    values = _values(sensordata, sensor.adr['value'])
+    msg = Float64MultiArray(data=[float(v) for v in values])
+    msg.layout.dim = [MultiArrayDimension(label=sensor.type_name, size=len(values),
+                                          stride=len(values))]
+    return msg
+
+
+def laser_scan(reading: LaserReading, config: LaserConfig, frame: str,
+               period_sec: float) -> LaserScan:
+    """One sweep as sensor_msgs/LaserScan (all rays at one instant: time_increment 0)."""
+    msg = LaserScan(angle_min=config.angle_min, angle_max=config.angle_max,
+                    angle_increment=config.angle_increment, time_increment=0.0,
+                    scan_time=period_sec, range_min=config.range_min,
+                    range_max=config.range_max)
+    msg.header.stamp = stamp(reading.time)
+    msg.header.frame_id = frame
+    msg.ranges = array.array('f', reading.ranges.astype(np.float32).tobytes())
+    return msg

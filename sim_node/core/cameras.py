@@ -1,0 +1,206 @@
+"""
+Camera images of a running world: colour and depth from every selected camera, off the loop.
+
+:class:`CameraRig` fills one :class:`mujoco.MjvScene` per camera under the world lock (a copy
+of geom poses: tens of microseconds), then draws them with the lock released, so the stepping
+loop never waits for OpenGL. The renderer starts on the first capture that has a camera to
+draw: a world without cameras costs nothing. Use a rig from one thread only.
+
+Intrinsics follow from MuJoCo's projection: a symmetric frustum of vertical field of view
+``fovy`` over the whole image, square pixels, so ``fx = fy = (h / 2) / tan(fovy / 2)`` and the
+principal point is the image centre, ``((w - 1) / 2, (h - 1) / 2)`` in pixel-centre
+coordinates. The optical frame (REP 103: z forward, x right, y down) is MuJoCo's camera frame
+(looking down -z, y up) turned half a turn about x.
+"""
+
+import copy
+from dataclasses import dataclass
+import fnmatch
+import logging
+import math
+from typing import Optional, Sequence
+
+import mujoco
+import numpy as np
+
+from . import devices, quat
+from .records import CameraSpec
+from .rendering import Renderer
+from .world import World
+
+log = logging.getLogger(__name__)
+
+#: MuJoCo camera frame -> optical frame: half a turn about x (w, x, y, z).
+OPTICAL_FROM_MUJOCO_WXYZ = (0.0, 1.0, 0.0, 0.0)
+
+
+def intrinsics(fovy_deg: float, width: int, height: int) -> tuple:
+    """Return (fx, fy, cx, cy) in pixels for a MuJoCo camera rendered at width x height."""
+    f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
+    return f, f, (width - 1) / 2.0, (height - 1) / 2.0
+
+
+def optical_pose(pos: Sequence[float], quat_wxyz: Sequence[float]) -> tuple:
+    """Turn a MuJoCo camera pose (in any frame) into the pose of its optical frame."""
+    return (np.array(pos, dtype=float),
+            quat.mul(np.asarray(quat_wxyz, dtype=float), np.asarray(OPTICAL_FROM_MUJOCO_WXYZ)))
+
+
+def select(cameras: Sequence[CameraSpec], patterns: Sequence[str]) -> tuple:
+    """Return the perspective cameras whose names match one of `patterns` (``*``: all)."""
+    return tuple(c for c in cameras if not c.orthographic
+                 and any(fnmatch.fnmatchcase(c.name, p) for p in patterns if p))
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    """
+    One camera's image at one instant.
+
+    :param rgb: (height, width, 3) uint8, top row first.
+    :param depth: (height, width) float32 metres along the optical axis, +inf where nothing
+        was hit; None when depth is off.
+    :param pos: (3,) the camera's world position; `quat_wxyz` (4,) its optical frame's world
+        orientation.
+    """
+
+    camera: CameraSpec
+    time: float
+    generation: int
+    rgb: np.ndarray
+    depth: Optional[np.ndarray]
+    pos: np.ndarray
+    quat_wxyz: np.ndarray
+
+
+class CameraRig:
+    """
+    Renders the selected cameras of a world.
+
+    :param patterns: camera names to render, shell-style (default all).
+    :param depth: also read depth images.
+    """
+
+    def __init__(self, world: World, width: int = 320, height: int = 240,
+                 patterns: Sequence[str] = ('*',), depth: bool = True):
+        self.world = world
+        self.width, self.height = int(width), int(height)
+        self.patterns = tuple(patterns)
+        self.depth = bool(depth)
+        self._renderer: Optional[Renderer] = None
+        self._generation: Optional[int] = None
+        self._cameras: tuple = ()
+        self._scenes: list = []
+        self._model: Optional[mujoco.MjModel] = None
+        self._option = mujoco.MjvOption()
+        self._option.sitegroup[:] = 0  # sites are markers for people, not things cameras see
+
+    @property
+    def renderer_started(self) -> bool:
+        return self._renderer is not None
+
+    def cameras(self) -> tuple:
+        """Return the selected cameras of the world's current model."""
+        return select(self.world.model_info.cameras, self.patterns)
+
+    def capture(self) -> list:
+        """
+        Render every selected camera of the current state; returns [:class:`CameraFrame`].
+
+        Empty (and no renderer started) when the world has no selected camera.
+        """
+        frames = self.world.observe(self._fill_scenes)
+        if not frames:
+            return []
+        if self._renderer is None:
+            self._renderer = Renderer(self.width, self.height)
+        if self._model is not None:
+            self._renderer.use_model(self._model)
+            self._model = None
+        out = []
+        for (cam, sim_time, generation, pos, q), scene in zip(frames, self._scenes):
+            rgb, depth = self._renderer.render(scene, self.depth)
+            out.append(CameraFrame(camera=cam, time=sim_time, generation=generation, rgb=rgb,
+                                   depth=depth, pos=pos, quat_wxyz=q))
+        return out
+
+    def _fill_scenes(self, m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> list:
+        """Under the world lock: copy what each camera sees into its scene."""
+        if generation != self._generation:
+            self._generation = generation
+            # Index the live model: the published model info may lag a recompile.
+            self._cameras = select(devices.cameras(m), self.patterns)
+            if self._cameras:
+                self._model = copy.copy(m)  # the renderer uploads it outside the lock
+                maxgeom = m.ngeom + 1000  # room for MuJoCo's own decorations
+                self._scenes = [mujoco.MjvScene(m, maxgeom=maxgeom) for _ in self._cameras]
+                for scene in self._scenes:
+                    # The skybox is drawn as a surface some 50 m away: depth would read it as
+                    # one. Without it, nothing there reads +inf (and the sky is black).
+                    scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 0
+            else:
+                self._scenes = []
+        out = []
+        for cam, scene in zip(self._cameras, self._scenes):
+            view = mujoco.MjvCamera()
+            view.type = mujoco.mjtCamera.mjCAMERA_FIXED
+            view.fixedcamid = cam.cam_id
+            mujoco.mjv_updateScene(m, d, self._option, None, view,
+                                   mujoco.mjtCatBit.mjCAT_ALL, scene)
+            q = np.empty(4)
+            mujoco.mju_mat2Quat(q, d.cam_xmat[cam.cam_id])
+            pos, q = optical_pose(d.cam_xpos[cam.cam_id], q)
+            out.append((cam, float(d.time), generation, pos, q))
+        return out
+
+    def close(self) -> None:
+        """Free the renderer (call from the thread that captured)."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+
+#: The free camera of :func:`picture`: a three-quarter view from above (degrees), at this many
+#: model extents (MuJoCo's ``stat.extent``) from the model's centre.
+FREE_AZIMUTH_DEG = 150.0
+FREE_ELEVATION_DEG = -25.0
+FREE_DISTANCE_EXTENTS = 1.1
+ERR_NO_CAMERA = 'no camera named {name!r}; cameras: {names}'
+
+
+def picture(world: World, camera: str = '', width: int = 640, height: int = 480) -> np.ndarray:
+    """
+    Render one picture of the world's current state; returns (height, width, 3) uint8.
+
+    :param camera: a camera of the model, or '' for a free camera that looks at the whole
+        model from the front left, above.
+    :raises NotFoundError: no camera of that name.
+    """
+    from .errors import NotFoundError
+    view = mujoco.MjvCamera()
+    option = mujoco.MjvOption()
+    option.sitegroup[:] = 0
+
+    def fill(m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> tuple:
+        if camera:
+            cid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+            if cid < 0:
+                raise NotFoundError(ERR_NO_CAMERA.format(
+                    name=camera, names=[c.name for c in devices.cameras(m)]))
+            view.type, view.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cid
+        else:
+            mujoco.mjv_defaultFreeCamera(m, view)
+            view.azimuth, view.elevation = FREE_AZIMUTH_DEG, FREE_ELEVATION_DEG
+            view.distance = FREE_DISTANCE_EXTENTS * m.stat.extent
+        scene = mujoco.MjvScene(m, maxgeom=m.ngeom + 1000)
+        mujoco.mjv_updateScene(m, d, option, None, view, mujoco.mjtCatBit.mjCAT_ALL, scene)
+        return copy.copy(m), scene
+
+    model, scene = world.observe(fill)
+    renderer = Renderer(width, height)
+    try:
+        renderer.use_model(model)
+        rgb, _ = renderer.render(scene, depth=False)
+    finally:
+        renderer.close()
+    return rgb

@@ -1,0 +1,165 @@
+"""
+Headless offscreen rendering: an OpenGL context and MuJoCo's renderer, colour and depth at once.
+
+The backend is chosen once per process, on first use: ``MUJOCO_GL`` if it names ``egl`` or
+``osmesa``, else EGL if its library is present (Mesa's software driver renders without a
+display or GPU), else OSMesa, else :class:`RenderingUnavailableError` naming the Debian package
+to install. MuJoCo's own context classes (``mujoco.egl``, ``mujoco.osmesa``, on PyOpenGL) do
+the set-up.
+
+A :class:`Renderer` belongs to the thread that made it (an OpenGL context is current on one
+thread); nothing here touches the world: callers hand it :class:`mujoco.MjvScene` objects that
+they filled under the world lock (see :meth:`~sim_node.core.world.World.observe`).
+"""
+
+import ctypes.util
+import logging
+import os
+from typing import Optional
+
+import mujoco
+import numpy as np
+
+from .errors import SimError
+
+log = logging.getLogger(__name__)
+
+#: The Debian packages that carry each backend's library (``apt-get install ...``).
+BACKEND_PACKAGES = {'egl': 'libegl1 libgl1-mesa-dri', 'osmesa': 'libosmesa6'}
+BACKEND_LIBRARIES = {'egl': 'EGL', 'osmesa': 'OSMesa'}
+ERR_NO_BACKEND = ('no headless OpenGL backend: neither libEGL nor libOSMesa is installed; '
+                  'install one (Debian/Ubuntu: apt-get install {egl} or {osmesa}) or set '
+                  'MUJOCO_GL=egl|osmesa to say which one to use')
+ERR_BACKEND_FAILED = ('the {backend} OpenGL backend failed to start ({error}); check that '
+                      '{packages} are installed, or set MUJOCO_GL to another backend '
+                      '(egl, osmesa)')
+ERR_BAD_MUJOCO_GL = "MUJOCO_GL={value!r} cannot render headless here; use 'egl' or 'osmesa'"
+
+
+class RenderingUnavailableError(SimError):
+    """No OpenGL backend could be started; the message says what to install."""
+
+
+_backend: Optional[str] = None
+
+
+def choose_backend() -> str:
+    """Return 'egl' or 'osmesa' (see the module's docstring); the choice holds per process."""
+    global _backend
+    if _backend is not None:
+        return _backend
+    wanted = os.environ.get('MUJOCO_GL', '').strip().lower()
+    if wanted in BACKEND_LIBRARIES:
+        chosen = wanted
+    elif wanted not in ('', 'enable', 'enabled', 'on', 'true', '1'):
+        raise RenderingUnavailableError(ERR_BAD_MUJOCO_GL.format(value=wanted))
+    else:
+        present = [b for b, lib in BACKEND_LIBRARIES.items() if ctypes.util.find_library(lib)]
+        if not present:
+            raise RenderingUnavailableError(ERR_NO_BACKEND.format(**BACKEND_PACKAGES))
+        chosen = present[0]
+    # PyOpenGL reads this once, when first imported.
+    os.environ.setdefault('PYOPENGL_PLATFORM', chosen)
+    _backend = chosen
+    return chosen
+
+
+def gl_context(width: int, height: int):
+    """Return a started, current OpenGL context of the chosen backend."""
+    backend = choose_backend()
+    try:
+        if backend == 'egl':
+            from mujoco.egl import GLContext
+        else:
+            from mujoco.osmesa import GLContext
+        ctx = GLContext(width, height)
+        ctx.make_current()
+    except Exception as exc:  # any failure of the driver stack: say what to do instead
+        raise RenderingUnavailableError(ERR_BACKEND_FAILED.format(
+            backend=backend, error=f'{type(exc).__name__}: {exc}',
+            packages=BACKEND_PACKAGES[backend])) from exc
+    log.info('rendering with %s', backend)
+    return ctx
+
+
+def depth_from_buffer(buffer: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+    """
+    Turn MuJoCo's reversed-Z depth buffer into metres along the optical axis.
+
+    Nothing hit (the far plane) is +inf, as REP 117 asks of range sensors.
+
+    :param buffer: (h, w) float32 as ``mjr_readPixels`` gives it with ``mjDEPTH_ZEROFAR``.
+    :returns: (h, w) float32.
+    """
+    extent = model.stat.extent
+    znear = np.float32(model.vis.map.znear * extent)
+    zfar = np.float32(model.vis.map.zfar * extent)
+    # The projection of mujoco.Renderer, undone in float64 (as it does).
+    c = -(zfar + znear) / (zfar - znear)
+    d = -(np.float32(2) * zfar * znear) / (zfar - znear)
+    c = np.float32(-0.5) * c - np.float32(0.5)
+    d = np.float32(-0.5) * d
+    z = buffer.astype(np.float64)
+    with np.errstate(divide='ignore'):
+        depth = d / (z + c)
+    depth[z <= 0.0] = np.inf  # cleared to the far plane: no surface there
+    return depth.astype(np.float32)
+
+
+class Renderer:
+    """
+    Renders prepared scenes of one model into colour and depth images.
+
+    Make it, use it and close it on one thread. :meth:`use_model` uploads a model's meshes and
+    textures (after every recompile); :meth:`render` draws one scene.
+    """
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = int(width), int(height)
+        self._gl = gl_context(self.width, self.height)
+        self._con: Optional[mujoco.MjrContext] = None
+        self._model: Optional[mujoco.MjModel] = None
+        self._rect = mujoco.MjrRect(0, 0, self.width, self.height)
+
+    def use_model(self, model: mujoco.MjModel) -> None:
+        """
+        Upload `model` (a copy this renderer may keep: its offscreen size is set here).
+
+        :param model: the model of the scenes rendered from now on.
+        """
+        self._gl.make_current()
+        model.vis.global_.offwidth = max(self.width, model.vis.global_.offwidth)
+        model.vis.global_.offheight = max(self.height, model.vis.global_.offheight)
+        if self._con is not None:
+            self._con.free()
+        self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
+        self._con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._model = model
+
+    def render(self, scene: mujoco.MjvScene, depth: bool = True) -> tuple:
+        """
+        Draw `scene`; return (rgb (h, w, 3) uint8, depth (h, w) float32 metres or None).
+
+        Rows run from the top of the image down, as sensor_msgs/Image stores them.
+        """
+        self._gl.make_current()
+        mujoco.mjr_render(self._rect, scene, self._con)
+        rgb = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        raw = np.empty((self.height, self.width), dtype=np.float32) if depth else None
+        mujoco.mjr_readPixels(rgb, raw, self._rect, self._con)
+        rgb = np.ascontiguousarray(rgb[::-1])
+        if raw is None:
+            return rgb, None
+        return rgb, np.ascontiguousarray(depth_from_buffer(raw, self._model)[::-1])
+
+    def close(self) -> None:
+        """Free the GL resources (on the thread that made them)."""
+        if self._gl is None:
+            return
+        self._gl.make_current()
+        if self._con is not None:
+            self._con.free()
+            self._con = None
+        self._gl.free()
+        self._gl = None

@@ -1,0 +1,248 @@
+"""
+The node's eyes and senses: camera images, laser scans and MuJoCo sensors as ROS messages.
+
+Cameras and scanners run on a thread of their own, paced by simulated time: the stepping loop
+never waits for them (they visit the world lock only to copy poses, see
+:meth:`~sim_node.core.world.World.observe`). Sensor values come from the loop's snapshots and
+go out with joint_states. Publishers appear and disappear with the cameras, sites and sensors of
+each model generation.
+"""
+
+import math
+import threading
+from typing import Callable, Optional
+
+from geometry_msgs.msg import WrenchStamped
+from msg_adapters import perception as pm
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, Range
+from std_msgs.msg import Float64MultiArray
+from tf2_msgs.msg import TFMessage
+
+from .core.cameras import CameraRig, select
+from .core.config import PerceptionConfig
+from .core.lidar import LaserConfig, LaserScanner, scanner_sites
+from .core.records import ModelInfo, Snapshot
+from .core.rendering import RenderingUnavailableError
+
+SENSOR_TYPES = {'imu': (Imu, 'imu'), 'wrench': (WrenchStamped, 'wrench'),
+                'range': (Range, 'range'), 'generic': (Float64MultiArray, 'values')}
+#: Simulated time within this fraction of a period of a due time counts as due.
+DUE_TOLERANCE = 1e-6
+
+
+class Schedule:
+    """Due times at multiples of a simulated period; a time that went back starts over."""
+
+    def __init__(self, rate_hz: float):
+        self.period = 1.0 / rate_hz
+        self._next: Optional[float] = None
+        self._last = -math.inf
+
+    def due(self, sim_time: float) -> bool:
+        if sim_time < self._last or self._next is None:
+            self._next = sim_time  # first time, or after a reset
+        self._last = sim_time
+        return sim_time >= self._next - DUE_TOLERANCE * self.period
+
+    def done(self, sim_time: float) -> None:
+        self._next = (math.floor(sim_time / self.period + DUE_TOLERANCE) + 1) * self.period
+
+
+class Perception:
+    """
+    Publishers and the perception thread of a :class:`~sim_node.node.SimNode`.
+
+    :param current_sim: returns the node's loaded world (``Sim``) or None.
+    """
+
+    def __init__(self, node: Node, config: PerceptionConfig, world_frame: str,
+                 frame_prefix: str, current_sim: Callable):
+        self._node = node
+        self.config = config
+        self._world_frame = frame_prefix + world_frame
+        self._prefix = frame_prefix
+        self._current_sim = current_sim
+        self._laser_config = LaserConfig(
+            angle_min=config.lidar_angle_min, angle_max=config.lidar_angle_max,
+            samples=config.lidar_samples, range_min=config.lidar_range_min,
+            range_max=config.lidar_range_max)
+        self._tf_pub = node.create_publisher(TFMessage, '/tf', 100)
+        self._camera_pubs: dict = {}  # camera name -> (image, info, depth or None)
+        self._laser_pubs: dict = {}  # site name -> publisher
+        self._sensor_pubs: dict = {}  # (kind, name) -> publisher
+        self._sensor_generation = None
+        self._sensor_frames: dict = {}
+        self._running = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._cameras_failed = ''
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> None:
+        self._running.set()
+        self._thread = threading.Thread(target=self._run, name='sim-perception', daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._running.clear()
+        if self._thread is not None:
+            self._thread.join(2.0)
+            self._thread = None
+
+    # ------------------------------------------------------------------ static frames
+
+    def static_transforms(self, info: ModelInfo, sim_time: float, frames: tuple) -> list:
+        """Frames of this generation's published cameras, sensor sites and scanners."""
+        cams = select(info.cameras, self.config.cameras)
+        sites = [s.site for s in info.sensors if s.kind in ('imu', 'wrench')]
+        lasers = scanner_sites([s.name for s in info.sites], self.config.lidar_sites)
+        sites += [s for s in info.sites if s.name in lasers]
+        ranges = [s for s in info.sensors if s.kind == 'range']
+        return pm.device_transforms(info, sim_time, frames, cams, sites, ranges, self._prefix)
+
+    # ------------------------------------------------------------------ sensors
+
+    def publish_sensors(self, snap: Snapshot) -> None:
+        """Publish every sensor group of the snapshot's model (from the publisher thread)."""
+        info = snap.info
+        if info.generation != self._sensor_generation:
+            self._sensor_generation = info.generation
+            self._sensor_frames = self._sync_sensor_publishers(info)
+        data = snap.sensordata
+        for sensor in info.sensors:
+            pub = self._sensor_pubs[(sensor.kind, sensor.name)]
+            frame = self._sensor_frames.get((sensor.kind, sensor.name), '')
+            if sensor.kind == 'imu':
+                pub.publish(pm.imu(sensor, data, snap.time, frame))
+            elif sensor.kind == 'wrench':
+                pub.publish(pm.wrench(sensor, data, snap.time, frame))
+            elif sensor.kind == 'range':
+                pub.publish(pm.range_reading(sensor, data, snap.time, frame))
+            else:
+                pub.publish(pm.generic(sensor, data))
+
+    def _sync_sensor_publishers(self, info: ModelInfo) -> dict:
+        wanted, frames = {}, {}
+        for s in info.sensors:
+            wanted[(s.kind, s.name)] = s
+            if s.kind == 'range':
+                frames[(s.kind, s.name)] = pm.range_frame(info, s, self._prefix)
+            elif s.site is not None:
+                frames[(s.kind, s.name)] = pm.site_frame(info, s.site, self._prefix)
+        for key in list(self._sensor_pubs):
+            if key not in wanted:
+                self._node.destroy_publisher(self._sensor_pubs.pop(key))
+        for (kind, name) in wanted:
+            if (kind, name) not in self._sensor_pubs:
+                msg_type, leaf = SENSOR_TYPES[kind]
+                self._sensor_pubs[(kind, name)] = self._node.create_publisher(
+                    msg_type, f'sensors/{pm.topic_token(name)}/{leaf}', qos_profile_sensor_data)
+        return frames
+
+    # ------------------------------------------------------------------ cameras and lasers
+
+    def _run(self) -> None:
+        rig: Optional[CameraRig] = None
+        scanner: Optional[LaserScanner] = None
+        world = None
+        generation = None
+        cams, sites = (), ()
+        cam_due = Schedule(self.config.camera_rate_hz)
+        scan_due = Schedule(self.config.lidar_rate_hz)
+        seen = -1
+        try:
+            while self._running.is_set():
+                sim = self._current_sim()
+                if sim is None:
+                    self._running.wait(0.1)
+                    continue
+                if sim.world is not world:  # a world was loaded
+                    if rig is not None:
+                        rig.close()
+                    world, generation, seen = sim.world, None, -1
+                    rig = CameraRig(world, self.config.camera_width, self.config.camera_height,
+                                    self.config.cameras, self.config.camera_depth)
+                    scanner = LaserScanner(world, self._laser_config)
+                seq, snap = sim.loop.wait_snapshot(seen, 0.1)
+                if seq == seen:
+                    continue
+                seen = seq
+                if snap.info.generation != generation:
+                    generation = snap.info.generation
+                    cams, sites = self._sync_device_publishers(snap.info)
+                if cams and not self._cameras_failed and cam_due.due(snap.time):
+                    self._publish_frames(rig)
+                    cam_due.done(snap.time)
+                if sites and scan_due.due(snap.time):
+                    for reading in scanner.scan(sites):
+                        self._publish_scan(reading, snap.info, scan_due.period)
+                    scan_due.done(snap.time)
+        except Exception as exc:  # never die silently
+            self._node.get_logger().error(f'cameras and lasers stopped: {exc!r}')
+        finally:
+            if rig is not None:
+                rig.close()
+
+    def _sync_device_publishers(self, info: ModelInfo) -> tuple:
+        """Create and destroy camera and laser publishers for a new model generation."""
+        cams = select(info.cameras, self.config.cameras)
+        sites = scanner_sites([s.name for s in info.sites], self.config.lidar_sites)
+        for name in [n for n in self._camera_pubs if n not in {c.name for c in cams}]:
+            for pub in self._camera_pubs.pop(name):
+                if pub is not None:
+                    self._node.destroy_publisher(pub)
+        for cam in cams:
+            if cam.name not in self._camera_pubs:
+                self._camera_pubs[cam.name] = self._camera_publishers(cam.name)
+        for name in [n for n in self._laser_pubs if n not in sites]:
+            self._node.destroy_publisher(self._laser_pubs.pop(name))
+        for name in sites:
+            if name not in self._laser_pubs:
+                self._laser_pubs[name] = self._node.create_publisher(
+                    LaserScan, f'lasers/{pm.topic_token(name)}/scan', qos_profile_sensor_data)
+        return cams, sites
+
+    def _camera_publishers(self, name: str) -> tuple:
+        base = f'cameras/{pm.topic_token(name)}'
+        qos = qos_profile_sensor_data
+        create = self._node.create_publisher
+        return (create(Image, f'{base}/image_raw', qos),
+                create(CameraInfo, f'{base}/camera_info', qos),
+                create(Image, f'{base}/depth/image_raw', qos) if self.config.camera_depth
+                else None)
+
+    def _publish_frames(self, rig: CameraRig) -> None:
+        try:
+            frames = rig.capture()
+        except RenderingUnavailableError as exc:
+            self._cameras_failed = str(exc)
+            self._node.get_logger().error(f'cameras are off: {exc}')
+            return
+        info = self._current_info()
+        for f in frames:
+            pubs = self._camera_pubs.get(f.camera.name)
+            if pubs is None or info is None or info.generation != f.generation:
+                continue  # the model changed meanwhile: the next frame has it right
+            frame = pm.camera_frame(info, f.camera, self._prefix)
+            image_pub, info_pub, depth_pub = pubs
+            if not f.camera.fixed:
+                self._tf_pub.publish(pm.moving_camera_tf(frame, self._world_frame, f.pos,
+                                                         f.quat_wxyz, f.time))
+            image_pub.publish(pm.image(f.rgb, f.time, frame))
+            info_pub.publish(pm.camera_info(f.camera, rig.width, rig.height, f.time, frame))
+            if depth_pub is not None and f.depth is not None:
+                depth_pub.publish(pm.depth_image(f.depth, f.time, frame))
+
+    def _publish_scan(self, reading, info: ModelInfo, period: float) -> None:
+        pub = self._laser_pubs.get(reading.site)
+        site = next((s for s in info.sites if s.name == reading.site), None)
+        if pub is None or site is None:
+            return
+        pub.publish(pm.laser_scan(reading, self._laser_config,
+                                  pm.site_frame(info, site, self._prefix), period))
+
+    def _current_info(self) -> Optional[ModelInfo]:
+        sim = self._current_sim()
+        return None if sim is None else sim.world.model_info

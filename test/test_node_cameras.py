@@ -1,0 +1,204 @@
+"""
+Cameras, laser scans and sensors over the wire: a real node process, real subscribers.
+
+What a ROS user checks: the default scene's camera shows up with image, depth and camera_info
+stamped with simulation time; a ball placed by spawn_entity appears at the pixel that
+camera_info and /tf_static predict, at the depth its distance gives; a spawned camera comes
+and goes with its entity; a scene without cameras never loads an OpenGL driver.
+"""
+
+import threading
+import time
+
+from conftest import NodeProcess, SCENES, Watcher, wait_for
+import numpy as np
+import pytest
+
+CAM = 'cameras/overview'
+W, H = 320, 240
+BALL = np.array([0.75, -0.25, 0.95])  # above the table, in the overview camera's view
+BALL_R = 0.05
+# A glowing ball (evenly coloured: its pixels' centroid is where its centre projects).
+BALL_MJCF = ('<mujoco><asset><material name="glow" rgba="1 0 1 1" emission="1" specular="0"/>'
+             f'</asset><worldbody><body name="ball"><geom type="sphere" size="{BALL_R}" '
+             'material="glow" contype="0" conaffinity="0"/></body></worldbody></mujoco>')
+CAMERA_BOT = ('<mujoco><worldbody><body name="head"><geom type="box" size="0.05 0.05 0.05"/>'
+              '<camera name="eye" pos="0 0 -0.06" fovy="60"/></body></worldbody></mujoco>')
+
+
+@pytest.fixture(scope='module')
+def node():
+    proc = NodeProcess('real_time_factor:=1.0')
+    yield proc
+    code, _ = proc.interrupt()
+    assert code == 0, proc.output()
+
+
+class Sensors:
+    """Keeps the latest message of each sensor topic (sensor-data QoS, as the node offers)."""
+
+    def __init__(self, topics: dict):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import qos_profile_sensor_data
+        self.node = rclpy.create_node(f'sensors_{id(self):x}')
+        self.latest, self.counts = {}, {}
+        self.lock = threading.Lock()
+        for topic, msg_type in topics.items():
+            self.node.create_subscription(msg_type, topic, self._keeper(topic),
+                                          qos_profile_sensor_data)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self._stop = False
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _keeper(self, topic):
+        def keep(msg):
+            with self.lock:
+                self.latest[topic] = msg
+                self.counts[topic] = self.counts.get(topic, 0) + 1
+        return keep
+
+    def _spin(self):
+        while not self._stop:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def after(self, topic: str, sim_time: float, timeout: float = 15.0):
+        """Return the first message of `topic` stamped after `sim_time`."""
+        def fresh():
+            with self.lock:
+                m = self.latest.get(topic)
+            return m if m is not None and _sec(m.header.stamp) > sim_time else None
+        return wait_for(fresh, timeout)
+
+    def close(self):
+        self._stop = True
+        self.thread.join(2)
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+def _sec(t) -> float:
+    return t.sec + t.nanosec * 1e-9
+
+
+def _camera_topics():
+    from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan
+    return {f'{CAM}/image_raw': Image, f'{CAM}/camera_info': CameraInfo,
+            f'{CAM}/depth/image_raw': Image, 'sensors/base_imu/imu': Imu,
+            'lasers/base_lidar/scan': LaserScan}
+
+
+@pytest.fixture
+def sensors(node, rclpy_context):
+    s = Sensors(_camera_topics())
+    yield s
+    s.close()
+
+
+def test_the_default_scene_shows_its_camera_scan_and_imu_stamped_with_sim_time(sensors,
+                                                                             watcher):
+    now = wait_for(watcher.latest_clock)
+    img = sensors.after(f'{CAM}/image_raw', now)
+    info = sensors.after(f'{CAM}/camera_info', now)
+    depth = sensors.after(f'{CAM}/depth/image_raw', now)
+    assert (img.width, img.height, img.encoding, img.step) == (W, H, 'rgb8', 3 * W)
+    assert len(img.data) == W * H * 3
+    assert (depth.encoding, depth.step) == ('32FC1', 4 * W)
+    d = np.frombuffer(bytes(depth.data), '<f4').reshape(H, W)
+    assert np.isfinite(d).any() and np.all(d[np.isfinite(d)] > 0)
+    # K from the camera's fovy (45 deg) at 320 x 240; plumb_bob with zero distortion.
+    f = 0.5 * H / np.tan(np.radians(45) / 2)
+    np.testing.assert_allclose(info.k, [f, 0, 159.5, 0, f, 119.5, 0, 0, 1])
+    assert info.distortion_model == 'plumb_bob' and list(info.d) == [0.0] * 5
+    for m in (img, info, depth):
+        assert m.header.frame_id == 'overview_optical_frame'
+        assert now < _sec(m.header.stamp) <= watcher.latest_clock() + 1e-9
+    static = wait_for(lambda: watcher.tf_static.get('overview_optical_frame'))
+    assert static[1] == 'world'
+    assert watcher.tf_static['robot/base_lidar'][1] == 'robot'
+    scan = sensors.after('lasers/base_lidar/scan', now)
+    ranges = np.array(scan.ranges)
+    assert scan.header.frame_id == 'robot/base_lidar' and len(ranges) == 360
+    # The nearest table legs stand 0.28 m ahead and 0.45 m to each side of the scanner.
+    near = ranges[np.isfinite(ranges)]
+    assert len(near) > 4 and 0.45 < near.min() < 0.55
+    imu = sensors.after('sensors/base_imu/imu', now)
+    assert imu.header.frame_id == 'robot/base_imu'
+    assert imu.linear_acceleration.z == pytest.approx(9.81, abs=1e-3)  # at rest: +g
+
+
+def test_a_spawned_ball_appears_where_camera_info_and_tf_predict(sim, sensors, watcher):
+    from sim_node.core import quat
+    sim.spawn('ball', resource_string=BALL_MJCF, position=list(BALL))
+    spawned_at = sim.entity_state('ball')['stamp']  # a simulated time the ball was there
+    info = sensors.after(f'{CAM}/camera_info', spawned_at)
+    img = sensors.after(f'{CAM}/image_raw', spawned_at)
+    depth = sensors.after(f'{CAM}/depth/image_raw', spawned_at)
+    _, parent, pos, q_xyzw = watcher.tf_static['overview_optical_frame']
+    assert parent == 'world'
+    q = np.array([q_xyzw[3], *q_xyzw[:3]])
+    p = quat.rotate(quat.conj(q), BALL - np.array(pos))  # the ball in the optical frame
+    fx, cx, fy, cy = info.k[0], info.k[2], info.k[4], info.k[5]
+    u, v = fx * p[0] / p[2] + cx, fy * p[1] / p[2] + cy
+    rgb = np.frombuffer(bytes(img.data), np.uint8).reshape(H, W, 3).astype(int)
+    magenta = (rgb[..., 0] > 150) & (rgb[..., 2] > 150) & (rgb[..., 1] < 90)
+    ys, xs = np.nonzero(magenta)
+    assert len(xs) > 10, 'the ball is not in the image'
+    assert abs(xs.mean() - u) < 0.3 and abs(ys.mean() - v) < 0.3, ((xs.mean(), ys.mean()),
+                                                                    (u, v))
+    dist = np.linalg.norm(p)
+    d = np.frombuffer(bytes(depth.data), '<f4').reshape(H, W)
+    assert d[int(round(v)), int(round(u))] == pytest.approx(p[2] * (dist - BALL_R) / dist,
+                                                             abs=0.01)
+
+
+def test_a_spawned_camera_comes_and_goes_with_its_entity(sim, watcher, rclpy_context):
+    from sensor_msgs.msg import Image
+    topic = 'cameras/bot/eye/image_raw'
+    eye = Sensors({topic: Image})
+    try:
+        sim.spawn('bot', resource_string=CAMERA_BOT, position=[0.75, 0.0, 1.5])
+        img = eye.after(topic, wait_for(watcher.latest_clock))
+        assert img.header.frame_id == 'bot/eye_optical_frame'
+        assert wait_for(lambda: watcher.tf_static.get('bot/eye_optical_frame'))[1] == 'bot'
+        assert eye.node.count_publishers('/' + topic) == 1
+        sim.delete('bot')
+        wait_for(lambda: eye.node.count_publishers('/' + topic) == 0)
+        wait_for(lambda: 'bot/eye_optical_frame' not in watcher.tf_static)
+    finally:
+        eye.close()
+
+
+def test_a_scene_without_cameras_never_loads_an_opengl_driver(start_node, rclpy_context):
+    # In a namespace of its own: the module's node (default scene) publishes cameras too.
+    proc = start_node(f'scene:={SCENES / "push_box.xml"}', 'publish_clock:=false',
+                      namespace='/plain')
+    w = Watcher(namespace='plain')
+    try:
+        wait_for(lambda: w.joint_states is not None, 30)
+        time.sleep(1.0)
+        topics = [name for name, _ in w.node.get_topic_names_and_types()]
+        assert '/plain/joint_states' in topics
+        assert not [t for t in topics if t.startswith(('/plain/cameras/', '/plain/lasers/'))]
+        maps = open(f'/proc/{proc.proc.pid}/maps').read()
+        assert 'libEGL' not in maps and 'OSMesa' not in maps
+        assert 'rendering with' not in proc.output()
+    finally:
+        w.close()
+
+
+def test_cameras_off_by_parameter(start_node, rclpy_context):
+    proc = start_node('cameras:=[none]', 'lidar_sites:=[none]', 'publish_clock:=false',
+                      namespace='/blind')
+    w = Watcher(namespace='blind')
+    try:
+        wait_for(lambda: w.joint_states is not None, 30)
+        time.sleep(1.0)
+        topics = [name for name, _ in w.node.get_topic_names_and_types()]
+        assert not [t for t in topics if t.startswith(('/blind/cameras/', '/blind/lasers/'))]
+        assert '/blind/sensors/base_imu/imu' in topics
+        assert 'libEGL' not in open(f'/proc/{proc.proc.pid}/maps').read()
+    finally:
+        w.close()
