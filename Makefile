@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test bench bench-gym bench-scale bench-flood clean
+.PHONY: setup run test bench bench-gym bench-scale bench-flood bench-cameras snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -28,6 +28,15 @@ bench-scale: setup
 
 bench-flood: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/command_flood.py
+
+bench-cameras: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/cameras.py
+
+# A PNG of a scene: make snapshot [SCENE=default] [OUT=snapshot.png] [ARGS='--camera overview']
+SCENE ?= default
+OUT ?= snapshot.png
+snapshot: setup
+	@. .build/env.sh && "$$SIM_PYTHON" -m sim_node.snapshot $(SCENE) -o $(OUT) $(ARGS)
 
 clean:
 	rm -rf .venv .build .pytest_cache

@@ -12,6 +12,8 @@ Benchmarks of the world core, each a ratio measured side by side in this one run
    /tf and marker costs, spawn latency at 1,000 bodies, peak RSS (scale.py).
 6. A 10 kHz joint-command flood: the node's rate under it over its rate without
    (command_flood.py).
+7. Cameras: frames per second per resolution; the loop's steps per second with one 320x240
+   camera at 10 Hz over the loop with none (cameras.py).
 
 Run with `make bench`; set SIM_BENCH_RT_SEC to shorten the real-time run (default 20 s).
 """
@@ -170,6 +172,8 @@ def main() -> None:
     scale.main()
     import command_flood
     command_flood.main()
+    import cameras
+    cameras.main()
 
 
 if __name__ == '__main__':

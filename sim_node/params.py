@@ -114,6 +114,9 @@ def _declare_perception(node: Node) -> None:
         'camera images per simulated second', fmin=0.01, fmax=1000, **ro))
     node.declare_parameter('camera_depth', c.camera_depth, d(
         'also publish depth images (32FC1, metres)', **ro))
+    node.declare_parameter('camera_shadow_size', c.camera_shadow_size, d(
+        'shadow map side in texels (0: no shadows; larger is sharper and slower)',
+        imin=0, imax=16384, **ro))
     node.declare_parameter('lidar_sites', list(c.lidar_sites), d(
         'sites that carry a planar laser scanner (shell-style name patterns)', **ro))
     node.declare_parameter('lidar_rate_hz', c.lidar_rate_hz, d(

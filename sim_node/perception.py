@@ -162,8 +162,9 @@ class Perception:
                     if rig is not None:
                         rig.close()
                     world, generation, seen = sim.world, None, -1
-                    rig = CameraRig(world, self.config.camera_width, self.config.camera_height,
-                                    self.config.cameras, self.config.camera_depth)
+                    cfg = self.config
+                    rig = CameraRig(world, cfg.camera_width, cfg.camera_height, cfg.cameras,
+                                    cfg.camera_depth, cfg.camera_shadow_size)
                     scanner = LaserScanner(world, self._laser_config)
                 seq, snap = sim.loop.wait_snapshot(seen, 0.1)
                 if seq == seen:

@@ -39,7 +39,7 @@ def _look_at(eye, target):
 X_AXIS, Y_AXIS = _look_at(EYE, np.zeros(3))
 # The ball glows (emission, no specular light): evenly red, so its pixels' centroid is where its
 # centre projects, not biased towards its lit side.
-SCENE = f'''<mujoco><compiler angle="radian"/>
+SCENE = f"""<mujoco><compiler angle="radian"/>
 <asset><material name="glow" rgba="1 0 0 1" emission="1" specular="0"/>
   <texture type="skybox" builtin="gradient" rgb1="1 1 1" rgb2="0 0 0" width="32" height="32"/>
 </asset><worldbody>
@@ -48,7 +48,7 @@ SCENE = f'''<mujoco><compiler angle="radian"/>
           xyaxes="{' '.join(map(str, X_AXIS))} {' '.join(map(str, Y_AXIS))}"/>
   <body name="ball" pos="{' '.join(map(str, BALL))}">
     <geom type="sphere" size="{BALL_R}" material="glow"/></body>
-</worldbody></mujoco>'''
+</worldbody></mujoco>"""
 
 
 def _red_centroid(rgb):
@@ -74,7 +74,7 @@ def test_a_ball_shows_where_camera_info_and_the_optical_frame_predict(width, hei
     cam = info.cameras[0]
     k = pm.camera_info(cam, width, height, frame.time, 'side_optical_frame').k
     # The optical frame as /tf_static gives it (the camera sits on the world body).
-    (tf,) = [t for t in pm.device_transforms(info, 0.0, ['world'], info.cameras, [], [])]
+    (tf,) = pm.device_transforms(info, 0.0, ['world'], info.cameras, [], [])
     r = tf.transform.rotation
     q = np.array([r.w, r.x, r.y, r.z])
     pos = np.array([tf.transform.translation.x, tf.transform.translation.y,
@@ -119,9 +119,9 @@ def test_a_world_without_cameras_starts_no_renderer():
     assert not rig.renderer_started
 
 
-CAMERA_BOT = '''<mujoco><worldbody><body name="head">
+CAMERA_BOT = """<mujoco><worldbody><body name="head">
   <geom type="box" size="0.05 0.05 0.05" rgba="0 0 1 1"/>
-  <camera name="eye" pos="0 0 -0.06" fovy="60"/></body></worldbody></mujoco>'''
+  <camera name="eye" pos="0 0 -0.06" fovy="60"/></body></worldbody></mujoco>"""
 
 
 def test_a_spawned_camera_appears_and_disappears_with_its_entity():
@@ -148,14 +148,14 @@ def test_camera_selection_by_pattern_and_depth_off():
 
 # --------------------------------------------------------------------------- laser scans
 
-LIDAR_SCENE = '''<mujoco><compiler angle="radian"/><worldbody>
+LIDAR_SCENE = """<mujoco><compiler angle="radian"/><worldbody>
   <body name="bot" pos="0 0 0.5" euler="0 0 1.5707963267948966">
     <geom type="cylinder" size="0.2 0.1"/>
     <site name="lidar" pos="0 0 0"/>
   </body>
   <body name="wall" pos="2 0 0.5"><geom type="box" size="0.05 3 0.5"/></body>
   <body name="post" pos="0 0.1 0.5"><geom type="box" size="0.01 0.01 0.5"/></body>
-</worldbody></mujoco>'''
+</worldbody></mujoco>"""
 
 
 def test_a_laser_scan_sees_a_wall_at_its_distance_and_not_its_own_body():
@@ -190,7 +190,7 @@ def test_a_laser_scan_of_a_missing_site_is_skipped_and_bad_settings_are_refused(
 
 # --------------------------------------------------------------------------- sensors
 
-SENSOR_SCENE = '''<mujoco><option gravity="0 0 -9.81"/><worldbody>
+SENSOR_SCENE = """<mujoco><option gravity="0 0 -9.81"/><worldbody>
   <geom type="plane" size="2 2 .1"/>
   <body name="puck" pos="0 0 0.05"><freejoint/>
     <geom type="box" size="0.05 0.05 0.05" mass="1"/>
@@ -204,7 +204,7 @@ SENSOR_SCENE = '''<mujoco><option gravity="0 0 -9.81"/><worldbody>
     <force site="ft"/><torque site="ft"/>
     <rangefinder name="floor_range" site="down"/>
     <touch name="contact" site="sole"/>
-  </sensor></mujoco>'''
+  </sensor></mujoco>"""
 
 
 def test_sensors_are_grouped_as_ros_messages_and_read_as_physics_says():
@@ -235,7 +235,7 @@ def test_a_rangefinder_that_sees_nothing_reads_plus_inf_and_its_frame_looks_alon
     assert math.isinf(pm.range_reading(spec, snap.sensordata, 0.0, 'f').range)
     info = snap.info
     frames = ['world', 'puck']
-    (tf,) = [t for t in pm.device_transforms(info, 0.0, frames, [], [], [spec])]
+    (tf,) = pm.device_transforms(info, 0.0, frames, [], [], [spec])
     r = tf.transform.rotation
     x_axis = quat.rotate(np.array([r.w, r.x, r.y, r.z]), np.array([1.0, 0, 0]))
     np.testing.assert_allclose(x_axis, [0, 0, 1], atol=1e-12)  # the site's z: the ray

@@ -10,7 +10,7 @@ and goes with its entity; a scene without cameras never loads an OpenGL driver.
 import threading
 import time
 
-from conftest import NodeProcess, SCENES, Watcher, wait_for
+from conftest import NodeProcess, SCENES, wait_for, Watcher
 import numpy as np
 import pytest
 
@@ -97,8 +97,8 @@ def sensors(node, rclpy_context):
     s.close()
 
 
-def test_the_default_scene_shows_its_camera_scan_and_imu_stamped_with_sim_time(sensors,
-                                                                             watcher):
+def test_the_default_scene_shows_its_camera_scan_and_imu_stamped_with_sim_time(
+        sensors, watcher):
     now = wait_for(watcher.latest_clock)
     img = sensors.after(f'{CAM}/image_raw', now)
     info = sensors.after(f'{CAM}/camera_info', now)
@@ -146,12 +146,12 @@ def test_a_spawned_ball_appears_where_camera_info_and_tf_predict(sim, sensors, w
     magenta = (rgb[..., 0] > 150) & (rgb[..., 2] > 150) & (rgb[..., 1] < 90)
     ys, xs = np.nonzero(magenta)
     assert len(xs) > 10, 'the ball is not in the image'
-    assert abs(xs.mean() - u) < 0.3 and abs(ys.mean() - v) < 0.3, ((xs.mean(), ys.mean()),
-                                                                    (u, v))
+    centroid = (xs.mean(), ys.mean())
+    assert abs(centroid[0] - u) < 0.3 and abs(centroid[1] - v) < 0.3, (centroid, (u, v))
     dist = np.linalg.norm(p)
     d = np.frombuffer(bytes(depth.data), '<f4').reshape(H, W)
-    assert d[int(round(v)), int(round(u))] == pytest.approx(p[2] * (dist - BALL_R) / dist,
-                                                             abs=0.01)
+    expected = p[2] * (dist - BALL_R) / dist
+    assert d[int(round(v)), int(round(u))] == pytest.approx(expected, abs=0.01)
 
 
 def test_a_spawned_camera_comes_and_goes_with_its_entity(sim, watcher, rclpy_context):

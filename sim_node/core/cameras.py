@@ -79,14 +79,18 @@ class CameraRig:
 
     :param patterns: camera names to render, shell-style (default all).
     :param depth: also read depth images.
+    :param shadow_size: shadow map side in texels (1024 renders three times as fast as
+        MuJoCo's default 4096 on a CPU); 0: no shadows.
     """
 
     def __init__(self, world: World, width: int = 320, height: int = 240,
-                 patterns: Sequence[str] = ('*',), depth: bool = True):
+                 patterns: Sequence[str] = ('*',), depth: bool = True,
+                 shadow_size: int = 1024):
         self.world = world
         self.width, self.height = int(width), int(height)
         self.patterns = tuple(patterns)
         self.depth = bool(depth)
+        self.shadow_size = int(shadow_size)
         self._renderer: Optional[Renderer] = None
         self._generation: Optional[int] = None
         self._cameras: tuple = ()
@@ -115,7 +119,7 @@ class CameraRig:
         if self._renderer is None:
             self._renderer = Renderer(self.width, self.height)
         if self._model is not None:
-            self._renderer.use_model(self._model)
+            self._renderer.use_model(self._model, self.shadow_size)
             self._model = None
         out = []
         for (cam, sim_time, generation, pos, q), scene in zip(frames, self._scenes):
@@ -138,6 +142,8 @@ class CameraRig:
                     # The skybox is drawn as a surface some 50 m away: depth would read it as
                     # one. Without it, nothing there reads +inf (and the sky is black).
                     scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 0
+                    if self.shadow_size <= 0:
+                        scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
             else:
                 self._scenes = []
         out = []
