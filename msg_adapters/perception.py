@@ -18,7 +18,7 @@ from typing import Optional, Sequence
 
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
-from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, Range
+from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, PointField, Range
 from sim_node.core import quat
 from sim_node.core.cameras import intrinsics, OPTICAL_FROM_MUJOCO_WXYZ
 from sim_node.core.lidar import LaserConfig, LaserReading
@@ -126,6 +126,38 @@ def camera_info(cam: CameraSpec, width: int, height: int, sim_time: float,
     msg.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
     msg.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
     msg.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return msg
+
+
+def points(depth: np.ndarray, rgb: np.ndarray, cam: CameraSpec, sim_time: float,
+           frame: str) -> PointCloud2:
+    """
+    Turn a depth image into an organized point cloud in the optical frame (x, y, z, rgb).
+
+    One point per pixel, row by row as in the image; NaN where nothing was hit (is_dense
+    false). ``rgb`` is packed into a float32 as RViz and PCL read it.
+
+    :param depth: (h, w) float32 metres along the optical axis; `rgb` (h, w, 3) uint8.
+    """
+    h, w = depth.shape
+    fx, fy, cx, cy = intrinsics(cam.fovy_deg, w, h)
+    z = np.where(np.isfinite(depth), depth, np.nan).astype(np.float32)
+    u = np.arange(w, dtype=np.float32)[None, :]
+    v = np.arange(h, dtype=np.float32)[:, None]
+    cloud = np.empty((h, w, 4), dtype='<f4')
+    cloud[..., 0] = (u - cx) * z / fx
+    cloud[..., 1] = (v - cy) * z / fy
+    cloud[..., 2] = z
+    packed = ((rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8)
+              | rgb[..., 2].astype(np.uint32))
+    cloud[..., 3] = packed.view(np.float32)
+    msg = PointCloud2(height=h, width=w, is_bigendian=False, point_step=16, row_step=16 * w,
+                      is_dense=False)
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    msg.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                  for i, n in enumerate(('x', 'y', 'z', 'rgb'))]
+    msg.data = array.array('B', cloud.tobytes())
     return msg
 
 

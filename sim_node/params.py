@@ -114,6 +114,8 @@ def _declare_perception(node: Node) -> None:
         'camera images per simulated second', fmin=0.01, fmax=1000, **ro))
     node.declare_parameter('camera_depth', c.camera_depth, d(
         'also publish depth images (32FC1, metres)', **ro))
+    node.declare_parameter('camera_points', c.camera_points, d(
+        'also publish points (PointCloud2, x y z rgb) from each depth image', **ro))
     node.declare_parameter('camera_shadow_size', c.camera_shadow_size, d(
         'shadow map side in texels (0: no shadows; larger is sharper and slower)',
         imin=0, imax=16384, **ro))

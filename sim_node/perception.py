@@ -16,7 +16,7 @@ from geometry_msgs.msg import WrenchStamped
 from msg_adapters import perception as pm
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
-from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, Range
+from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Range
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
@@ -69,7 +69,8 @@ class Perception:
             samples=config.lidar_samples, range_min=config.lidar_range_min,
             range_max=config.lidar_range_max)
         self._tf_pub = node.create_publisher(TFMessage, '/tf', 100)
-        self._camera_pubs: dict = {}  # camera name -> (image, info, depth or None)
+        # camera name -> (image, info, depth or None, points or None)
+        self._camera_pubs: dict = {}
         self._laser_pubs: dict = {}  # site name -> publisher
         self._sensor_pubs: dict = {}  # (kind, name) -> publisher
         self._sensor_generation = None
@@ -209,10 +210,12 @@ class Perception:
         base = f'cameras/{pm.topic_token(name)}'
         qos = qos_profile_sensor_data
         create = self._node.create_publisher
+        depth = self.config.camera_depth
         return (create(Image, f'{base}/image_raw', qos),
                 create(CameraInfo, f'{base}/camera_info', qos),
-                create(Image, f'{base}/depth/image_raw', qos) if self.config.camera_depth
-                else None)
+                create(Image, f'{base}/depth/image_raw', qos) if depth else None,
+                create(PointCloud2, f'{base}/points', qos)
+                if depth and self.config.camera_points else None)
 
     def _publish_frames(self, rig: CameraRig) -> None:
         try:
@@ -227,7 +230,7 @@ class Perception:
             if pubs is None or info is None or info.generation != f.generation:
                 continue  # the model changed meanwhile: the next frame has it right
             frame = pm.camera_frame(info, f.camera, self._prefix)
-            image_pub, info_pub, depth_pub = pubs
+            image_pub, info_pub, depth_pub, points_pub = pubs
             if not f.camera.fixed:
                 self._tf_pub.publish(pm.moving_camera_tf(frame, self._world_frame, f.pos,
                                                          f.quat_wxyz, f.time))
@@ -235,6 +238,8 @@ class Perception:
             info_pub.publish(pm.camera_info(f.camera, rig.width, rig.height, f.time, frame))
             if depth_pub is not None and f.depth is not None:
                 depth_pub.publish(pm.depth_image(f.depth, f.time, frame))
+            if points_pub is not None and f.depth is not None:
+                points_pub.publish(pm.points(f.depth, f.rgb, f.camera, f.time, frame))
 
     def _publish_scan(self, reading, info: ModelInfo, period: float) -> None:
         pub = self._laser_pubs.get(reading.site)

@@ -202,3 +202,19 @@ def test_cameras_off_by_parameter(start_node, rclpy_context):
         assert 'libEGL' not in open(f'/proc/{proc.proc.pid}/maps').read()
     finally:
         w.close()
+
+
+def test_points_on_request(start_node, rclpy_context):
+    from sensor_msgs.msg import PointCloud2
+    start_node('camera_points:=true', 'publish_clock:=false', namespace='/pts')
+    cloud = Sensors({'pts/cameras/overview/points': PointCloud2})
+    try:
+        msg = cloud.after('pts/cameras/overview/points', 0.0, 30)
+        assert (msg.width, msg.height) == (W, H)
+        assert [f.name for f in msg.fields] == ['x', 'y', 'z', 'rgb']
+        assert msg.header.frame_id == 'overview_optical_frame'
+        xyz = np.frombuffer(bytes(msg.data), '<f4').reshape(H, W, 4)[..., :3]
+        seen = xyz[np.isfinite(xyz[..., 2])]
+        assert len(seen) > W * H / 2 and np.all(seen[:, 2] > 0)  # in front of the camera
+    finally:
+        cloud.close()

@@ -496,3 +496,10 @@ def test_launch_file_and_rviz_config_match_what_the_node_offers(sim):
     assert topic['Durability Policy'] == 'Transient Local'  # the node latches its markers
     topics = dict(sim.node.get_topic_names_and_types())
     assert topics[topic['Value']] == ['visualization_msgs/msg/MarkerArray']
+    # The default scene's camera and scanner, subscribed best effort: the node publishes them
+    # with sensor-data QoS, which a reliable subscription would never receive.
+    for plugin, msg_type in (('Image', 'sensor_msgs/msg/Image'),
+                             ('LaserScan', 'sensor_msgs/msg/LaserScan')):
+        topic = displays[f'rviz_default_plugins/{plugin}']['Topic']
+        assert topic['Reliability Policy'] == 'Best Effort'
+        assert topics[topic['Value']] == [msg_type]

@@ -70,6 +70,8 @@ class PerceptionConfig:
     camera_rate_hz: float = 10.0
     #: Also publish depth images (32FC1, metres along the optical axis).
     camera_depth: bool = True
+    #: Also publish an organized point cloud (PointCloud2 x, y, z, rgb) from each depth image.
+    camera_points: bool = False
     #: Shadow map side in texels; 0 turns shadows off. With Mesa's software renderer 1024
     #: draws a 320x240 frame in about 18 ms, MuJoCo's default 4096 in about 60 ms.
     camera_shadow_size: int = 1024
