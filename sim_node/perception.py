@@ -50,6 +50,20 @@ class Schedule:
         self._next = (math.floor(sim_time / self.period + DUE_TOLERANCE) + 1) * self.period
 
 
+class _ThreadState:
+    """What the perception thread keeps between iterations."""
+
+    def __init__(self, config: PerceptionConfig):
+        self.rig: Optional[CameraRig] = None
+        self.scanner: Optional[LaserScanner] = None
+        self.world = None
+        self.generation = None
+        self.cams, self.sites = (), ()
+        self.cam_due = Schedule(config.camera_rate_hz)
+        self.scan_due = Schedule(config.lidar_rate_hz)
+        self.seen = -1
+
+
 class Perception:
     """
     Publishers and the perception thread of a :class:`~sim_node.node.SimNode`.
@@ -145,47 +159,47 @@ class Perception:
     # ------------------------------------------------------------------ cameras and lasers
 
     def _run(self) -> None:
-        rig: Optional[CameraRig] = None
-        scanner: Optional[LaserScanner] = None
-        world = None
-        generation = None
-        cams, sites = (), ()
-        cam_due = Schedule(self.config.camera_rate_hz)
-        scan_due = Schedule(self.config.lidar_rate_hz)
-        seen = -1
+        state = _ThreadState(self.config)
         try:
             while self._running.is_set():
-                sim = self._current_sim()
-                if sim is None:
-                    self._running.wait(0.1)
-                    continue
-                if sim.world is not world:  # a world was loaded
-                    if rig is not None:
-                        rig.close()
-                    world, generation, seen = sim.world, None, -1
-                    cfg = self.config
-                    rig = CameraRig(world, cfg.camera_width, cfg.camera_height, cfg.cameras,
-                                    cfg.camera_depth, cfg.camera_shadow_size)
-                    scanner = LaserScanner(world, self._laser_config)
-                seq, snap = sim.loop.wait_snapshot(seen, 0.1)
-                if seq == seen:
-                    continue
-                seen = seq
-                if snap.info.generation != generation:
-                    generation = snap.info.generation
-                    cams, sites = self._sync_device_publishers(snap.info)
-                if cams and not self._cameras_failed and cam_due.due(snap.time):
-                    self._publish_frames(rig)
-                    cam_due.done(snap.time)
-                if sites and scan_due.due(snap.time):
-                    for reading in scanner.scan(sites):
-                        self._publish_scan(reading, snap.info, scan_due.period)
-                    scan_due.done(snap.time)
-        except Exception as exc:  # never die silently
-            self._node.get_logger().error(f'cameras and lasers stopped: {exc!r}')
+                try:
+                    self._iterate(state)
+                except Exception as exc:  # never die silently, never stop for good
+                    self._node.get_logger().error(f'cameras and lasers failed: {exc!r}',
+                                                  throttle_duration_sec=5.0)
+                    self._running.wait(0.5)
         finally:
-            if rig is not None:
-                rig.close()
+            if state.rig is not None:
+                state.rig.close()
+
+    def _iterate(self, st: '_ThreadState') -> None:
+        """Wait for a newer snapshot; render and scan what is due at its simulated time."""
+        sim = self._current_sim()
+        if sim is None:
+            self._running.wait(0.1)
+            return
+        if sim.world is not st.world:  # a world was loaded
+            if st.rig is not None:
+                st.rig.close()
+            st.world, st.generation, st.seen = sim.world, None, -1
+            cfg = self.config
+            st.rig = CameraRig(st.world, cfg.camera_width, cfg.camera_height, cfg.cameras,
+                               cfg.camera_depth, cfg.camera_shadow_size)
+            st.scanner = LaserScanner(st.world, self._laser_config)
+        seq, snap = sim.loop.wait_snapshot(st.seen, 0.1)
+        if seq == st.seen:
+            return
+        st.seen = seq
+        if snap.info.generation != st.generation:
+            st.generation = snap.info.generation
+            st.cams, st.sites = self._sync_device_publishers(snap.info)
+        if st.cams and not self._cameras_failed and st.cam_due.due(snap.time):
+            st.cam_due.done(snap.time)
+            self._publish_frames(st.rig)
+        if st.sites and st.scan_due.due(snap.time):
+            st.scan_due.done(snap.time)
+            for reading in st.scanner.scan(st.sites):
+                self._publish_scan(reading, snap.info, st.scan_due.period)
 
     def _sync_device_publishers(self, info: ModelInfo) -> tuple:
         """Create and destroy camera and laser publishers for a new model generation."""

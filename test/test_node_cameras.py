@@ -218,3 +218,19 @@ def test_points_on_request(start_node, rclpy_context):
         assert len(seen) > W * H / 2 and np.all(seen[:, 2] > 0)  # in front of the camera
     finally:
         cloud.close()
+
+
+def test_without_a_usable_gl_backend_the_node_says_why_and_scans_on(start_node, rclpy_context,
+                                                                    monkeypatch):
+    from sensor_msgs.msg import LaserScan
+    monkeypatch.setenv('MUJOCO_GL', 'glx')  # not headless: the node must refuse it clearly
+    proc = start_node('publish_clock:=false', namespace='/nogl')
+    scans = Sensors({'nogl/lasers/base_lidar/scan': LaserScan})
+    try:
+        wait_for(lambda: "cameras are off: MUJOCO_GL='glx' cannot render headless"
+                 in proc.output(), 30)
+        first = scans.after('nogl/lasers/base_lidar/scan', 0.0, 30)
+        scans.after('nogl/lasers/base_lidar/scan', _sec(first.header.stamp), 10)
+        assert proc.proc.poll() is None
+    finally:
+        scans.close()
