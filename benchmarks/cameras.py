@@ -8,12 +8,18 @@ Camera cost, measured side by side in one run on the default scene.
    camera, and with that camera rendering as fast as it can (a 10 Hz camera of simulated time
    when the world runs 40 times faster than real time). Interleaved runs, medians.
 
-Run with `make bench` (all benchmarks) or `python benchmarks/cameras.py`.
+3. The node itself (real_time_factor 0): simulated seconds per wall second with its default
+   camera and scanner over the same node with both off (``cameras:=[none]``); at 40 times real
+   time a 10 Hz camera of simulated time renders as fast as it can, so this is the worst case.
+
+Run with `make bench` (all benchmarks) or `make bench-cameras`.
 """
 
 import os
 from pathlib import Path
+import signal
 import statistics
+import subprocess
 import sys
 import threading
 import time
@@ -78,6 +84,60 @@ def loop_steps_per_sec(camera_period: float, seconds: float) -> tuple:
     return rate, fps
 
 
+def node_rate(params: list, seconds: float = 4.0) -> tuple:
+    """Return (simulated s per wall s, images per wall s) of the node run with `params`."""
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import Image
+    from sim_node.client import SimClient
+    exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
+    proc = subprocess.Popen([str(exe), '--ros-args', '-p', 'real_time_factor:=0',
+                             *sum((['-p', p] for p in params), [])],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    client = SimClient(timeout_sec=60)
+    counter = rclpy.create_node(f'image_counter_{os.getpid()}')
+    images = [0]
+    counter.create_subscription(Image, 'cameras/overview/image_raw',
+                                lambda m: images.__setitem__(0, images[0] + 1),
+                                qos_profile_sensor_data)
+    try:
+        client.entities()
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:  # warm up: the renderer starts
+            rclpy.spin_once(counter, timeout_sec=0.05)
+        i0, t0, w0 = images[0], client.entity_state('box_a')['stamp'], time.monotonic()
+        while time.monotonic() - w0 < seconds:
+            rclpy.spin_once(counter, timeout_sec=0.05)
+        t1, w1 = client.entity_state('box_a')['stamp'], time.monotonic()
+        return (t1 - t0) / (w1 - w0), (images[0] - i0) / (w1 - w0)
+    finally:
+        counter.destroy_node()
+        client.close()
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(10)
+
+
+def node_main(rounds: int = 2) -> None:
+    import rclpy
+    rclpy.init()
+    try:
+        off, on, fps = [], [], []
+        for _ in range(rounds):
+            off.append(node_rate(['cameras:=[none]', 'lidar_sites:=[none]'])[0])
+            rate, f = node_rate([])
+            on.append(rate)
+            fps.append(f)
+    finally:
+        rclpy.try_shutdown()
+    off_m, on_m = statistics.median(off), statistics.median(on)
+    print('  node rtf=0, camera and scanner off : '
+          f'{off_m:6.1f} x real time')
+    print(f'  node rtf=0, default camera + lidar : {on_m:6.1f} x real time '
+          f'({statistics.median(fps):.1f} images/s received)')
+    print(f'  ratio                              : {on_m / off_m:6.2f}')
+
+
 def main(seconds: float = 3.0, rounds: int = 3) -> None:
     print(f'[cameras] backend {choose_backend()}, {os.cpu_count()} cores, default scene')
     for w, h in RESOLUTIONS:
@@ -100,6 +160,8 @@ def main(seconds: float = 3.0, rounds: int = 3) -> None:
     print(f'  loop rtf=0, one 320x240 flat out   : {flat:9.0f} steps/s '
           f'({statistics.median(fps["flat"]):.1f} frames/s)')
     print(f'  ratio flat-out camera / none       : {flat / none:9.2f}')
+    if os.environ.get('SIM_PREFIX'):
+        node_main()
 
 
 if __name__ == '__main__':
