@@ -25,6 +25,8 @@ from simulation_interfaces import srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import EntityState, Result, SimulationState
 
+from .qos import SERVICE_QOS
+
 
 class SimServiceError(RuntimeError):
     """A service answered with a Result other than OK."""
@@ -66,8 +68,9 @@ class SimClient:
         """Call a service and wait for the answer; raise on a non-OK Result if `check`."""
         client = self._clients.get(service)
         if client is None:
-            client = self._clients[service] = self.node.create_client(srv_type,
-                                                                      self._name(service))
+            # A deep reply history: replies to other clients cannot push ours out (see qos).
+            client = self._clients[service] = self.node.create_client(
+                srv_type, self._name(service), qos_profile=SERVICE_QOS)
         deadline = time.monotonic() + self._timeout
         while not client.wait_for_service(timeout_sec=0.2):
             if time.monotonic() > deadline:

@@ -7,7 +7,6 @@ of :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameter
 
 from msg_adapters import convert, markers
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from simulation_interfaces import srv as si_srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Result,
@@ -21,12 +20,9 @@ from .core.errors import NotFoundError, SimError
 from .core.loop import SimLoop
 from .core.records import RESET_ALL
 from .core.world import World
+from .qos import SERVICE_QOS
 
 MAX_RESOURCE_STRING_BYTES = 5_000_000
-#: Requests queue here until an executor thread takes them: with ROS's default depth of 10, a
-#: burst of 50 clients lost most of their requests (never answered). Every request is kept.
-SERVICE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE)
 ERR_NO_WORLD = 'no world is loaded; call load_world first'
 
 

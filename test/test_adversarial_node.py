@@ -16,6 +16,7 @@ import time
 from conftest import NodeProcess, wait_for, Watcher
 import pytest
 from sim_node.client import SimClient, SimServiceError
+from sim_node.qos import SERVICE_QOS
 from simulation_interfaces.msg import Result, SimulationState
 from simulation_interfaces.srv import SetEntityState, SpawnEntities, SpawnEntity
 
@@ -70,7 +71,8 @@ def burst(n: int, make_request) -> list:
     executor = SingleThreadedExecutor()  # spun by this thread only (see _spin_until)
     try:
         srv_type, service = make_request(None)
-        clients = [nd.create_client(srv_type, service) for nd in nodes]
+        # The clients keep a deep reply history, as SimClient does (see sim_node.qos).
+        clients = [nd.create_client(srv_type, service, qos_profile=SERVICE_QOS) for nd in nodes]
         for c in clients:
             assert c.wait_for_service(timeout_sec=20)
         for nd in nodes:
@@ -118,26 +120,41 @@ def spawn_request(name: str, i: int) -> SpawnEntity.Request:
 
 def assert_burst_served(codes: list, served: bool) -> None:
     """
-    Every request of a burst was served, and every answer that arrived says OK.
+    Every request of a burst was served, and every client got its answer, OK.
 
-    On an idle machine all 50 answers arrive (0.4 s). With both cores kept busy by other
-    processes, a few answers of requests the node did serve (the entities were there, or gone)
-    never reach their rclpy client: lost in transit on the client's side, not dropped by the
-    node. The node dropped 38 of 50 requests before its queue was deepened.
+    The node dropped 38 of 50 requests before its request queue was deepened; clients with
+    ROS's default reply depth of 10 lost 9 to 14 answers of 50 with both cores busy (replies
+    to the other clients pushed theirs out, see sim_node.qos).
     """
     assert served
-    answered = [c for c in codes if c is not None]
-    assert answered == [Result.RESULT_OK] * len(answered)
-    assert len(answered) >= 40, f'only {len(answered)} of {len(codes)} answers arrived'
+    assert codes == [Result.RESULT_OK] * len(codes), codes
 
 
-def test_a_burst_of_fifty_clients_is_served_whole(sim):
-    codes = burst(50, lambda i: (SpawnEntity, '/spawn_entity') if i is None
+#: Clients calling at once; 100 with every core busy made clients with ROS's default reply
+#: depth lose answers in most runs, 50 in a few.
+BURST = 100
+
+
+@pytest.fixture
+def busy_cores():
+    """Keep every core busy with other processes, as a loaded robot computer is."""
+    import subprocess
+    import sys
+    hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
+            for _ in range(os.cpu_count() or 2)]
+    yield
+    for h in hogs:
+        h.kill()
+        h.wait()
+
+
+def test_a_burst_of_fifty_clients_is_served_whole(sim, busy_cores):
+    codes = burst(BURST, lambda i: (SpawnEntity, '/spawn_entity') if i is None
                   else spawn_request(f'burst_{i}', i))
     names = set(sim.entities())
-    assert_burst_served(codes, all(f'burst_{i}' in names for i in range(50)))
+    assert_burst_served(codes, all(f'burst_{i}' in names for i in range(BURST)))
     from simulation_interfaces.srv import DeleteEntity
-    codes = burst(50, lambda i: (DeleteEntity, '/delete_entity') if i is None
+    codes = burst(BURST, lambda i: (DeleteEntity, '/delete_entity') if i is None
                   else DeleteEntity.Request(entity=f'burst_{i}'))
     assert_burst_served(codes, not any(n.startswith('burst_') for n in sim.entities()))
     assert_intact(sim)
@@ -146,9 +163,7 @@ def test_a_burst_of_fifty_clients_is_served_whole(sim):
 def test_concurrent_duplicate_names_give_one_entity_and_the_standard_code_to_the_rest(sim):
     codes = burst(10, lambda i: (SpawnEntity, '/spawn_entity') if i is None
                   else spawn_request('twin', i))
-    answered = sorted(c for c in codes if c is not None)  # see assert_burst_served
-    assert answered.count(Result.RESULT_OK) <= 1 and len(answered) >= 8
-    assert set(answered) <= {Result.RESULT_OK, SpawnEntity.Response.NAME_NOT_UNIQUE}
+    assert sorted(codes) == [Result.RESULT_OK] + [SpawnEntity.Response.NAME_NOT_UNIQUE] * 9
     assert sim.entities().count('twin') == 1
     sim.delete('twin')
     assert_intact(sim)
