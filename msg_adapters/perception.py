@@ -20,7 +20,7 @@ from geometry_msgs.msg import WrenchStamped
 import numpy as np
 from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, PointField, Range
 from sim_node.core import quat
-from sim_node.core.cameras import intrinsics, OPTICAL_FROM_MUJOCO_WXYZ
+from sim_node.core.cameras import OPTICAL_FROM_MUJOCO_WXYZ
 from sim_node.core.lidar import LaserConfig, LaserReading
 from sim_node.core.records import CameraSpec, ModelInfo, SensorSpec, SiteSpec
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
@@ -115,10 +115,14 @@ def depth_image(depth: np.ndarray, sim_time: float, frame: str) -> Image:
     return msg
 
 
-def camera_info(cam: CameraSpec, width: int, height: int, sim_time: float,
+def camera_info(intrinsics: Sequence[float], width: int, height: int, sim_time: float,
                 frame: str) -> CameraInfo:
-    """Pinhole model of a MuJoCo camera: K and P from fovy, no distortion (plumb_bob, zeros)."""
-    fx, fy, cx, cy = intrinsics(cam.fovy_deg, width, height)
+    """
+    Convert a pinhole model to sensor_msgs/CameraInfo: K and P, no distortion (plumb_bob).
+
+    :param intrinsics: (fx, fy, cx, cy) in pixels (a :class:`CameraFrame`'s).
+    """
+    fx, fy, cx, cy = intrinsics
     msg = CameraInfo(height=height, width=width, distortion_model='plumb_bob')
     msg.header.stamp = stamp(sim_time)
     msg.header.frame_id = frame
@@ -129,7 +133,7 @@ def camera_info(cam: CameraSpec, width: int, height: int, sim_time: float,
     return msg
 
 
-def points(depth: np.ndarray, rgb: np.ndarray, cam: CameraSpec, sim_time: float,
+def points(depth: np.ndarray, rgb: np.ndarray, intrinsics: Sequence[float], sim_time: float,
            frame: str) -> PointCloud2:
     """
     Turn a depth image into an organized point cloud in the optical frame (x, y, z, rgb).
@@ -138,9 +142,10 @@ def points(depth: np.ndarray, rgb: np.ndarray, cam: CameraSpec, sim_time: float,
     false). ``rgb`` is packed into a float32 as RViz and PCL read it.
 
     :param depth: (h, w) float32 metres along the optical axis; `rgb` (h, w, 3) uint8.
+    :param intrinsics: (fx, fy, cx, cy) in pixels, as the frame's camera_info gives them.
     """
     h, w = depth.shape
-    fx, fy, cx, cy = intrinsics(cam.fovy_deg, w, h)
+    fx, fy, cx, cy = intrinsics
     z = np.where(np.isfinite(depth), depth, np.nan).astype(np.float32)
     u = np.arange(w, dtype=np.float32)[None, :]
     v = np.arange(h, dtype=np.float32)[:, None]

@@ -249,11 +249,11 @@ class Perception:
                 self._tf_pub.publish(pm.moving_camera_tf(frame, self._world_frame, f.pos,
                                                          f.quat_wxyz, f.time))
             image_pub.publish(pm.image(f.rgb, f.time, frame))
-            info_pub.publish(pm.camera_info(f.camera, rig.width, rig.height, f.time, frame))
+            info_pub.publish(pm.camera_info(f.intrinsics, rig.width, rig.height, f.time, frame))
             if depth_pub is not None and f.depth is not None:
                 depth_pub.publish(pm.depth_image(f.depth, f.time, frame))
             if points_pub is not None and f.depth is not None:
-                points_pub.publish(pm.points(f.depth, f.rgb, f.camera, f.time, frame))
+                points_pub.publish(pm.points(f.depth, f.rgb, f.intrinsics, f.time, frame))
 
     def _publish_scan(self, reading, info: ModelInfo, period: float) -> None:
         pub = self._laser_pubs.get(reading.site)

@@ -44,11 +44,16 @@ SCENE = f"""<mujoco><compiler angle="radian"/>
   <texture type="skybox" builtin="gradient" rgb1="1 1 1" rgb2="0 0 0" width="32" height="32"/>
 </asset><worldbody>
   <light pos="0 0 3" dir="0 0 -1" directional="true"/>
-  <camera name="side" pos="{' '.join(map(str, EYE))}" fovy="55"
+  <camera name="side" pos="{' '.join(map(str, EYE))}" LENS
           xyaxes="{' '.join(map(str, X_AXIS))} {' '.join(map(str, Y_AXIS))}"/>
   <body name="ball" pos="{' '.join(map(str, BALL))}">
     <geom type="sphere" size="{BALL_R}" material="glow"/></body>
 </worldbody></mujoco>"""
+FOVY = 'fovy="55"'
+# A camera given as a sensor (MuJoCo's intrinsics): an off-centre principal point, non-square
+# pixels at 320 x 240 (sensor aspect 1.2, image aspect 1.33).
+SENSOR = ('sensorsize="0.006 0.005" focal="0.006 0.0058" principal="0.0004 -0.0003" '
+          'resolution="320 240"')
 
 
 def _red_centroid(rgb):
@@ -65,14 +70,14 @@ def _project(point, pos, q_wxyz, k):
     return fx * p[0] / p[2] + cx, fy * p[1] / p[2] + cy, p[2]
 
 
-@pytest.mark.parametrize('width, height', [(320, 240), (160, 200)])
-def test_a_ball_shows_where_camera_info_and_the_optical_frame_predict(width, height):
-    world = World.from_string(SCENE)
+@pytest.mark.parametrize('lens, width, height', [(FOVY, 320, 240), (FOVY, 160, 200),
+                                                 (SENSOR, 320, 240)])
+def test_a_ball_shows_where_camera_info_and_the_optical_frame_predict(lens, width, height):
+    world = World.from_string(SCENE.replace('LENS', lens))
     rig = CameraRig(world, width, height)
     (frame,) = rig.capture()
     info = world.model_info
-    cam = info.cameras[0]
-    k = pm.camera_info(cam, width, height, frame.time, 'side_optical_frame').k
+    k = pm.camera_info(frame.intrinsics, width, height, frame.time, 'side_optical_frame').k
     # The optical frame as /tf_static gives it (the camera sits on the world body).
     (tf,) = pm.device_transforms(info, 0.0, ['world'], info.cameras, [], [])
     r = tf.transform.rotation
@@ -95,9 +100,9 @@ def test_a_ball_shows_where_camera_info_and_the_optical_frame_predict(width, hei
 
 
 def test_points_from_depth_put_the_ball_where_it_is():
-    world = World.from_string(SCENE)
+    world = World.from_string(SCENE.replace('LENS', FOVY))
     (frame,) = CameraRig(world, 160, 120).capture()
-    msg = pm.points(frame.depth, frame.rgb, frame.camera, frame.time, 'side_optical_frame')
+    msg = pm.points(frame.depth, frame.rgb, frame.intrinsics, frame.time, 'side_optical_frame')
     assert (msg.height, msg.width, msg.point_step) == (120, 160, 16)
     cloud = np.frombuffer(bytes(msg.data), '<f4').reshape(120, 160, 4)
     rgb = cloud[..., 3].copy().view(np.uint32)
@@ -117,7 +122,7 @@ def test_points_from_depth_put_the_ball_where_it_is():
 
 
 def test_optical_frame_is_z_forward_x_right_y_down():
-    world = World.from_string(SCENE)
+    world = World.from_string(SCENE.replace('LENS', FOVY))
     (frame,) = CameraRig(world, 64, 48).capture()
     fwd = quat.rotate(frame.quat_wxyz, np.array([0.0, 0, 1]))
     right = quat.rotate(frame.quat_wxyz, np.array([1.0, 0, 0]))
@@ -147,7 +152,7 @@ CAMERA_BOT = """<mujoco><worldbody><body name="head">
 
 
 def test_a_spawned_camera_appears_and_disappears_with_its_entity():
-    world = World.from_string(SCENE)
+    world = World.from_string(SCENE.replace('LENS', FOVY))
     rig = CameraRig(world, 64, 48)
     assert [f.camera.name for f in rig.capture()] == ['side']
     world.spawn('bot', sources.from_model_text(CAMERA_BOT), position=[0.0, 0.0, 1.0])
@@ -161,7 +166,7 @@ def test_a_spawned_camera_appears_and_disappears_with_its_entity():
 
 
 def test_camera_selection_by_pattern_and_depth_off():
-    world = World.from_string(SCENE)
+    world = World.from_string(SCENE.replace('LENS', FOVY))
     world.spawn('bot', sources.from_model_text(CAMERA_BOT), position=[0.0, 0.0, 1.0])
     frames = CameraRig(world, 32, 24, patterns=['bot/*'], depth=False).capture()
     assert [f.camera.name for f in frames] == ['bot/eye'] and frames[0].depth is None

@@ -6,11 +6,13 @@ of geom poses: tens of microseconds), then draws them with the lock released, so
 loop never waits for OpenGL. The renderer starts on the first capture that has a camera to
 draw: a world without cameras costs nothing. Use a rig from one thread only.
 
-Intrinsics follow from MuJoCo's projection: a symmetric frustum of vertical field of view
-``fovy`` over the whole image, square pixels, so ``fx = fy = (h / 2) / tan(fovy / 2)`` and the
-principal point is the image centre, ``((w - 1) / 2, (h - 1) / 2)`` in pixel-centre
-coordinates. The optical frame (REP 103: z forward, x right, y down) is MuJoCo's camera frame
-(looking down -z, y up) turned half a turn about x.
+Intrinsics are read off the frustum MuJoCo itself renders with (:func:`frustum_intrinsics`),
+so cameras given by ``sensorsize``/``focal``/``principal`` come out as right as those given by
+``fovy``. For ``fovy`` that is a symmetric frustum over the whole image with square pixels:
+``fx = fy = (h / 2) / tan(fovy / 2)`` and the principal point is the image centre,
+``((w - 1) / 2, (h - 1) / 2)`` in pixel-centre coordinates. The optical frame (REP 103: z
+forward, x right, y down) is MuJoCo's camera frame (looking down -z, y up) turned half a turn
+about x.
 """
 
 import copy
@@ -40,6 +42,23 @@ def intrinsics(fovy_deg: float, width: int, height: int) -> tuple:
     return f, f, (width - 1) / 2.0, (height - 1) / 2.0
 
 
+def frustum_intrinsics(glcam: mujoco.MjvGLCamera, width: int, height: int) -> tuple:
+    """
+    Return (fx, fy, cx, cy) in pixels of the frustum MuJoCo renders a camera with.
+
+    ``mjr_render`` draws ``glFrustum(center - w, center + w, bottom, top, near, far)`` where
+    ``w`` is the camera's ``frustum_width`` or, when that is 0 (fovy cameras), half the
+    height times the viewport's aspect ratio. Pixel (u, v) has its centre at (u + 0.5,
+    v + 0.5) from the top left corner of the image.
+    """
+    near, top, bottom = glcam.frustum_near, glcam.frustum_top, glcam.frustum_bottom
+    half = glcam.frustum_width or 0.5 * (width / height) * (top - bottom)
+    left = glcam.frustum_center - half
+    fx = width * near / (2.0 * half)
+    fy = height * near / (top - bottom)
+    return fx, fy, -left * width / (2.0 * half) - 0.5, top * height / (top - bottom) - 0.5
+
+
 def optical_pose(pos: Sequence[float], quat_wxyz: Sequence[float]) -> tuple:
     """Turn a MuJoCo camera pose (in any frame) into the pose of its optical frame."""
     return (np.array(pos, dtype=float),
@@ -62,6 +81,7 @@ class CameraFrame:
         was hit; None when depth is off.
     :param pos: (3,) the camera's world position; `quat_wxyz` (4,) its optical frame's world
         orientation.
+    :param intrinsics: (fx, fy, cx, cy) in pixels (:func:`frustum_intrinsics`).
     """
 
     camera: CameraSpec
@@ -71,6 +91,7 @@ class CameraFrame:
     depth: Optional[np.ndarray]
     pos: np.ndarray
     quat_wxyz: np.ndarray
+    intrinsics: tuple = ()
 
 
 class CameraRig:
@@ -122,10 +143,10 @@ class CameraRig:
             self._renderer.use_model(self._model, self.shadow_size)
             self._model = None
         out = []
-        for (cam, sim_time, generation, pos, q), scene in zip(frames, self._scenes):
+        for (cam, sim_time, generation, pos, q, k), scene in zip(frames, self._scenes):
             rgb, depth = self._renderer.render(scene, self.depth)
             out.append(CameraFrame(camera=cam, time=sim_time, generation=generation, rgb=rgb,
-                                   depth=depth, pos=pos, quat_wxyz=q))
+                                   depth=depth, pos=pos, quat_wxyz=q, intrinsics=k))
         return out
 
     def _fill_scenes(self, m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> list:
@@ -156,7 +177,8 @@ class CameraRig:
             q = np.empty(4)
             mujoco.mju_mat2Quat(q, d.cam_xmat[cam.cam_id])
             pos, q = optical_pose(d.cam_xpos[cam.cam_id], q)
-            out.append((cam, float(d.time), generation, pos, q))
+            k = frustum_intrinsics(scene.camera[0], self.width, self.height)
+            out.append((cam, float(d.time), generation, pos, q, k))
         return out
 
     def close(self) -> None:
