@@ -132,6 +132,42 @@ def test_optical_frame_is_z_forward_x_right_y_down():
     np.testing.assert_allclose(down, -Y_AXIS, atol=1e-9)
 
 
+TRACKING = """<mujoco><worldbody>
+  <camera name="follow" pos="0 -2 1" mode="targetbody" target="ball"/>
+  <body name="ball" pos="0 0 0.5"><freejoint/><geom type="sphere" size="0.05"/></body>
+</worldbody><option gravity="0 0 0"/></mujoco>"""
+
+
+def test_a_tracking_camera_keeps_its_target_on_the_optical_axis():
+    world = World.from_string(TRACKING)
+    info = world.model_info
+    assert not info.cameras[0].fixed
+    # Not a fixed frame: no /tf_static entry (the node sends it on /tf with each image).
+    assert pm.device_transforms(info, 0.0, ['world', 'ball'], info.cameras, [], []) == []
+    rig = CameraRig(world, 64, 48)
+    for target in ([0.0, 0.0, 0.5], [1.0, 0.5, 1.5]):
+        world.set_entity_state('ball', position=target)
+        (frame,) = rig.capture()
+        axis = quat.rotate(frame.quat_wxyz, np.array([0.0, 0, 1]))
+        to_ball = np.array(target) - frame.pos
+        np.testing.assert_allclose(axis, to_ball / np.linalg.norm(to_ball), atol=1e-6)
+        np.testing.assert_allclose(frame.pos, [0, -2, 1])
+    tf = pm.moving_camera_tf('follow_optical_frame', 'world', frame.pos, frame.quat_wxyz,
+                             frame.time)
+    assert tf.transforms[0].header.frame_id == 'world'
+
+
+def test_a_camera_on_a_falling_body_is_where_its_body_is_at_the_image_time():
+    world = World.from_string("""<mujoco><worldbody><body name="drone" pos="0 0 10">
+      <freejoint/><geom type="box" size="0.1 0.1 0.1"/>
+      <camera name="belly" pos="0 0 -0.2"/></body></worldbody></mujoco>""")
+    world.step(500)  # 1 s of free fall: 9.8 m/s, 2 cm a step
+    (frame,) = CameraRig(world, 32, 24).capture()
+    state = world.get_entity_state('drone')
+    assert frame.time == state.time
+    np.testing.assert_allclose(frame.pos, state.position + [0, 0, -0.2], atol=1e-9)
+
+
 def test_intrinsics_from_fovy():
     fx, fy, cx, cy = intrinsics(90.0, 640, 480)
     assert fx == fy == pytest.approx(240.0)
