@@ -9,6 +9,7 @@ each model generation.
 """
 
 import math
+import os
 import threading
 from typing import Callable, Optional
 
@@ -28,6 +29,8 @@ from .core.rendering import RenderingUnavailableError
 
 SENSOR_TYPES = {'imu': (Imu, 'imu'), 'wrench': (WrenchStamped, 'wrench'),
                 'range': (Range, 'range'), 'generic': (Float64MultiArray, 'values')}
+#: Niceness of the camera and laser thread (and of the renderer threads it starts).
+PERCEPTION_NICE = 10
 #: Simulated time within this fraction of a period of a due time counts as due.
 DUE_TOLERANCE = 1e-6
 
@@ -159,6 +162,12 @@ class Perception:
     # ------------------------------------------------------------------ cameras and lasers
 
     def _run(self) -> None:
+        # Below the stepping loop and the publishers in the CPU's eyes: when cores are short,
+        # images come later, not the physics or /tf (the renderer's own threads inherit it).
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PERCEPTION_NICE)
+        except OSError:  # not permitted here: run at the node's priority
+            pass
         state = _ThreadState(self.config)
         try:
             while self._running.is_set():

@@ -7,6 +7,7 @@ camera_info and /tf_static predict, at the depth its distance gives; a spawned c
 and goes with its entity; a scene without cameras never loads an OpenGL driver.
 """
 
+from pathlib import Path
 import threading
 import time
 
@@ -127,6 +128,19 @@ def test_the_default_scene_shows_its_camera_scan_and_imu_stamped_with_sim_time(
     imu = sensors.after('sensors/base_imu/imu', now)
     assert imu.header.frame_id == 'robot/base_imu'
     assert imu.linear_acceleration.z == pytest.approx(9.81, abs=1e-3)  # at rest: +g
+
+
+def test_the_renderer_runs_below_the_physics(node, sensors, watcher):
+    """When cores are short, images come later, not the physics or /tf (see test_node_scale)."""
+    sensors.after(f'{CAM}/image_raw', wait_for(watcher.latest_clock))
+    nice = {}  # thread id -> (name, niceness)
+    for task in Path(f'/proc/{node.proc.pid}/task').iterdir():
+        fields = (task / 'stat').read_text().rsplit(')', 1)[1].split()
+        nice[int(task.name)] = ((task / 'comm').read_text().strip(), int(fields[16]))
+    assert nice[node.proc.pid][1] == 0  # the node itself; the loop thread with it
+    assert 10 in {n for _, n in nice.values()}  # the perception thread
+    renderer = [n for name, n in nice.values() if name.startswith('llvmpipe')]  # Mesa's
+    assert all(n == 10 for n in renderer)
 
 
 def test_a_spawned_ball_appears_where_camera_info_and_tf_predict(sim, sensors, watcher):
