@@ -142,22 +142,35 @@ class Perception:
                 pub.publish(pm.generic(sensor, data))
 
     def _sync_sensor_publishers(self, info: ModelInfo) -> dict:
-        wanted, frames = {}, {}
+        frames = {}
         for s in info.sensors:
-            wanted[(s.kind, s.name)] = s
             if s.kind == 'range':
                 frames[(s.kind, s.name)] = pm.range_frame(info, s, self._prefix)
             elif s.site is not None:
                 frames[(s.kind, s.name)] = pm.site_frame(info, s.site, self._prefix)
-        for key in list(self._sensor_pubs):
-            if key not in wanted:
-                self._node.destroy_publisher(self._sensor_pubs.pop(key))
-        for (kind, name) in wanted:
-            if (kind, name) not in self._sensor_pubs:
-                msg_type, leaf = SENSOR_TYPES[kind]
-                self._sensor_pubs[(kind, name)] = self._node.create_publisher(
-                    msg_type, f'sensors/{pm.topic_token(name)}/{leaf}', qos_profile_sensor_data)
+
+        def create(key):
+            msg_type, leaf = SENSOR_TYPES[key[0]]
+            return self._node.create_publisher(
+                msg_type, f'sensors/{pm.topic_token(key[1])}/{leaf}', qos_profile_sensor_data)
+        self._sync(self._sensor_pubs, [(s.kind, s.name) for s in info.sensors], create)
         return frames
+
+    def _sync(self, pubs: dict, keys: list, create: Callable) -> None:
+        """
+        Make `pubs` hold publishers for exactly `keys`.
+
+        Destroy those of keys gone, create those of new ones with ``create(key)`` (a publisher,
+        or a tuple of publishers and Nones).
+        """
+        for key in [k for k in pubs if k not in keys]:
+            gone = pubs.pop(key)
+            for pub in gone if isinstance(gone, tuple) else (gone,):
+                if pub is not None:
+                    self._node.destroy_publisher(pub)
+        for key in keys:
+            if key not in pubs:
+                pubs[key] = create(key)
 
     # ------------------------------------------------------------------ cameras and lasers
 
@@ -214,19 +227,9 @@ class Perception:
         """Create and destroy camera and laser publishers for a new model generation."""
         cams = select(info.cameras, self.config.cameras)
         sites = scanner_sites([s.name for s in info.sites], self.config.lidar_sites)
-        for name in [n for n in self._camera_pubs if n not in {c.name for c in cams}]:
-            for pub in self._camera_pubs.pop(name):
-                if pub is not None:
-                    self._node.destroy_publisher(pub)
-        for cam in cams:
-            if cam.name not in self._camera_pubs:
-                self._camera_pubs[cam.name] = self._camera_publishers(cam.name)
-        for name in [n for n in self._laser_pubs if n not in sites]:
-            self._node.destroy_publisher(self._laser_pubs.pop(name))
-        for name in sites:
-            if name not in self._laser_pubs:
-                self._laser_pubs[name] = self._node.create_publisher(
-                    LaserScan, f'lasers/{pm.topic_token(name)}/scan', qos_profile_sensor_data)
+        self._sync(self._camera_pubs, [c.name for c in cams], self._camera_publishers)
+        self._sync(self._laser_pubs, list(sites), lambda name: self._node.create_publisher(
+            LaserScan, f'lasers/{pm.topic_token(name)}/scan', qos_profile_sensor_data))
         return cams, sites
 
     def _camera_publishers(self, name: str) -> tuple:
