@@ -164,7 +164,8 @@ def joint_state(info: ModelInfo, snap: Snapshot) -> JointState:
     return msg
 
 
-def _transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStamped:
+def transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStamped:
+    """Return the pose (pos (3,), q_wxyz (4,)) of `child` in `parent` as a TransformStamped."""
     ts = TransformStamped()
     ts.header.stamp = t
     ts.header.frame_id = parent
@@ -173,24 +174,31 @@ def _transform(parent: str, child: str, pos, q_wxyz, t: Time) -> TransformStampe
     return ts
 
 
+def element_frame(info: ModelInfo, body: int, name: str, prefix: str = '') -> str:
+    """
+    Return the TF frame of something called `name` on `body`, by the one frame rule.
+
+    ``<entity>/<name>`` within an entity (a spawned model's names already carry that prefix
+    in MuJoCo), `name` alone on the world body; after `prefix`.
+    """
+    root = int(info.body_root[body])
+    if root != 0 and not name.startswith(info.body_names[root] + '/'):
+        name = f'{info.body_names[root]}/{name}'
+    return prefix + name
+
+
 def frame_names(info: ModelInfo, world_frame: str, prefix: str = '') -> tuple:
     """
     Return the TF frame of every body, (nbody,), by one rule for scene and spawned entities.
 
     The world body is `world_frame`; an entity's root body is the entity's name; every other
-    body is ``<entity>/<body>``, its name in its own model (a spawned model's bodies already
-    carry that prefix in MuJoCo). Each is given after `prefix` (like robot_state_publisher's
-    frame_prefix).
+    body is ``<entity>/<body>``, its name in its own model (:func:`element_frame`). Each is
+    given after `prefix` (like robot_state_publisher's frame_prefix).
     """
     names = info.body_names
-    out = [prefix + world_frame]
-    for b in range(1, len(names)):
-        root = int(info.body_root[b])
-        name = names[b]
-        if root != b and root != 0 and not name.startswith(names[root] + '/'):
-            name = f'{names[root]}/{name}'
-        out.append(prefix + name)
-    return tuple(out)
+    return (prefix + world_frame,) + tuple(
+        prefix + names[b] if info.body_root[b] == b else element_frame(info, b, names[b], prefix)
+        for b in range(1, len(names)))
 
 
 def parent_frames(info: ModelInfo, frames: Sequence[str], prefix: str = '') -> tuple:
@@ -210,10 +218,10 @@ def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
     """
     t = stamp(sim_time)
     parents = parent_frames(info, frames, prefix)
-    out = [_transform(parents[b], frames[b], info.body_local_pos[b],
-                      info.body_local_quat_wxyz[b], t)
+    out = [transform(parents[b], frames[b], info.body_local_pos[b],
+                     info.body_local_quat_wxyz[b], t)
            for b in range(1, len(info.body_names)) if not info.body_has_joint[b]]
-    out += [_transform(frames[b], prefix + alias, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
+    out += [transform(frames[b], prefix + alias, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
             for b, alias in enumerate(info.body_alias) if alias]
     return TFMessage(transforms=out)
 

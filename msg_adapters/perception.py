@@ -26,7 +26,7 @@ from sim_node.core.records import CameraSpec, ModelInfo, SensorSpec, SiteSpec
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from tf2_msgs.msg import TFMessage
 
-from .convert import _transform, quat_to_msg, stamp, vec
+from .convert import element_frame, quat_to_msg, stamp, transform, vec
 
 #: A rangefinder's frame from its site's: MuJoCo measures along the site's z, Range along x
 #: (a quarter turn about y, w x y z).
@@ -38,14 +38,6 @@ def topic_token(name: str) -> str:
     """Turn a MuJoCo name into valid ROS name tokens (``a b/1x`` -> ``a_b/_1x``)."""
     parts = [p for p in _NOT_IN_NAME.sub('_', name).split('/') if p]
     return '/'.join('_' + p if p[0].isdigit() else p for p in parts) or '_'
-
-
-def element_frame(info: ModelInfo, body: int, name: str, prefix: str = '') -> str:
-    """Return the TF frame of an element (camera, site, sensor) called `name` on `body`."""
-    root = int(info.body_root[body])
-    if root != 0 and not name.startswith(info.body_names[root] + '/'):
-        name = f'{info.body_names[root]}/{name}'
-    return prefix + name
 
 
 def camera_frame(info: ModelInfo, cam: CameraSpec, prefix: str = '') -> str:
@@ -75,24 +67,24 @@ def device_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
     for cam in cameras:
         if cam.fixed:
             q = quat.mul(np.asarray(cam.quat_wxyz), np.asarray(OPTICAL_FROM_MUJOCO_WXYZ))
-            out.append(_transform(frames[cam.body], camera_frame(info, cam, prefix),
-                                  cam.pos, q, t))
+            out.append(transform(frames[cam.body], camera_frame(info, cam, prefix),
+                                 cam.pos, q, t))
     seen = set()
     for site in sites:
         if site.site_id not in seen:
             seen.add(site.site_id)
-            out.append(_transform(frames[site.body], site_frame(info, site, prefix),
-                                  site.pos, site.quat_wxyz, t))
+            out.append(transform(frames[site.body], site_frame(info, site, prefix),
+                                 site.pos, site.quat_wxyz, t))
     for sensor in ranges:
         q = quat.mul(np.asarray(sensor.site.quat_wxyz), np.asarray(RANGE_FROM_SITE_WXYZ))
-        out.append(_transform(frames[sensor.site.body], range_frame(info, sensor, prefix),
-                              sensor.site.pos, q, t))
+        out.append(transform(frames[sensor.site.body], range_frame(info, sensor, prefix),
+                             sensor.site.pos, q, t))
     return out
 
 
 def moving_camera_tf(frame: str, world_frame: str, pos, q_wxyz, sim_time: float) -> TFMessage:
     """Return a tracking camera's optical frame in the world, at the time of its image."""
-    return TFMessage(transforms=[_transform(world_frame, frame, pos, q_wxyz, stamp(sim_time))])
+    return TFMessage(transforms=[transform(world_frame, frame, pos, q_wxyz, stamp(sim_time))])
 
 
 def image(rgb: np.ndarray, sim_time: float, frame: str) -> Image:
