@@ -15,7 +15,7 @@ from msg_adapters import perception as pm
 import numpy as np
 import pytest
 from sim_node.core import quat, sources
-from sim_node.core.cameras import CameraRig, intrinsics
+from sim_node.core.cameras import CameraRig
 from sim_node.core.lidar import LaserConfig, LaserScanner
 from sim_node.core.world import World
 
@@ -169,9 +169,12 @@ def test_a_camera_on_a_falling_body_is_where_its_body_is_at_the_image_time():
 
 
 def test_intrinsics_from_fovy():
-    fx, fy, cx, cy = intrinsics(90.0, 640, 480)
-    assert fx == fy == pytest.approx(240.0)
-    assert (cx, cy) == (319.5, 239.5)
+    world = World.from_string('<mujoco><worldbody><camera name="c" fovy="90"/></worldbody>'
+                              '</mujoco>')
+    (frame,) = CameraRig(world, 640, 480).capture()
+    fx, fy, cx, cy = frame.intrinsics
+    assert fx == pytest.approx(240.0) and fy == pytest.approx(240.0)  # square pixels
+    assert (cx, cy) == pytest.approx((319.5, 239.5))
 
 
 def test_a_world_without_cameras_starts_no_renderer():

@@ -19,7 +19,6 @@ import copy
 from dataclasses import dataclass
 import fnmatch
 import logging
-import math
 from typing import Optional, Sequence
 
 import mujoco
@@ -36,10 +35,19 @@ log = logging.getLogger(__name__)
 OPTICAL_FROM_MUJOCO_WXYZ = (0.0, 1.0, 0.0, 0.0)
 
 
-def intrinsics(fovy_deg: float, width: int, height: int) -> tuple:
-    """Return (fx, fy, cx, cy) in pixels for a MuJoCo camera rendered at width x height."""
-    f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
-    return f, f, (width - 1) / 2.0, (height - 1) / 2.0
+#: Room in a scene for MuJoCo's own decorations beyond the model's geoms.
+DECOR_GEOMS = 1000
+
+
+def _view_option() -> mujoco.MjvOption:
+    """Return the render options of every view: sites are markers for people, not seen."""
+    option = mujoco.MjvOption()
+    option.sitegroup[:] = 0
+    return option
+
+
+def _new_scene(m: mujoco.MjModel) -> mujoco.MjvScene:
+    return mujoco.MjvScene(m, maxgeom=m.ngeom + DECOR_GEOMS)
 
 
 def frustum_intrinsics(glcam: mujoco.MjvGLCamera, width: int, height: int) -> tuple:
@@ -117,8 +125,7 @@ class CameraRig:
         self._cameras: tuple = ()
         self._scenes: list = []
         self._model: Optional[mujoco.MjModel] = None
-        self._option = mujoco.MjvOption()
-        self._option.sitegroup[:] = 0  # sites are markers for people, not things cameras see
+        self._option = _view_option()
 
     @property
     def renderer_started(self) -> bool:
@@ -157,8 +164,7 @@ class CameraRig:
             self._cameras = select(devices.cameras(m), self.patterns)
             if self._cameras:
                 self._model = copy.copy(m)  # the renderer uploads it outside the lock
-                maxgeom = m.ngeom + 1000  # room for MuJoCo's own decorations
-                self._scenes = [mujoco.MjvScene(m, maxgeom=maxgeom) for _ in self._cameras]
+                self._scenes = [_new_scene(m) for _ in self._cameras]
                 for scene in self._scenes:
                     # The skybox is drawn as a surface some 50 m away: depth would read it as
                     # one. Without it, nothing there reads +inf (and the sky is black).
@@ -206,8 +212,7 @@ def picture(world: World, camera: str = '', width: int = 640, height: int = 480)
     """
     from .errors import NotFoundError
     view = mujoco.MjvCamera()
-    option = mujoco.MjvOption()
-    option.sitegroup[:] = 0
+    option = _view_option()
 
     def fill(m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> tuple:
         if camera:
@@ -220,7 +225,7 @@ def picture(world: World, camera: str = '', width: int = 640, height: int = 480)
             mujoco.mjv_defaultFreeCamera(m, view)
             view.azimuth, view.elevation = FREE_AZIMUTH_DEG, FREE_ELEVATION_DEG
             view.distance = FREE_DISTANCE_EXTENTS * m.stat.extent
-        scene = mujoco.MjvScene(m, maxgeom=m.ngeom + 1000)
+        scene = _new_scene(m)
         mujoco.mjv_updateScene(m, d, option, None, view, mujoco.mjtCatBit.mjCAT_ALL, scene)
         return copy.copy(m), scene
 
