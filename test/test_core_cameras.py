@@ -168,6 +168,14 @@ def test_a_camera_on_a_falling_body_is_where_its_body_is_at_the_image_time():
     np.testing.assert_allclose(frame.pos, state.position + [0, 0, -0.2], atol=1e-9)
 
 
+def test_cameras_do_not_see_sites():
+    world = World.from_string('<mujoco><worldbody><camera name="c" pos="0 0 2"/>'
+                              '<site name="marker" size="0.5" rgba="1 0 0 1"/>'
+                              '</worldbody></mujoco>')
+    (frame,) = CameraRig(world, 32, 24).capture()
+    assert np.all(np.isinf(frame.depth)) and frame.rgb.max() == 0
+
+
 def test_intrinsics_from_fovy():
     world = World.from_string('<mujoco><worldbody><camera name="c" fovy="90"/></worldbody>'
                               '</mujoco>')
