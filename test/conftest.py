@@ -72,6 +72,18 @@ class NodeProcess:
         self._log.close()
 
 
+def serve_node(*params: str):
+    """
+    Run a node for the length of a module's `node` fixture, which yields from this.
+
+    At the end it must exit cleanly on SIGINT.
+    """
+    proc = NodeProcess(*params)
+    yield proc
+    code, _ = proc.interrupt()
+    assert code == 0, proc.output()
+
+
 @pytest.fixture(scope='session')
 def rclpy_context():
     import rclpy

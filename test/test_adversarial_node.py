@@ -13,7 +13,7 @@ import random
 import threading
 import time
 
-from conftest import NodeProcess, wait_for, Watcher
+from conftest import serve_node, wait_for, Watcher
 import pytest
 from sim_node.client import SimClient, SimServiceError
 from sim_node.qos import SERVICE_QOS
@@ -40,10 +40,7 @@ def files(tmp_path_factory) -> Path:
 def node(files):
     from conftest import installed_prefix
     scenes = installed_prefix() / 'share' / 'sim' / 'scenes'
-    proc = NodeProcess(f"resource_paths:=['{scenes}', '{files}']")
-    yield proc
-    code, _ = proc.interrupt()
-    assert code == 0, proc.output()
+    yield from serve_node(f"resource_paths:=['{scenes}', '{files}']")
 
 
 def code_of(call) -> int:

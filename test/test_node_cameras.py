@@ -11,7 +11,7 @@ from pathlib import Path
 import threading
 import time
 
-from conftest import NodeProcess, SCENES, wait_for, Watcher
+from conftest import SCENES, serve_node, wait_for, Watcher
 import numpy as np
 import pytest
 
@@ -29,10 +29,7 @@ CAMERA_BOT = ('<mujoco><worldbody><body name="head"><geom type="box" size="0.05 
 
 @pytest.fixture(scope='module')
 def node():
-    proc = NodeProcess('real_time_factor:=1.0')
-    yield proc
-    code, _ = proc.interrupt()
-    assert code == 0, proc.output()
+    yield from serve_node('real_time_factor:=1.0')
 
 
 class Sensors:
@@ -185,37 +182,36 @@ def test_a_spawned_camera_comes_and_goes_with_its_entity(sim, watcher, rclpy_con
         eye.close()
 
 
-def test_a_scene_without_cameras_never_loads_an_opengl_driver(start_node, rclpy_context):
-    # In a namespace of its own: the module's node (default scene) publishes cameras too.
-    proc = start_node(f'scene:={SCENES / "push_box.xml"}', 'publish_clock:=false',
-                      namespace='/plain')
-    w = Watcher(namespace='plain')
+def _node_topics(start_node, namespace: str, *params: str) -> tuple:
+    """
+    Start a node in a namespace of its own, without /clock; return it and the graph's topics.
+
+    Its own namespace: the module's node (default scene) publishes cameras too.
+    """
+    proc = start_node(*params, 'publish_clock:=false', namespace=f'/{namespace}')
+    w = Watcher(namespace=namespace)
     try:
         wait_for(lambda: w.joint_states is not None, 30)
         time.sleep(1.0)
-        topics = [name for name, _ in w.node.get_topic_names_and_types()]
-        assert '/plain/joint_states' in topics
-        assert not [t for t in topics if t.startswith(('/plain/cameras/', '/plain/lasers/'))]
-        maps = open(f'/proc/{proc.proc.pid}/maps').read()
-        assert 'libEGL' not in maps and 'OSMesa' not in maps
-        assert 'rendering with' not in proc.output()
+        return proc, [name for name, _ in w.node.get_topic_names_and_types()]
     finally:
         w.close()
+
+
+def test_a_scene_without_cameras_never_loads_an_opengl_driver(start_node, rclpy_context):
+    proc, topics = _node_topics(start_node, 'plain', f'scene:={SCENES / "push_box.xml"}')
+    assert '/plain/joint_states' in topics
+    assert not [t for t in topics if t.startswith(('/plain/cameras/', '/plain/lasers/'))]
+    maps = open(f'/proc/{proc.proc.pid}/maps').read()
+    assert 'libEGL' not in maps and 'OSMesa' not in maps
+    assert 'rendering with' not in proc.output()
 
 
 def test_cameras_off_by_parameter(start_node, rclpy_context):
-    proc = start_node('cameras:=[none]', 'lidar_sites:=[none]', 'publish_clock:=false',
-                      namespace='/blind')
-    w = Watcher(namespace='blind')
-    try:
-        wait_for(lambda: w.joint_states is not None, 30)
-        time.sleep(1.0)
-        topics = [name for name, _ in w.node.get_topic_names_and_types()]
-        assert not [t for t in topics if t.startswith(('/blind/cameras/', '/blind/lasers/'))]
-        assert '/blind/sensors/base_imu/imu' in topics
-        assert 'libEGL' not in open(f'/proc/{proc.proc.pid}/maps').read()
-    finally:
-        w.close()
+    proc, topics = _node_topics(start_node, 'blind', 'cameras:=[none]', 'lidar_sites:=[none]')
+    assert not [t for t in topics if t.startswith(('/blind/cameras/', '/blind/lasers/'))]
+    assert '/blind/sensors/base_imu/imu' in topics
+    assert 'libEGL' not in open(f'/proc/{proc.proc.pid}/maps').read()
 
 
 def test_points_on_request(start_node, rclpy_context):

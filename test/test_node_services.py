@@ -9,7 +9,7 @@ import math
 import threading
 import time
 
-from conftest import NodeProcess, wait_for, Watcher
+from conftest import serve_node, wait_for, Watcher
 import pytest
 from sim_node.client import SimClient, SimServiceError
 from simulation_interfaces.msg import EntityCategory, Result, SimulationState
@@ -21,10 +21,7 @@ BOX = ('<mujoco><worldbody><body name="b"><freejoint/>'
 
 @pytest.fixture(scope='module')
 def node():
-    proc = NodeProcess('real_time_factor:=1.0')
-    yield proc
-    code, seconds = proc.interrupt()
-    assert code == 0, proc.output()
+    yield from serve_node('real_time_factor:=1.0')
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ in markers, commanded, deleted.
 
 import os
 
-from conftest import NodeProcess, wait_for, Watcher
+from conftest import serve_node, wait_for, Watcher
 import gymnasium
 import pytest
 from sim_node.client import SimClient
@@ -17,10 +17,7 @@ GYM_ASSETS = os.path.join(os.path.dirname(gymnasium.__file__), 'envs', 'mujoco',
 
 @pytest.fixture(scope='module')
 def node():
-    proc = NodeProcess(f'resource_paths:=["{GYM_ASSETS}"]')
-    yield proc
-    code, _ = proc.interrupt()
-    assert code == 0, proc.output()
+    yield from serve_node(f'resource_paths:=["{GYM_ASSETS}"]')
 
 
 def test_spawn_a_gymnasium_ant_see_it_command_it_delete_it(node, rclpy_context):
