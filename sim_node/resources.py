@@ -8,7 +8,8 @@ URIs a caller may give:
 * ``package://sim/<path>``: a file in the installed share folder of `sim`;
 * ``file:///abs/path`` (or an absolute path): a file inside one of the resource paths.
 
-Paths with ``..`` and files outside the resource paths are refused before anything opens them.
+Files outside the resource paths (judged once ``..`` and links are resolved) are refused
+before anything opens them.
 """
 
 import os
@@ -47,7 +48,8 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
 
     :raises NoResourceError: empty URI.
     :raises NotFoundError: no such file, package or spawnable.
-    :raises MissingAssetsError: '..', or outside the directories the node may read.
+    :raises MissingAssetsError: outside the directories the node may read, once '..' and
+        symbolic links are resolved.
     :raises UnsupportedFormatError: a URI scheme other than package:// and file://.
     """
     if not uri or not uri.strip():
@@ -58,8 +60,6 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
     roots = list(resource_paths)
     if parsed.scheme == 'package':
         rel = unquote(parsed.path).lstrip('/')
-        if '..' in Path(rel).parts:
-            raise MissingAssetsError(sources.ERR_DOTDOT.format(path=uri))
         if parsed.netloc == PACKAGE:
             root = scenes_dir.parent
             roots = [str(root)]
@@ -75,8 +75,7 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
     else:
         raise UnsupportedFormatError(f'unsupported uri scheme {parsed.scheme!r}; use a '
                                      'spawnable name, package:// or file://')
-    if '..' in path.parts:
-        raise MissingAssetsError(sources.ERR_DOTDOT.format(path=uri))
+    # Judged where the path really leads ('..' and links resolved), before its existence.
     if not sources.inside_roots(str(path), roots):
         raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(path=uri))
     try:
@@ -182,8 +181,6 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
 def check_folder(folder: str, resource_paths: Sequence[str]) -> Path:
     """Check that a directory a caller names lies inside the resource paths."""
     p = Path(unquote(urlparse(folder).path) if folder.startswith('file://') else folder)
-    if '..' in p.parts:
-        raise MissingAssetsError(sources.ERR_DOTDOT.format(path=folder))
     if not sources.inside_roots(str(p), resource_paths):
         raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(path=folder))
     real = Path(os.path.realpath(p))

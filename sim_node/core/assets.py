@@ -1,25 +1,41 @@
 """
-Untrusted model text made safe to hand to MuJoCo: MuJoCo never opens a file itself.
+Untrusted model text made safe to hand to MuJoCo: MuJoCo opens only checked copies.
 
 A client's MJCF or URDF is parsed with defusedxml (no DOCTYPE, no entities, bounded nesting),
-its ``<include>`` elements are expanded here, and every file any attribute names (``file``,
-``filename``, a cube texture's ``fileright`` ...: every attribute whose name starts with
-``file``) is read here: a regular file inside the allowed directories, within the size and
-face budgets. The attribute is rewritten to the name of an in-memory asset, and MuJoCo gets
-the text plus those bytes (``MjSpec.from_string(text, assets=...)``).
+its ``<include>`` elements are expanded here (an included file's root may be ``<mujoco>`` or
+``<mujocoinclude>``), and every file any attribute names (``file``, ``filename``, a cube
+texture's ``fileright`` ...: every attribute whose name starts with ``file``) is resolved here,
+once: the name is resolved (``..`` and symbolic links included) and accepted only when the real
+file lies inside the allowed directories, is a regular file and stays within the size, face and
+pixel budgets. The file is then copied into the :class:`AssetStore`, a private folder named by
+content, and the attribute is rewritten to that copy's absolute path. MuJoCo reads nothing else.
+
+Why copies on disk and not ``MjSpec.from_string(text, assets=...)``: MuJoCo's mesh cache works
+for files (a second compile of a 58-mesh arm: 62 ms, against 225 ms from an asset dict), and a
+compile that reads files releases the GIL throughout, while one that reads an asset dict held
+it for 160-330 ms at a time (measured), stalling every other Python thread, the stepping loop
+included. Copies named by content also let MuJoCo's cache serve a second spawn of the same
+robot, and the store remembers each checked file by (path, inode, size, mtime), so a second
+spawn reads and checks nothing again.
 """
 
+import atexit
 from dataclasses import dataclass
+import hashlib
 import os
 from pathlib import Path
+import re
+import shutil
 import stat
 import struct
+import tempfile
+import threading
 from typing import Optional, Sequence
-import uuid
 import xml.etree.ElementTree as ET
 
 import defusedxml
 import defusedxml.ElementTree as SafeET
+import mujoco
 
 from .errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
                      UnsupportedFormatError)
@@ -33,6 +49,8 @@ MAX_IMAGE_PIXELS = 4096 * 4096
 _DIR_ATTRIBUTES = ('meshdir', 'texturedir', 'assetdir')
 _MESH_TAGS = ('mesh', 'skin', 'flexcomp')
 _IMAGE_TAGS = ('texture', 'hfield')
+#: Root elements an included file may have (MuJoCo accepts both).
+INCLUDE_ROOTS = ('mujoco', 'mujocoinclude')
 
 ERR_DTD = ('the resource declares a DOCTYPE or entities ({what}); they are not accepted: '
            'remove the declaration')
@@ -49,7 +67,8 @@ ERR_TOTAL = "the model's files add up to more than {limit} bytes"
 ERR_FACES = 'the mesh {value!r} has {n} faces, over the limit of {limit}; simplify it'
 ERR_PIXELS = 'the image {value!r} has {n} pixels, over the limit of {limit}'
 ERR_INCLUDES = 'the model has more than {limit} <include> elements or nests them deeper than {d}'
-ERR_INCLUDE_ROOT = 'the included file {value!r} is not MJCF: its root is <{tag}>'
+ERR_INCLUDE_ROOT = ('the included file {value!r} is not MJCF: its root is <{tag}> (expected '
+                    '<mujoco> or <mujocoinclude>)')
 ERR_SUBMODEL = ('<model> assets (a model file inside a model) are not supported: spawn that '
                 'model on its own')
 
@@ -84,52 +103,139 @@ def parse(text: str) -> ET.Element:
 
 
 def inside_roots(path, roots: Sequence[str]) -> bool:
-    """Return True if `path`, with symbolic links resolved, is one of `roots` or inside one."""
+    """
+    Return True if `path`, resolved, is one of `roots` or inside one.
+
+    ``..`` components and symbolic links are resolved first (``os.path.realpath``), so
+    ``meshes/../../scene/table.xml`` is judged by where it really is.
+    """
     real = Path(os.path.realpath(path))
     reals = [Path(os.path.realpath(r)) for r in roots]
     return any(real == r or r in real.parents for r in reals)
 
 
-def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[Sequence[str]],
-            budget: Budget) -> dict:
+# ------------------------------------------------------------------------- the store
+
+
+@dataclass(frozen=True)
+class StoredFile:
+    """A checked copy of one file: where it is and what was measured of it."""
+
+    path: str
+    size: int
+    faces: Optional[int]  # meshes (STL, OBJ)
+    pixels: Optional[int]  # PNG images
+
+
+_SAFE_NAME = re.compile(r'[^A-Za-z0-9._-]')
+
+
+class AssetStore:
     """
-    Expand includes and read every file the document names; rewrite it to use the copies.
+    Checked copies of model files in a private folder, named by content; thread-safe.
+
+    One per process (:func:`store`). Files are only ever added: a copy is immutable once
+    written, so MuJoCo's own cache of processed meshes (keyed by file) stays right, and the
+    same content spawned twice is the same copy. The folder (mode 0700) is removed at exit.
+    """
+
+    def __init__(self, folder: Optional[str] = None):
+        self._folder = folder
+        self._lock = threading.Lock()
+        self._by_file: dict = {}  # (real path, dev, inode, size, mtime_ns) -> StoredFile
+        self._by_digest: dict = {}  # content digest -> StoredFile
+
+    @property
+    def folder(self) -> str:
+        with self._lock:
+            if self._folder is None:
+                self._folder = tempfile.mkdtemp(prefix='sim_assets_')
+                atexit.register(shutil.rmtree, self._folder, True)
+            return self._folder
+
+    def cached(self, key: tuple) -> Optional[StoredFile]:
+        """Return the copy of a file already checked with this identity (None: read it)."""
+        with self._lock:
+            return self._by_file.get(key)
+
+    def put(self, key: Optional[tuple], name: str, data: bytes) -> StoredFile:
+        """Store `data` (the bytes of a file called `name`) and return its copy."""
+        digest = hashlib.blake2b(data, digest_size=16).hexdigest()
+        with self._lock:
+            found = self._by_digest.get(digest)
+        if found is None:
+            suffix = Path(name).suffix.lower()
+            found = StoredFile(path='', size=len(data), faces=mesh_faces(suffix, data),
+                               pixels=image_pixels(data))
+            base = _SAFE_NAME.sub('_', Path(name).name)[-80:] or 'file'
+            path = os.path.join(self.folder, f'{digest}_{base}')
+            if not os.path.exists(path):
+                fd, tmp = tempfile.mkstemp(dir=self.folder)
+                with os.fdopen(fd, 'wb') as f:
+                    f.write(data)
+                os.replace(tmp, path)  # atomic: MuJoCo never sees half a file
+            found = StoredFile(path, found.size, found.faces, found.pixels)
+        with self._lock:
+            self._by_digest.setdefault(digest, found)
+            if key is not None:
+                self._by_file[key] = found
+        return found
+
+
+_STORE = AssetStore()
+
+
+def set_mesh_cache(capacity_mib: int) -> None:
+    """Size MuJoCo's process-wide cache of processed meshes (``WorldConfig.mesh_cache_mb``)."""
+    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), int(capacity_mib) * 2 ** 20)
+
+
+def store() -> AssetStore:
+    """Return the process's asset store."""
+    return _STORE
+
+
+# ------------------------------------------------------------------------- one model
+
+
+def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[Sequence[str]],
+            budget: Budget) -> list:
+    """
+    Expand includes and check every file the document names; rewrite it to use the copies.
 
     :param base_dir: where relative names resolve (None: text from a client, absolute only).
     :param allowed_roots: directories files may be read from (None: anywhere).
-    :returns: asset name -> bytes, for ``MjSpec.from_string(..., assets=...)``.
+    :returns: the paths of the checked copies the document now names.
     :raises MissingAssetsError: a file missing, outside the allowed directories, or relative
         in text without a folder.
     :raises UnsupportedAssetsError: not a regular file, or over a budget.
     """
     is_urdf = root.tag == 'robot'
-    reader = _Reader(allowed_roots, budget)
+    reader = Reader(allowed_roots, budget)
     if not is_urdf:
         _expand_includes(root, base_dir, reader, 0, [0])
         if root.find('asset/model') is not None:
             raise UnsupportedFormatError(ERR_SUBMODEL)
-    compiler = root.find('mujoco/compiler' if is_urdf else 'compiler')
     dirs = {}
-    for c in ([compiler] if compiler is not None else []) + root.findall('.//compiler'):
-        for key in _DIR_ATTRIBUTES:
+    for c in root.iter('compiler'):  # document order, includes expanded: the last one wins,
+        for key in _DIR_ATTRIBUTES:  # as in MuJoCo's parser
             if key in c.attrib:
-                dirs.setdefault(key, c.attrib.pop(key))  # the copies are flat: no folders
+                dirs[key] = c.attrib.pop(key)  # the copies have absolute paths
     for elem in root.iter():
         for attr in [a for a in elem.attrib if a.startswith('file')]:
             value = elem.attrib[attr]
-            candidates = _candidates(value, elem.tag, dirs, base_dir, is_urdf)
+            candidates = _candidates(value, elem.tag, dirs, base_dir, is_urdf, allowed_roots)
             elem.set(attr, reader.read(value, candidates, elem.tag))
-    return reader.assets
+    return reader.paths
 
 
-def _candidates(value: str, tag: str, dirs: dict, base: Optional[Path], is_urdf: bool) -> list:
+def _candidates(value: str, tag: str, dirs: dict, base: Optional[Path], is_urdf: bool,
+                roots: Optional[Sequence[str]] = None) -> list:
     """Where a file name may be, first match wins."""
     if is_urdf and value.startswith('package://'):
         package, _, rel = value[len('package://'):].partition('/')
-        share = _package_share(package)
-        name = Path(rel).name
-        out = [share / rel] if share is not None else []
-        return out + ([base / name] if base is not None else [])
+        out = [share / rel for share in package_folders(package, roots or ())]
+        return out + ([base / Path(rel).name] if base is not None else [])
     if value.startswith('file://'):
         value = value[len('file://'):]
     if os.path.isabs(value):
@@ -149,18 +255,26 @@ def _candidates(value: str, tag: str, dirs: dict, base: Optional[Path], is_urdf:
     return [base / folder / value]
 
 
-def _package_share(package: str) -> Optional[Path]:
+def package_folders(package: str, roots: Sequence[str]) -> list:
+    """
+    Return where ``package://<package>/`` may point, in order.
+
+    ``<root>/<package>`` for each allowed root (a folder of ROS packages given as a resource
+    path, as on a machine without ROS), then the package's share folder in the ament index.
+    """
+    out = [Path(r) / package for r in roots]
     try:
         from ament_index_python.packages import get_package_share_directory
-        return Path(get_package_share_directory(package))
-    except (ImportError, LookupError, ValueError):
-        return None
+        out.append(Path(get_package_share_directory(package)))
+    except (ImportError, LookupError, ValueError, OSError):
+        pass
+    return out
 
 
-def _expand_includes(elem: ET.Element, base: Optional[Path], reader: '_Reader', depth: int,
+def _expand_includes(elem: ET.Element, base: Optional[Path], reader: 'Reader', depth: int,
                      count: list) -> None:
-    """Replace each <include file=...> by the children of the file's <mujoco> root."""
-    for i, child in enumerate(list(elem)):
+    """Replace each <include file=...> by the children of the file's root element."""
+    for child in list(elem):
         if child.tag != 'include':
             _expand_includes(child, base, reader, depth, count)
             continue
@@ -174,7 +288,7 @@ def _expand_includes(elem: ET.Element, base: Optional[Path], reader: '_Reader', 
             included = parse(data.decode('utf-8'))
         except UnicodeDecodeError:
             raise ResourceParseError(f'the included file {value!r} is not UTF-8 text') from None
-        if included.tag != 'mujoco':
+        if included.tag not in INCLUDE_ROOTS:
             raise ResourceParseError(ERR_INCLUDE_ROOT.format(value=value, tag=included.tag))
         _expand_includes(included, base, reader, depth + 1, count)
         index = list(elem).index(child)
@@ -183,59 +297,82 @@ def _expand_includes(elem: ET.Element, base: Optional[Path], reader: '_Reader', 
             elem.insert(index + k, grandchild)
 
 
-class _Reader:
-    """Reads files for one model: checked, budgeted, each file once."""
+class Reader:
+    """
+    Reads the files of one model: resolved, checked and budgeted in one place.
+
+    Every check a file gets is here: the name resolved (``..`` and links) and inside the
+    allowed roots, a regular file (a FIFO or device is never opened for reading), within the
+    size budget, and for meshes and images within the face and pixel budgets.
+    """
 
     def __init__(self, allowed_roots: Optional[Sequence[str]], budget: Budget):
         self.roots = allowed_roots
         self.budget = budget
-        self.assets: dict = {}
-        self._names: dict = {}  # real path -> asset name
+        self.paths: list = []
         self._total = 0
-        # Names unique to this model: the world holds the assets of every entity at once.
-        self._prefix = uuid.uuid4().hex[:12]
 
     def read(self, value: str, candidates: list, tag: str) -> str:
-        """Return the in-memory asset name for a file the model names (read once)."""
-        path = self._pick(value, candidates)
-        real = os.path.realpath(path)
-        if real not in self._names:
-            data = self._load_checked(value, path)
-            _check_content(value, Path(real).suffix.lower(), tag, data, self.budget)
-            name = f'{self._prefix}_{len(self.assets)}_{Path(real).name}'
-            self.assets[name] = data
-            self._names[real] = name
-        return self._names[real]
+        """Return the path of the checked copy of a file the model names."""
+        real, st = self.resolve(value, candidates)
+        key = (real, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+        stored = _STORE.cached(key)
+        if stored is None:
+            stored = _STORE.put(key, real, self._read_bytes(value, real, st))
+        self._count(stored.size)
+        self._check_content(value, tag, stored)
+        if stored.path not in self.paths:
+            self.paths.append(stored.path)
+        return stored.path
 
     def load(self, value: str, candidates: list) -> bytes:
-        return self._load_checked(value, self._pick(value, candidates))
+        """Return the bytes of a file the model names (an included file), checked."""
+        real, st = self.resolve(value, candidates)
+        data = self._read_bytes(value, real, st)
+        self._count(len(data))
+        return data
 
-    def _pick(self, value: str, candidates: list) -> Path:
-        if '..' in Path(value).parts:
-            raise MissingAssetsError(f"'..' is not allowed in file names: {value!r}")
+    def resolve(self, value: str, candidates: list, messages: Optional[dict] = None) -> tuple:
+        """
+        Return (real path, stat) of the first candidate that exists, inside the roots.
+
+        :param messages: texts for 'outside', 'missing', 'not_regular', 'too_large' (formatted
+            with ``size`` and ``limit``) instead of the ones about a file a model names.
+        """
+        msg = messages or {}
         for path in candidates:
-            if self.roots is not None and not inside_roots(path, self.roots):
-                raise MissingAssetsError(ERR_OUTSIDE.format(value=value))
             try:
-                path.lstat()
-                return path
+                real = os.path.realpath(path)
             except (OSError, ValueError):
                 continue
-        raise MissingAssetsError(ERR_NOT_FOUND.format(value=value))
+            # Judged before existence: a refusal says nothing about what exists outside.
+            if self.roots is not None and not inside_roots(real, self.roots):
+                raise MissingAssetsError(msg.get('outside') or ERR_OUTSIDE.format(value=value))
+            try:
+                st = os.stat(real)
+            except (OSError, ValueError):
+                continue
+            if not stat.S_ISREG(st.st_mode):
+                raise UnsupportedAssetsError(msg.get('not_regular')
+                                             or ERR_NOT_REGULAR.format(value=value))
+            if st.st_size > self.budget.max_file_bytes:
+                raise UnsupportedAssetsError(
+                    msg.get('too_large', ERR_TOO_LARGE).format(
+                        value=value, size=st.st_size, limit=self.budget.max_file_bytes))
+            return real, st
+        raise MissingAssetsError(msg.get('missing') or ERR_NOT_FOUND.format(value=value))
 
-    def _load_checked(self, value: str, path: Path) -> bytes:
+    def _read_bytes(self, value: str, real: str, st: os.stat_result) -> bytes:
         limit = self.budget.max_file_bytes
         try:  # O_NONBLOCK: a FIFO put there meanwhile cannot block the open
-            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+            fd = os.open(real, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
         except OSError:
             raise MissingAssetsError(ERR_NOT_FOUND.format(value=value)) from None
         try:
-            st = os.fstat(fd)
-            if not stat.S_ISREG(st.st_mode):
+            now = os.fstat(fd)
+            same = (now.st_dev, now.st_ino) == (st.st_dev, st.st_ino)
+            if not stat.S_ISREG(now.st_mode) or not same:  # swapped since it was checked
                 raise UnsupportedAssetsError(ERR_NOT_REGULAR.format(value=value))
-            if st.st_size > limit:
-                raise UnsupportedAssetsError(ERR_TOO_LARGE.format(value=value, size=st.st_size,
-                                                                  limit=limit))
             with os.fdopen(fd, 'rb', closefd=False) as f:
                 data = f.read(limit + 1)
         finally:
@@ -243,27 +380,38 @@ class _Reader:
         if len(data) > limit:
             raise UnsupportedAssetsError(ERR_TOO_LARGE.format(value=value, size=len(data),
                                                               limit=limit))
-        self._total += len(data)
-        if self._total > self.budget.max_total_bytes:
-            raise UnsupportedAssetsError(ERR_TOTAL.format(limit=self.budget.max_total_bytes))
         return data
 
+    def _count(self, n_bytes: int) -> None:
+        self._total += n_bytes
+        if self._total > self.budget.max_total_bytes:
+            raise UnsupportedAssetsError(ERR_TOTAL.format(limit=self.budget.max_total_bytes))
 
-def _check_content(value: str, suffix: str, tag: str, data: bytes, budget: Budget) -> None:
-    """Bound what MuJoCo would build from a file before it builds it: faces and pixels."""
-    faces = mesh_faces(suffix, data)
-    if faces is not None and faces > budget.max_mesh_faces:
-        raise UnsupportedAssetsError(ERR_FACES.format(value=value, n=faces,
-                                                      limit=budget.max_mesh_faces))
-    if tag in _IMAGE_TAGS and data[:8] == b'\x89PNG\r\n\x1a\n' and len(data) >= 24:
-        width, height = struct.unpack('>II', data[16:24])
-        if width * height > MAX_IMAGE_PIXELS:
-            raise UnsupportedAssetsError(ERR_PIXELS.format(value=value, n=width * height,
+    def _check_content(self, value: str, tag: str, stored: StoredFile) -> None:
+        """Bound what MuJoCo would build from a file before it builds it: faces and pixels."""
+        if stored.faces is not None and stored.faces > self.budget.max_mesh_faces:
+            raise UnsupportedAssetsError(ERR_FACES.format(value=value, n=stored.faces,
+                                                          limit=self.budget.max_mesh_faces))
+        if tag in _IMAGE_TAGS and stored.pixels is not None and stored.pixels > MAX_IMAGE_PIXELS:
+            raise UnsupportedAssetsError(ERR_PIXELS.format(value=value, n=stored.pixels,
                                                            limit=MAX_IMAGE_PIXELS))
 
 
+def image_pixels(data: bytes) -> Optional[int]:
+    """Return the pixel count of a PNG from its header (None: not a PNG)."""
+    if data[:8] == b'\x89PNG\r\n\x1a\n' and len(data) >= 24:
+        width, height = struct.unpack('>II', data[16:24])
+        return width * height
+    return None
+
+
 def mesh_faces(suffix: str, data: bytes) -> Optional[int]:
-    """Return the number of faces of an STL or OBJ file from its bytes (None: another kind)."""
+    """
+    Return the number of faces of an STL or OBJ file from its bytes (None: another kind).
+
+    Counted without building the mesh: a binary STL says it in its header; text is counted
+    with ``bytes.count`` (C speed; 140k faces in a few milliseconds).
+    """
     if suffix == '.stl':
         if len(data) >= 84:
             n = struct.unpack('<I', data[80:84])[0]
@@ -271,5 +419,5 @@ def mesh_faces(suffix: str, data: bytes) -> Optional[int]:
                 return n
         return data.count(b'facet normal')
     if suffix == '.obj':
-        return sum(1 for line in data.splitlines() if line.startswith(b'f '))
+        return data.count(b'\nf ') + int(data.startswith(b'f '))
     return None

@@ -1,8 +1,8 @@
 """
 What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
 
-Each builder returns a :class:`SpawnSource`: a compiled-once MjSpec (one or more top-level
-bodies: a standalone model file works as it is), plus the in-memory assets it needs.
+Each builder returns a :class:`SpawnSource`: an MjSpec (one or more top-level bodies: a
+standalone model file works as it is) whose files are checked copies.
 Parsing, file checks and mesh loading all happen here, outside the world lock. Nothing here
 touches a live world.
 """
@@ -11,9 +11,7 @@ from dataclasses import dataclass, field
 import logging
 import math
 from pathlib import Path
-import stat
 from typing import Optional, Sequence
-import uuid
 import xml.etree.ElementTree as ET
 
 import mujoco
@@ -39,7 +37,6 @@ ERR_FILE_MISSING = 'file not found: {path}'
 ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
 ERR_FILE_OUTSIDE = ('{path} is not inside the directories this node may read (its resource_paths '
                     'parameter); put the file there or add its directory to resource_paths')
-ERR_DOTDOT = "'..' is not allowed in resource paths: {path}"
 ERR_MESH_SUFFIX = 'unsupported mesh format {suffix!r}; supported: ' + ', '.join(MESH_SUFFIXES)
 ERR_MESH_LOAD = 'the mesh {path} could not be loaded: {err}'
 ERR_MESH_FACES = 'the mesh has {n} faces, over the limit of {limit}; simplify it'
@@ -80,10 +77,11 @@ def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
 @dataclass
 class SpawnSource:
     """
-    A parsed, compiled-once description of one entity, ready to attach to a world.
+    A parsed description of one entity, ready to attach to a world.
 
-    :param spec: MjSpec with at least one top-level body or worldbody geom.
-    :param assets: file name -> bytes for meshes kept in memory.
+    :param spec: MjSpec with at least one top-level body or worldbody geom; the files it names
+        are checked copies (:class:`.assets.AssetStore`).
+    :param assets: file name -> bytes for meshes given in memory (a spec built in code).
     :param kind: 'mjcf', 'urdf', 'primitive' or 'mesh'.
     :param description: short text for entity info.
     """
@@ -100,25 +98,21 @@ class SpawnSource:
             warn_radian_like_ranges(self.spec, self.description or 'the model')
 
 
-def check_path(path: str, allowed_roots: Optional[Sequence[str]]) -> Path:
+def check_path(path: str, allowed_roots: Optional[Sequence[str]],
+               max_bytes: int = _LIMITS.max_resource_bytes) -> Path:
     """
     Check that `path` is a readable regular file inside `allowed_roots` (None: anywhere).
 
-    A FIFO or device would block MuJoCo forever, and '..' or paths outside the roots would let
-    a caller read any file; both are refused before anything opens the file.
+    The path is judged by where it really is (``..`` and symbolic links resolved): a FIFO or
+    device would block MuJoCo forever, and a path outside the roots would let a caller read any
+    file; both are refused before anything opens the file. Returns the resolved path.
     """
-    if '..' in Path(path).parts:
-        raise MissingAssetsError(ERR_DOTDOT.format(path=path))
-    p = Path(path)
-    if allowed_roots is not None and not inside_roots(path, allowed_roots):
-        raise MissingAssetsError(ERR_FILE_OUTSIDE.format(path=path))
-    try:
-        st = p.stat()
-    except OSError:
-        raise MissingAssetsError(ERR_FILE_MISSING.format(path=path)) from None
-    if not stat.S_ISREG(st.st_mode):
-        raise UnsupportedAssetsError(ERR_FILE_NOT_REGULAR.format(path=path))
-    return p
+    budget = _budget(max_bytes, _LIMITS.max_mesh_faces)
+    real, _ = assets.Reader(allowed_roots, budget).resolve(str(path), [Path(path)], {
+        'outside': ERR_FILE_OUTSIDE.format(path=path),
+        'missing': ERR_FILE_MISSING.format(path=path),
+        'not_regular': ERR_FILE_NOT_REGULAR.format(path=path), 'too_large': ERR_TOO_LARGE})
+    return Path(real)
 
 
 def _check_size(n_bytes: int, limit: int) -> None:
@@ -135,14 +129,22 @@ def _compile_error(exc: Exception) -> Exception:
 
 
 def _finish(spec: mujoco.MjSpec, kind: str, description: str,
-            assets: Optional[dict] = None) -> SpawnSource:
+            compile_alone: bool = True) -> SpawnSource:
+    """
+    Return the source of a spec that has something to spawn.
+
+    :param compile_alone: compile it on its own first, so an error names this model alone.
+        Model files skip it: the world's compile reports the same errors, and compiling twice
+        would double the cost of a mesh-heavy robot (MuJoCo's cold load of the meshes).
+    """
     if not len(spec.worldbody.bodies) and not len(spec.worldbody.geoms):
         raise ResourceParseError(ERR_NO_BODY)
-    try:
-        spec.compile()
-    except ValueError as exc:
-        raise _compile_error(exc) from None
-    return SpawnSource(spec=spec, assets=dict(assets or {}), kind=kind, description=description)
+    if compile_alone:
+        try:
+            spec.compile()
+        except ValueError as exc:
+            raise _compile_error(exc) from None
+    return SpawnSource(spec=spec, kind=kind, description=description)
 
 
 def check_model_text(text: str, base_dir: Optional[str] = None,
@@ -167,10 +169,10 @@ def _budget(max_bytes: int, max_faces: int) -> assets.Budget:
                          max_mesh_faces=max_faces)
 
 
-def _spec_from(root: ET.Element, files: dict) -> mujoco.MjSpec:
-    """Return the spec of a sandboxed document: MuJoCo reads only the in-memory files."""
+def _spec_from(root: ET.Element) -> mujoco.MjSpec:
+    """Return the spec of a sandboxed document: it names only checked copies of files."""
     try:
-        return mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'), assets=files)
+        return mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'))
     except ValueError as exc:
         raise _compile_error(exc) from None
 
@@ -181,10 +183,9 @@ def world_spec(text: str, base_dir: Optional[str] = None,
                max_faces: int = _LIMITS.max_mesh_faces) -> mujoco.MjSpec:
     """Return the spec of a whole world (load_world) from untrusted text, files read here."""
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
-    files = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
-                           _budget(max_bytes, max_faces))
-    spec = _spec_from(root, files)
-    return spec
+    assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                   _budget(max_bytes, max_faces))
+    return _spec_from(root)
 
 
 def from_model_text(text: str, base_dir: Optional[str] = None,
@@ -199,19 +200,61 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     """
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     is_urdf = root.tag == 'robot'
-    files = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
-                           _budget(max_bytes, max_faces))
+    assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                   _budget(max_bytes, max_faces))
     if is_urdf:
         _urdf_keep_root_link(root)
     else:
         _mjcf_gather_world_geoms(root)
-    spec = _spec_from(root, files)
+    spec = _spec_from(root)
+    _inline_skin_files(spec)
     kind = 'urdf' if is_urdf else 'mjcf'
     name = root.attrib.get('name') or root.attrib.get('model') or ''
-    source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(), assets=files)
+    source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(),
+                     compile_alone=False)
     source.default_classes = tuple(d.attrib['class'] for d in root.iter('default')
                                    if 'class' in d.attrib)
     return source
+
+
+def _inline_skin_files(spec: mujoco.MjSpec) -> None:
+    """
+    Put the content of skin files (``.skn``) into the spec itself.
+
+    A skin file names its bones' bodies inside the file, read only at compile: attached under a
+    prefix, with its root body renamed to the entity's name, the skin would look for a body
+    that no longer exists. Inlined, the bone names are spec data that the attach prefixes and
+    the rename repoints like every other reference. Costs one compile of the model alone, only
+    for models with skin files (dm_control's dog).
+    """
+    skins = [sk for sk in spec.skins if sk.file]
+    if not skins:
+        return
+    try:  # a copy: a compiled spec holds its processed meshes, slow to copy when attached
+        m = spec.copy().compile()
+    except ValueError as exc:
+        raise _compile_error(exc) from None
+    for sk in skins:
+        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SKIN, sk.name) if sk.name else -1
+        k = k if k >= 0 else list(spec.skins).index(sk)
+        va, vn = m.skin_vertadr[k], m.skin_vertnum[k]
+        fa, fn = m.skin_faceadr[k], m.skin_facenum[k]
+        ta = m.skin_texcoordadr[k]
+        ba, bn = m.skin_boneadr[k], m.skin_bonenum[k]
+        sk.file = ''
+        sk.vert = m.skin_vert[va:va + vn].reshape(-1).tolist()
+        sk.face = m.skin_face[fa:fa + fn].reshape(-1).tolist()
+        sk.texcoord = (m.skin_texcoord[ta:ta + vn].reshape(-1).tolist() if ta >= 0 else [])
+        sk.bodyname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(b))
+                       for b in m.skin_bonebodyid[ba:ba + bn]]
+        sk.bindpos = m.skin_bonebindpos[ba:ba + bn].reshape(-1).tolist()
+        sk.bindquat = m.skin_bonebindquat[ba:ba + bn].reshape(-1).tolist()
+        vertid, vertweight = [], []
+        for b in range(ba, ba + bn):
+            adr, num = m.skin_bonevertadr[b], m.skin_bonevertnum[b]
+            vertid.append(m.skin_bonevertid[adr:adr + num].tolist())
+            vertweight.append(m.skin_bonevertweight[adr:adr + num].tolist())
+        sk.vertid, sk.vertweight = vertid, vertweight
 
 
 #: The body that a standalone model's static <worldbody> geoms and sites are gathered into.
@@ -270,9 +313,8 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = _LIMITS.max_resource_bytes,
               max_faces: int = _LIMITS.max_mesh_faces, **mesh_options) -> SpawnSource:
     """Load an MJCF/URDF file or a mesh file (STL, OBJ, PLY, GLB, DAE) as one entity."""
-    p = check_path(path, allowed_roots)
+    p = check_path(path, allowed_roots, max_bytes)
     suffix = p.suffix.lower()
-    _check_size(p.stat().st_size, max_bytes)
     if suffix in MESH_SUFFIXES:
         return from_mesh(str(p), allowed_roots=allowed_roots, max_bytes=max_bytes,
                          max_faces=max_faces, **mesh_options)
@@ -281,7 +323,9 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
             f'unsupported file type {suffix!r}; supported: '
             + ', '.join(MODEL_SUFFIXES + MESH_SUFFIXES))
     text = read_model_text(p)
-    return from_model_text(text, base_dir=str(p.parent), allowed_roots=allowed_roots,
+    # Relative names resolve against the folder the caller named the file in, as MuJoCo's
+    # own loader does (a link to a model file keeps its folder's meaning).
+    return from_model_text(text, base_dir=str(Path(path).parent), allowed_roots=allowed_roots,
                            max_bytes=max_bytes, max_faces=max_faces)
 
 
@@ -353,11 +397,10 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
     """Load a mesh file with trimesh (scenes are merged into one mesh) as one body."""
     import trimesh  # heavy import, only needed here
 
-    p = check_path(path, allowed_roots)
+    p = check_path(path, allowed_roots, max_bytes)
     suffix = p.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise UnsupportedAssetsError(ERR_MESH_SUFFIX.format(suffix=suffix))
-    _check_size(p.stat().st_size, max_bytes)
     check_mass(mass)
     if not (math.isfinite(scale) and scale > 0):
         raise InvalidArgumentError(f'scale must be positive and finite, got {scale}')
@@ -373,15 +416,13 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
         raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='non-finite vertices'))
     if scale != 1.0:
         mesh.apply_scale(scale)
-    # An asset dict entry is cached across recompiles; raw vertex arrays would be reprocessed.
-    asset_name = f'mesh_{uuid.uuid4().hex}.stl'
-    data = mesh.export(file_type='stl')
+    # A mesh file is cached across recompiles; raw vertex arrays would be reprocessed.
+    stored = assets.store().put(None, 'mesh.stl', mesh.export(file_type='stl'))
     static = static or not mass
     spec, body = _new_body_spec(static)
-    spec.assets = {asset_name: data}
-    spec.add_mesh(name='mesh', file=asset_name)
+    spec.add_mesh(name='mesh', file=stored.path)
     geom = body.add_geom(name='geom', type=mujoco.mjtGeom.mjGEOM_MESH, meshname='mesh',
                          rgba=check_rgba(rgba))
     if mass:
         geom.mass = float(mass)
-    return _finish(spec, 'mesh', f'mesh {p.name}', assets={asset_name: data})
+    return _finish(spec, 'mesh', f'mesh {p.name}')
