@@ -36,6 +36,11 @@ class WorldConfig:
     max_resource_bytes: int = 20_000_000
     #: Largest mesh, in faces, a spawn may load.
     max_mesh_faces: int = 200_000
+    #: MuJoCo's cache of processed meshes, in MiB (process-wide; MuJoCo's default is 512). A
+    #: second spawn of a robot, and every edit of a world holding robots, reuses their meshes
+    #: from it: GR1's alone take 158 MiB, and a full cache stops keeping new meshes (measured).
+    #: Memory is taken only as meshes are loaded. 0 turns the cache off.
+    mesh_cache_mb: int = 2048
     #: Most bodies the world may hold (scene and spawned, world body included): a spawn past it
     #: is refused with a clear error. MuJoCo itself failed at about 5,000 ("Could not allocate
     #: memory"), and every body costs stepping time.

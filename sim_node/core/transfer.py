@@ -8,6 +8,8 @@ whether a constraint is active); new ones start from the new model's defaults (a
 entity's spawn pose). Every element is named (``editor.name_unnamed``), so names identify them.
 """
 
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
@@ -33,10 +35,28 @@ def _pairs(old: mujoco.MjModel, new: mujoco.MjModel, obj, n_old: int, n_new: int
     return [(before[name], i) for name, i in _names(new, obj, n_new).items() if name in before]
 
 
-def transfer(old: mujoco.MjModel, d_old: mujoco.MjData, new: mujoco.MjModel) -> mujoco.MjData:
-    """Return data for `new` holding `d_old`'s state wherever the two models share names."""
-    d = mujoco.MjData(new)
-    d.time = d_old.time
+@dataclass(frozen=True)
+class Mapping:
+    """Where each piece of one model's state goes in another: (source, destination) indices."""
+
+    qpos: tuple
+    dof: tuple
+    actuators: tuple
+    act: tuple
+    bodies: tuple
+    mocap: tuple
+    equalities: tuple
+    n_userdata: int
+
+
+def _pair_arrays(pairs: list) -> tuple:
+    src = np.asarray([a for a, _ in pairs], dtype=int)
+    dst = np.asarray([b for _, b in pairs], dtype=int)
+    return src, dst
+
+
+def mapping(old: mujoco.MjModel, new: mujoco.MjModel) -> Mapping:
+    """Match the elements of two models by name (slow part: name look-ups; no data needed)."""
     qpos_idx, dof_idx = ([], []), ([], [])
     for j0, j1 in _pairs(old, new, _OBJ.mjOBJ_JOINT, old.njnt, new.njnt):
         kind = int(new.jnt_type[j1])
@@ -47,24 +67,44 @@ def transfer(old: mujoco.MjModel, d_old: mujoco.MjData, new: mujoco.MjModel) -> 
                 (dof_idx, old.jnt_dofadr[j0], new.jnt_dofadr[j1], _DOF_SIZE[kind])):
             src.extend(range(adr0, adr0 + size))
             dst.extend(range(adr1, adr1 + size))
-    d.qpos[qpos_idx[1]] = d_old.qpos[qpos_idx[0]]
-    for field in ('qvel', 'qacc_warmstart', 'qfrc_applied'):
-        getattr(d, field)[dof_idx[1]] = getattr(d_old, field)[dof_idx[0]]
-    for a0, a1 in _pairs(old, new, _OBJ.mjOBJ_ACTUATOR, old.nu, new.nu):
-        d.ctrl[a1] = d_old.ctrl[a0]
+    actuators = _pairs(old, new, _OBJ.mjOBJ_ACTUATOR, old.nu, new.nu)
+    act = []
+    for a0, a1 in actuators:
         n0, n1 = old.actuator_actnum[a0], new.actuator_actnum[a1]
         if n0 == n1 and n0 > 0:
             s0, s1 = old.actuator_actadr[a0], new.actuator_actadr[a1]
-            d.act[s1:s1 + n1] = d_old.act[s0:s0 + n0]
-    for b0, b1 in _pairs(old, new, _OBJ.mjOBJ_BODY, old.nbody, new.nbody):
-        d.xfrc_applied[b1] = d_old.xfrc_applied[b0]
-        k0, k1 = old.body_mocapid[b0], new.body_mocapid[b1]
-        if k0 >= 0 and k1 >= 0:
-            d.mocap_pos[k1], d.mocap_quat[k1] = d_old.mocap_pos[k0], d_old.mocap_quat[k0]
-    for e0, e1 in _pairs(old, new, _OBJ.mjOBJ_EQUALITY, old.neq, new.neq):
-        d.eq_active[e1] = d_old.eq_active[e0]
-    n = min(old.nuserdata, new.nuserdata)
-    d.userdata[:n] = d_old.userdata[:n]
+            act.extend(zip(range(s0, s0 + n0), range(s1, s1 + n1)))
+    bodies = _pairs(old, new, _OBJ.mjOBJ_BODY, old.nbody, new.nbody)
+    mocap = [(old.body_mocapid[b0], new.body_mocapid[b1]) for b0, b1 in bodies
+             if old.body_mocapid[b0] >= 0 and new.body_mocapid[b1] >= 0]
+    return Mapping(
+        qpos=(np.asarray(qpos_idx[0], dtype=int), np.asarray(qpos_idx[1], dtype=int)),
+        dof=(np.asarray(dof_idx[0], dtype=int), np.asarray(dof_idx[1], dtype=int)),
+        actuators=_pair_arrays(actuators), act=_pair_arrays(act), bodies=_pair_arrays(bodies),
+        mocap=_pair_arrays(mocap),
+        equalities=_pair_arrays(_pairs(old, new, _OBJ.mjOBJ_EQUALITY, old.neq, new.neq)),
+        n_userdata=min(old.nuserdata, new.nuserdata))
+
+
+def carry(m: Mapping, d_old: mujoco.MjData, d: mujoco.MjData) -> None:
+    """Copy `d_old`'s state into `d` (fresh data of the new model) by a :func:`mapping`."""
+    d.time = d_old.time
+    d.qpos[m.qpos[1]] = d_old.qpos[m.qpos[0]]
+    for field in ('qvel', 'qacc_warmstart', 'qfrc_applied'):
+        getattr(d, field)[m.dof[1]] = getattr(d_old, field)[m.dof[0]]
+    d.ctrl[m.actuators[1]] = d_old.ctrl[m.actuators[0]]
+    d.act[m.act[1]] = d_old.act[m.act[0]]
+    d.xfrc_applied[m.bodies[1]] = d_old.xfrc_applied[m.bodies[0]]
+    d.mocap_pos[m.mocap[1]] = d_old.mocap_pos[m.mocap[0]]
+    d.mocap_quat[m.mocap[1]] = d_old.mocap_quat[m.mocap[0]]
+    d.eq_active[m.equalities[1]] = d_old.eq_active[m.equalities[0]]
+    d.userdata[:m.n_userdata] = d_old.userdata[:m.n_userdata]
+
+
+def transfer(old: mujoco.MjModel, d_old: mujoco.MjData, new: mujoco.MjModel) -> mujoco.MjData:
+    """Return data for `new` holding `d_old`'s state wherever the two models share names."""
+    d = mujoco.MjData(new)
+    carry(mapping(old, new), d_old, d)
     return d
 
 

@@ -17,7 +17,7 @@ import warnings
 import mujoco
 import numpy as np
 
-from . import checks, editor, guard
+from . import assets, checks, editor, guard
 from . import index as model_index
 from . import sources, state, transfer
 from .checks import check_finite
@@ -45,6 +45,8 @@ ERR_SCOPE = ('reset scope {scope} has undefined bits: use 0 (all), 255 (all) or 
 ERR_STEPS = 'steps must be >= 1, got {n}'
 #: Compact the spec (see World._compacted) after this many spawned entities were removed.
 COMPACT_AFTER_REMOVALS = 32
+#: Times an edit is built outside the lock before it is done under it (see World._change).
+EDIT_ATTEMPTS = 3
 ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the world frame '
              "('' or 'world') or the name of an entity")
 
@@ -80,7 +82,7 @@ class World(StateWrites, WorldEdits):
         self.config = config
         self.source = source
         self._lock_cm = WorldLock()
-        self._spawn_lock = threading.Lock()  # spawns compile outside the world lock, in turn
+        self._edit_lock = threading.Lock()  # structural edits take turns (see _change)
         self._lock = self._lock_cm.lock
         self._control = Control(config.kp, config.kd)
         self._guard = DivergenceGuard()
@@ -89,15 +91,17 @@ class World(StateWrites, WorldEdits):
         if config.timestep > 0:
             spec.option.timestep = float(config.timestep)
         guard.route_mujoco_warnings()
+        assets.set_mesh_cache(config.mesh_cache_mb)
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
         self._auto_arena = spec.memory == -1  # the scene left it to MuJoCo's default
         self._size_arena(spec)
+        keep = spec.copy()  # the world keeps its spec uncompiled (see _build)
         try:
             model = spec.compile()
         except ValueError as exc:
             raise ResourceParseError(f'the scene does not compile: {exc}') from None
-        self._spec = spec
+        self._spec = keep
         # name -> {'frame': name, 'bodies': top-level body names, 'assets', 'description'}
         self._spawned: dict = {}
         self._overrides: dict = {}  # entity -> {'friction': (3,), 'restitution': float}
@@ -505,12 +509,24 @@ class World(StateWrites, WorldEdits):
         self._forward_locked()
 
     # ---------------------------------------------------------------- model edits
+    #
+    # One commit path for every structural edit. The world keeps its spec uncompiled: copying
+    # a compiled spec copies every processed mesh with the GIL held (190 ms for three arms,
+    # measured), an uncompiled one takes a few milliseconds. An edit builds a new spec from a
+    # copy and compiles it (MuJoCo's mesh cache makes the entities already there cheap, and the
+    # compile releases the GIL); only the commit runs under the world lock: the live state
+    # carried over by element names (:mod:`.transfer`), the check, the switch.
 
-    def _compile_outside_lock(self, trial: mujoco.MjSpec,
-                              edit: Callable[[mujoco.MjSpec], object]) -> mujoco.MjModel:
-        """Apply `edit` to `trial` (a copy of the spec) and compile it; no lock is held."""
+    def _build(self, base: mujoco.MjSpec, edit: Callable[[mujoco.MjSpec], object]) -> tuple:
+        """
+        Return (spec to keep, compiled model) of `edit` applied to a copy of `base`.
+
+        :raises ResourceParseError: the edited spec does not compile (nothing is kept).
+        """
+        trial = base.copy()
         edit(trial)
         self._size_arena(trial)
+        keep = trial.copy()  # uncompiled: cheap to copy for the next edit
         with warnings.catch_warnings(record=True) as conflicts:
             warnings.simplefilter('always')
             try:
@@ -519,50 +535,94 @@ class World(StateWrites, WorldEdits):
                 raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
         for w in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
             log.info('the world keeps its own settings: %s', ' '.join(str(w.message).split()))
-        return model
+        return keep, model
 
-    def _commit_compiled_locked(self, trial: mujoco.MjSpec, model: mujoco.MjModel,
-                                check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]],
-                                spawned: dict) -> None:
+    def _change(self, plan_locked: Callable[[], tuple]):
         """
-        Make a spec compiled outside the lock the world, carrying the live state over by names.
+        Apply a structural edit with the world lock held only to plan and to commit.
 
-        The world must not have changed since `trial` was copied (same generation): the caller
-        checks. A failed check leaves the world exactly as it was.
+        ``plan_locked()`` runs under the lock, validates, and returns ``(edit, check, spawned,
+        overrides, removed, result)`` (see :meth:`_edit_locked`). The spec is built and compiled
+        with the lock released, so the loop steps and readers read meanwhile; edits take turns
+        (``_edit_lock``), and if the world changed in between (a reset of the spawned, a
+        contact change), the edit is planned again on the new world.
+
+        :returns: the plan's ``result``.
         """
-        data = transfer.transfer(self._model, self._data, model)
+        if self._lock._is_owned():  # called inside locked(): waiting for _edit_lock could
+            with self._locked():  # deadlock with an edit waiting for the world lock
+                edit, check, spawned, overrides, removed, result = plan_locked()
+                self._edit_locked(edit, check, spawned, overrides, removed)
+                return result
+        with self._edit_lock:
+            for _ in range(EDIT_ATTEMPTS):
+                with self._locked():
+                    generation, base, old = self._generation, self._spec, self._model
+                    edit, check, spawned, overrides, removed, result = plan_locked()
+                    table = self._spawned if spawned is None else spawned
+                keep, model = self._build(base, edit)
+                # What can be prepared without the live state is prepared here, for the
+                # generation the commit will make: the index (names, visuals, meshes for
+                # markers), the name matching of the state, the new data's allocation.
+                prepared = (model_index.build(model, generation + 1, table),
+                            transfer.mapping(old, model), mujoco.MjData(model))
+                with self._locked():
+                    if self._generation == generation:
+                        self._commit_locked(keep, model, check, spawned, overrides, removed,
+                                            prepared)
+                        break
+            else:
+                with self._locked():  # the world kept changing: do it all under the lock
+                    edit, check, spawned, overrides, removed, result = plan_locked()
+                    self._edit_locked(edit, check, spawned, overrides, removed)
+            self._compact_if_due()
+        return result
+
+    def _commit_locked(self, keep: mujoco.MjSpec, model: mujoco.MjModel,
+                       check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]],
+                       spawned: Optional[dict], overrides: Optional[dict],
+                       removed: int, prepared: Optional[tuple] = None) -> None:
+        """
+        Make a compiled edit the world, carrying the live state over by names.
+
+        The world must be the one the edit was built from (same generation): the caller checks.
+        A failed check leaves the world exactly as it was.
+
+        :param prepared: (index, state mapping, fresh data) made beforehand for this
+            generation, or None to make them here.
+        """
+        if prepared is None:
+            index, data = None, transfer.transfer(self._model, self._data, model)
+        else:
+            index, matching, data = prepared
+            transfer.carry(matching, self._data, data)
         mujoco.mj_forward(model, data)
         if check is not None:
             check(model, data)
-        self._switch_locked(trial, model, data, spawned, None, 0)
+        self._switch_locked(keep, model, data, spawned, overrides, removed, index)
 
     def _edit_locked(self, edit: Callable[[mujoco.MjSpec], object],
                      check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]] = None,
                      spawned: Optional[dict] = None, overrides: Optional[dict] = None,
                      removed: int = 0) -> None:
         """
-        Apply `edit` to a copy of the spec and recompile it with the live state.
+        Apply `edit` to a copy of the spec, compile it and commit it, all under the lock.
 
-        Only if that compiles (and `check` passes) does the copy become the world. A failed compile
-        or check leaves the world, its spec and its generation exactly as they were.
+        For edits that read the live state as they are made (welding a body where it is now);
+        everything else goes through :meth:`_change`. Only if the copy compiles (and `check`
+        passes) does it become the world. A failed compile or check leaves the world, its spec
+        and its generation exactly as they were.
 
         :param spawned: the spawned-entity table that goes with the edited spec.
         :param overrides: likewise, per-entity contact settings.
-        :param removed: how many spawned entities the edit removes (see :meth:`_compacted`).
+        :param removed: how many spawned entities the edit removes (see :meth:`_compact_if_due`).
         """
-        trial = self._spec.copy()
-        edit(trial)
-        self._size_arena(trial)
-        try:
-            model, data = trial.recompile(self._model, self._data)
-        except ValueError as exc:
-            raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
-        if check is not None:
-            check(model, data)
-        self._switch_locked(trial, model, data, spawned, overrides, removed)
+        keep, model = self._build(self._spec, edit)
+        self._commit_locked(keep, model, check, spawned, overrides, removed)
 
     def _switch_locked(self, trial: mujoco.MjSpec, model: mujoco.MjModel, data: mujoco.MjData,
-                       spawned: Optional[dict], overrides: Optional[dict], removed: int) -> None:
+                       spawned: Optional[dict], overrides: Optional[dict], removed: int,
+                       index: Optional[ModelIndex] = None) -> None:
         """Switch the world to a new spec, model and data together, or not at all."""
         saved = (self._spec, self._spawned, self._overrides, self._generation, self._model,
                  self._data, self._control.held_copy())
@@ -573,7 +633,7 @@ class World(StateWrites, WorldEdits):
             if overrides is not None:
                 self._overrides = overrides
             self._generation += 1
-            self._adopt_locked(model, data)
+            self._adopt_locked(model, data, index)
         except BaseException:
             # Whatever failed while switching over (index, commands, guard), the world goes
             # back to exactly what it was: a request that fails changes nothing.
@@ -583,39 +643,37 @@ class World(StateWrites, WorldEdits):
             self._adopt_locked(model, data)
             raise
         self._removals += removed
-        if self._removals >= COMPACT_AFTER_REMOVALS:
-            self._compact_locked()
 
-    def _compact_locked(self) -> None:
+    def _compact_if_due(self) -> None:
         """
-        Replace the spec by the same world written out and read back, state kept exactly.
+        Replace the spec by the same world written out and read back, once enough were removed.
 
         MuJoCo keeps every model ever attached to a spec, deleted or not (about 35 kB for a
         box, measured): a world that spawns and deletes for days would grow without end. The
-        round trip compiles to the same model (same sizes, checked; the same arrays, tested),
-        so the whole integration state carries over as one vector.
+        round trip compiles to the same model (same sizes, checked), and the state carries over
+        by names like any other edit. Built outside the world lock; called with ``_edit_lock``.
         """
-        self._removals = 0
+        with self._locked():
+            if self._removals < COMPACT_AFTER_REMOVALS:
+                return
+            generation, base = self._generation, self._spec
         try:
-            clean = mujoco.MjSpec.from_string(self._spec.to_xml(),
-                                              assets=dict(self._spec.assets))
-            self._size_arena(clean)
-            model = clean.compile()
-        except ValueError as exc:  # keep the spec as it is; later removals try again
+            clean = mujoco.MjSpec.from_string(base.to_xml())
+            keep, model = self._build(clean, lambda spec: None)
+        except (ValueError, ResourceParseError) as exc:  # keep the spec; try again later
             log.debug('could not compact the model spec: %s', exc)
             return
-        old = self._model
-        sizes = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq', 'nuserdata')
-        if any(getattr(model, k) != getattr(old, k) for k in sizes):
-            log.debug('compacting the model spec changed its layout; kept the spec as it is')
-            return
-        state = np.empty(mujoco.mj_stateSize(old, STATE_SPEC))
-        mujoco.mj_getState(old, self._data, state, STATE_SPEC)
-        data = mujoco.MjData(model)
-        mujoco.mj_setState(model, data, state, STATE_SPEC)
-        self._spec = clean
-        self._adopt_locked(model, data)
-        del old, state
+        with self._locked():
+            old = self._model
+            sizes = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq',
+                     'nuserdata')
+            if self._generation != generation or any(
+                    getattr(model, k) != getattr(old, k) for k in sizes):
+                log.debug('compacting the model spec changed its layout; kept the spec as it is')
+                return
+            self._removals = 0
+            self._commit_locked(keep, model, None, None, None, 0)
+        del old
         _release_free_memory()
 
     def _size_arena(self, spec: mujoco.MjSpec) -> None:
@@ -628,10 +686,18 @@ class World(StateWrites, WorldEdits):
             spec.memory = (self.config.arena_base_bytes
                            + self.config.arena_bytes_per_body * len(spec.bodies))
 
-    def _adopt_locked(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """Switch everything to a new model and data together (index, control, guard)."""
+    def _adopt_locked(self, model: mujoco.MjModel, data: mujoco.MjData,
+                      index: Optional[ModelIndex] = None) -> None:
+        """
+        Switch everything to a new model and data together (index, control, guard).
+
+        :param index: the model's index if it was built beforehand (outside the lock) for
+            this generation and spawned table.
+        """
         self._model, self._data = model, data
-        self._index: ModelIndex = model_index.build(model, self._generation, self._spawned)
+        if index is None or index.generation != self._generation:
+            index = model_index.build(model, self._generation, self._spawned)
+        self._index: ModelIndex = index
         self._ctrl = data.ctrl
         self._good_buf = np.empty(self._index.state_size)
         self._last_good = None  # its layout belongs to the old model

@@ -19,8 +19,6 @@ from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, I
                      NameNotUniqueError)
 from .records import ROBOT, STATIC
 
-#: Times a spawn compiles outside the lock before it does so under it (see World.spawn).
-SPAWN_ATTEMPTS = 3
 ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '
                 'max_bodies): delete entities first, or raise the limit')
 ERR_DUPLICATE = 'an entity or body named {name!r} exists; pick another name or allow renaming'
@@ -78,26 +76,15 @@ class WorldEdits:
             checks.check_name(name)
         overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
                       else allow_interpenetration)
-        # The compile, the slow part, runs outside the world lock: the loop steps and /clock
-        # goes on meanwhile. Spawns take turns; if another edit changed the world in the
-        # meantime (a delete, say), the spawn starts over from the new world.
-        with self._spawn_lock:
-            for _ in range(SPAWN_ATTEMPTS):
-                with self._locked():
-                    generation = self._generation
-                    plan = self._plan_spawn_locked(name, source, pos, q, reference,
-                                                   allow_renaming, overlap_ok)
-                    trial = self._spec.copy()
-                model = self._compile_outside_lock(trial, plan.edit)
-                with self._locked():
-                    if self._generation == generation:
-                        self._commit_compiled_locked(trial, model, plan.check, plan.spawned)
-                        return plan.name
-            with self._locked():  # the world kept changing: do it all under the lock
-                plan = self._plan_spawn_locked(name, source, pos, q, reference, allow_renaming,
-                                               overlap_ok)
-                self._edit_locked(plan.edit, plan.check, spawned=plan.spawned)
-                return plan.name
+        # The compile, the slow part, runs outside the world lock (World._change): the loop
+        # steps and /clock goes on meanwhile.
+
+        def plan() -> tuple:
+            p = self._plan_spawn_locked(name, source, pos, q, reference, allow_renaming,
+                                        overlap_ok)
+            return p.edit, p.check, p.spawned, None, 0, p.name
+
+        return self._change(plan)
 
     def _plan_spawn_locked(self, name: str, source: sources.SpawnSource, pos: np.ndarray,
                            q: np.ndarray, reference: str, allow_renaming: bool,
@@ -173,16 +160,17 @@ class WorldEdits:
 
         Contact pairs, excludes and joint commands; everything else keeps its state exactly.
         """
-        with self._locked():
+        def plan() -> tuple:
             self._index.entity(name)
             meta = self._spawned.get(name)
             if meta is None:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
-            self._edit_locked(
-                lambda spec: editor.remove(spec, name, meta['frame'], meta['assets'],
-                                           meta.get('defaults', ())),
-                spawned={k: v for k, v in self._spawned.items() if k != name},
-                overrides={k: v for k, v in self._overrides.items() if k != name}, removed=1)
+            return (lambda spec: editor.remove(spec, name, meta['frame'], meta['assets'],
+                                               meta.get('defaults', ())),
+                    None, {k: v for k, v in self._spawned.items() if k != name},
+                    {k: v for k, v in self._overrides.items() if k != name}, 1, None)
+
+        self._change(plan)
 
     # ---------------------------------------------------------------- physics parameters
 
