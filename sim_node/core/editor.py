@@ -62,14 +62,16 @@ def restitution_to_solref(restitution: float) -> list:
 
 def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
     """
-    Give every unnamed body, joint.
+    Give every unnamed element that has state or is looked up a name unique in `spec`.
 
-    Geom and site of `spec` a name unique in it (and not in `taken`), e.g. ``geom_3``: the world
-    looks elements up by name, and an attached copy gets them under its prefix, so a model can be
-    spawned any number of times.
+    Bodies, joints, geoms, sites, actuators and equality constraints (not in `taken` either),
+    e.g. ``geom_3``: the world looks elements up by name, an edit carries the live state over
+    by name (:mod:`.transfer`: an unnamed actuator would lose its control), and an attached copy
+    gets them under its prefix, so a model can be spawned any number of times.
     """
     groups = (('body', spec.bodies), ('joint', spec.joints), ('geom', spec.geoms),
-              ('site', spec.sites))
+              ('site', spec.sites), ('actuator', spec.actuators),
+              ('equality', spec.equalities))
     used = set(taken or ()) | {e.name for _, elems in groups for e in elems if e.name}
     for kind, elems in groups:
         i = 0
@@ -90,7 +92,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     Every element comes along under the prefix ``name/``; the first top-level body is renamed
     `name` and is the entity's root. Whole-world furniture follows one rule: ground planes
     directly in the model's <worldbody> are dropped (logged); its other static geometry was
-    gathered into a welded body by :mod:`.sources`; its lights, cameras and assets come along;
+    gathered into a welded body by :mod:`.sources`; its skybox is dropped too (the world has its
+    sky); its lights, cameras and other assets come along;
     its keyframes are dropped (the world's keep working: the entity's part of them is its
     spawn state); its <option>, <size> and <visual> give way to the world's (MuJoCo logs each
     difference). Its <compiler> settings (angle units, asset folders) apply to it alone.
@@ -107,6 +110,15 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
                  name, ', '.join(repr(g.name or '(unnamed)') for g in planes))
     for key in list(child.keys):
         child.delete(key)
+    # A model's skybox: the world has its own sky, and MuJoCo draws one. An 800x800 skybox
+    # (Gymnasium-Robotics' point) is 11 MB of texture generated on every compile of the world.
+    used = {t for mat in child.materials for t in mat.textures if t}
+    skies = [t for t in child.textures
+             if t.type == mujoco.mjtTexture.mjTEXTURE_SKYBOX and t.name not in used]
+    for t in skies:
+        child.delete(t)
+    if skies:
+        log.info('spawning %r: dropped its skybox; the world has its own sky', name)
     name_unnamed(child)
     # Its default classes come along as <name>/<class>; a delete must remove them too.
     defaults = [f'{name}/main'] + [f'{name}/{c}' for c in source.default_classes
@@ -309,3 +321,7 @@ def _rename_body_references(spec: mujoco.MjSpec, old: str, new: str) -> None:
     for c in list(spec.cameras) + list(spec.lights):
         if c.targetbody == old:
             c.targetbody = new
+    for skin in spec.skins:  # a skinned mesh's bones (dm_control's dog)
+        bones = list(skin.bodyname)
+        if old in bones:
+            skin.bodyname = [new if b == old else b for b in bones]
