@@ -2,8 +2,14 @@
 The `sim` rclpy node: a thin layer over the world core.
 
 Callbacks convert the request, call the core, convert the answer (``msg_adapters``). The node
-makes no ``mj_*`` call and never touches MjData. Services run in a reentrant callback group,
-publishers and subscriptions in another, so a long step request never starves ``/clock``.
+makes no ``mj_*`` call and never touches MjData. Its threads besides the world's stepping loop:
+the executor's (services, reentrant; the housekeeping timer), ``sim-publisher`` (``/clock``,
+``/tf`` and joint states from the newest snapshot, paced to absolute deadlines), ``sim-model``
+(per model generation: ``/tf_static``, markers and sensor publishers, which take up to
+hundreds of milliseconds for a mesh-heavy robot and would otherwise hold ``/clock`` back),
+the command drain's and the perception thread (cameras and scanners). Publishers that come and
+go with entities carry no QoS event handlers, so they are never in an executor's wait set and
+may be destroyed from any thread.
 """
 
 import collections
@@ -75,7 +81,11 @@ class SimNode(SimServices, Node):
         self._frame_prefix = p('frame_prefix')
         self._out_world_frame = self._frame_prefix + self._world_frame  # as published
         self._frames: tuple = ()  # TF frame of each body of the published generation
-        self._resource_paths = [str(Path(r).resolve()) for r in p('resource_paths') if r]
+        # resource_paths adds to the installed scenes and objects (builtin_resources: false
+        # leaves only resource_paths).
+        own = [str(self._scenes_dir)] if p('builtin_resources') else []
+        self._resource_paths = [str(Path(r).resolve()) for r in own + params.string_list(
+            self, 'resource_paths') if r]
         self._sim: Optional[Sim] = None
         self._syncing_thread: Optional[int] = None  # set while we mirror `paused` ourselves
         self._sim_lock = threading.RLock()
@@ -109,6 +119,10 @@ class SimNode(SimServices, Node):
         self._js_period = 1.0 / p('joint_states_rate_hz')
         self._publishing = threading.Event()
         self._publisher_thread: Optional[threading.Thread] = None
+        # A new model generation's slow publications, handed from the publisher thread.
+        self._model_cv = threading.Condition()
+        self._model_due: Optional[tuple] = None
+        self._model_thread: Optional[threading.Thread] = None
         self._housekeeping_timer = self.create_timer(0.2, self._housekeeping,
                                                      callback_group=self._pub_group)
         self.perception = Perception(self, params.perception_config(self), self._world_frame,
@@ -162,6 +176,9 @@ class SimNode(SimServices, Node):
         self._publisher_thread = threading.Thread(target=self._publish_loop,
                                                   name='sim-publisher', daemon=True)
         self._publisher_thread.start()
+        self._model_thread = threading.Thread(target=self._model_loop, name='sim-model',
+                                              daemon=True)
+        self._model_thread.start()
         self._commands.start()
         self.perception.start()
 
@@ -189,8 +206,11 @@ class SimNode(SimServices, Node):
         self._publishing.clear()
         self.perception.stop()
         self._commands.stop()
-        if self._publisher_thread is not None:
-            self._publisher_thread.join(2.0)
+        with self._model_cv:
+            self._model_cv.notify_all()
+        for thread in (self._publisher_thread, self._model_thread):
+            if thread is not None:
+                thread.join(2.0)
 
     def _require(self) -> Sim:
         sim = self._sim
@@ -246,16 +266,41 @@ class SimNode(SimServices, Node):
                                                    self._moving))
 
     def _publish_model(self, info, sim_time: float) -> None:
-        """On a new model generation: /tf_static for welded bodies, and every marker anew."""
+        """
+        On a new model generation: what /tf needs, here; the rest on the model thread.
+
+        /tf_static, every marker anew and the sensor publishers cost up to hundreds of
+        milliseconds for a mesh-heavy robot (163 meshes as triangle lists, 92 touch sensors):
+        done here, they held /clock and /tf back for as long.
+        """
         self._published_generation = info.generation
         self._moving = convert.moving_body_ids(info)
         self._frames = convert.frame_names(info, self._world_frame, self._frame_prefix)
         self._tf_template = convert.moving_tf_template(info, self._moving, self._frames,
                                                        self._frame_prefix)
-        static = convert.static_transforms(info, sim_time, self._frames, self._frame_prefix)
-        static.transforms += self.perception.static_transforms(info, sim_time, self._frames)
-        self._tf_static_pub.publish(static)  # one latched message holds every static frame
-        self._marker_pub.publish(markers.markers(info, sim_time, self._frames))
+        with self._model_cv:
+            self._model_due = (info, sim_time, self._frames)
+            self._model_cv.notify()
+
+    def _model_loop(self) -> None:
+        """Publish /tf_static and markers, and sync sensor publishers, per model generation."""
+        while self._publishing.is_set():
+            with self._model_cv:
+                self._model_cv.wait_for(lambda: self._model_due is not None
+                                        or not self._publishing.is_set(), timeout=0.5)
+                due, self._model_due = self._model_due, None
+            if due is None:
+                continue
+            info, sim_time, frames = due
+            try:
+                static = convert.static_transforms(info, sim_time, frames, self._frame_prefix)
+                static.transforms += self.perception.static_transforms(info, sim_time, frames)
+                self._tf_static_pub.publish(static)  # one latched message: every static frame
+                self._marker_pub.publish(markers.markers(info, sim_time, frames))
+                self.perception.sync_sensors(info)
+            except Exception as exc:  # never die silently: say why, keep publishing
+                self.get_logger().error(f'publishing the model failed: {exc!r}',
+                                        throttle_duration_sec=5.0)
 
     def _publish_joint_states(self) -> None:
         sim = self._sim

@@ -15,7 +15,9 @@ from typing import Callable, Optional
 
 from geometry_msgs.msg import WrenchStamped
 from msg_adapters import perception as pm
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Range
 from std_msgs.msg import Float64MultiArray
@@ -92,6 +94,7 @@ class Perception:
         self._sensor_pubs: dict = {}  # (kind, name) -> publisher
         self._sensor_generation = None
         self._sensor_frames: dict = {}
+        self._sensor_lock = threading.Lock()  # the publisher thread reads what sync_sensors sets
         self._running = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._cameras_failed = ''
@@ -123,25 +126,35 @@ class Perception:
     # ------------------------------------------------------------------ sensors
 
     def publish_sensors(self, snap: Snapshot) -> None:
-        """Publish every sensor group of the snapshot's model (from the publisher thread)."""
-        info = snap.info
-        if info.generation != self._sensor_generation:
-            self._sensor_generation = info.generation
-            self._sensor_frames = self._sync_sensor_publishers(info)
-        data = snap.sensordata
-        for sensor in info.sensors:
-            pub = self._sensor_pubs[(sensor.kind, sensor.name)]
-            frame = self._sensor_frames.get((sensor.kind, sensor.name), '')
-            if sensor.kind == 'imu':
-                pub.publish(pm.imu(sensor, data, snap.time, frame))
-            elif sensor.kind == 'wrench':
-                pub.publish(pm.wrench(sensor, data, snap.time, frame))
-            elif sensor.kind == 'range':
-                pub.publish(pm.range_reading(sensor, data, snap.time, frame))
-            else:
-                pub.publish(pm.generic(sensor, data))
+        """
+        Publish every sensor group of the snapshot's model (from the publisher thread).
 
-    def _sync_sensor_publishers(self, info: ModelInfo) -> dict:
+        Nothing until :meth:`sync_sensors` has made the publishers of that model generation.
+        """
+        info = snap.info
+        with self._sensor_lock:
+            if info.generation != self._sensor_generation:
+                return
+            data = snap.sensordata
+            for sensor in info.sensors:
+                pub = self._sensor_pubs[(sensor.kind, sensor.name)]
+                frame = self._sensor_frames.get((sensor.kind, sensor.name), '')
+                if sensor.kind == 'imu':
+                    pub.publish(pm.imu(sensor, data, snap.time, frame))
+                elif sensor.kind == 'wrench':
+                    pub.publish(pm.wrench(sensor, data, snap.time, frame))
+                elif sensor.kind == 'range':
+                    pub.publish(pm.range_reading(sensor, data, snap.time, frame))
+                else:
+                    pub.publish(pm.generic(sensor, data))
+
+    def sync_sensors(self, info: ModelInfo) -> None:
+        """
+        Make the sensor publishers of a model generation (from the node's model thread).
+
+        Publishers are made before the lock and destroyed after it, so the publisher thread
+        waits for neither (92 touch sensors: 92 publishers).
+        """
         frames = {}
         for s in info.sensors:
             if s.kind == 'range':
@@ -151,10 +164,35 @@ class Perception:
 
         def create(key):
             msg_type, leaf = SENSOR_TYPES[key[0]]
-            return self._node.create_publisher(
+            return self._create_publisher(
                 msg_type, f'sensors/{pm.topic_token(key[1])}/{leaf}', qos_profile_sensor_data)
-        self._sync(self._sensor_pubs, [(s.kind, s.name) for s in info.sensors], create)
-        return frames
+        keys = [(s.kind, s.name) for s in info.sensors]
+        pubs = dict(self._sensor_pubs)
+        for key in keys:
+            if key not in pubs:
+                pubs[key] = create(key)
+        gone = [pubs.pop(k) for k in [k for k in pubs if k not in keys]]
+        with self._sensor_lock:
+            self._sensor_pubs = pubs
+            self._sensor_frames = frames
+            self._sensor_generation = info.generation
+        for pub in gone:
+            self._node.destroy_publisher(pub)
+
+    def _create_publisher(self, msg_type, topic: str, qos) -> Publisher:
+        """
+        Create a publisher that may be destroyed while the node runs.
+
+        Without QoS event handlers: rclpy adds those to the executor's wait set as waitables,
+        and its executor puts a waitable of a destroyed publisher into the next wait set anyway
+        (``InvalidHandle: cannot use Destroyable because destruction was requested``, raised from
+        ``spin()``, which ends the node). A publisher without them is never in a wait set, so it
+        can be destroyed from any thread at any time: the one rule for everything that comes
+        and goes with entities (all of it is publishers).
+        """
+        return self._node.create_publisher(
+            msg_type, topic, qos,
+            event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
     def _sync(self, pubs: dict, keys: list, create: Callable) -> None:
         """
@@ -228,14 +266,14 @@ class Perception:
         cams = select(info.cameras, self.config.cameras)
         sites = scanner_sites([s.name for s in info.sites], self.config.lidar_sites)
         self._sync(self._camera_pubs, [c.name for c in cams], self._camera_publishers)
-        self._sync(self._laser_pubs, list(sites), lambda name: self._node.create_publisher(
+        self._sync(self._laser_pubs, list(sites), lambda name: self._create_publisher(
             LaserScan, f'lasers/{pm.topic_token(name)}/scan', qos_profile_sensor_data))
         return cams, sites
 
     def _camera_publishers(self, name: str) -> tuple:
         base = f'cameras/{pm.topic_token(name)}'
         qos = qos_profile_sensor_data
-        create = self._node.create_publisher
+        create = self._create_publisher
         depth = self.config.camera_depth
         return (create(Image, f'{base}/image_raw', qos),
                 create(CameraInfo, f'{base}/camera_info', qos),
