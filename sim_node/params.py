@@ -9,6 +9,7 @@ import dataclasses
 from typing import List
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -41,6 +42,14 @@ def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
     """
     return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
             if p.name in DOUBLES and p.type_ == Parameter.Type.INTEGER else p for p in params]
+
+
+def string_list(node: Node, name: str) -> List[str]:
+    """Return a string-array parameter declared without a default ([] when it was not given)."""
+    try:
+        return list(node.get_parameter(name).value or [])
+    except ParameterUninitializedException:
+        return []
 
 
 def declare(node: Node, scenes_dir: str) -> None:
@@ -80,8 +89,12 @@ def declare(node: Node, scenes_dir: str) -> None:
         'in one domain', read_only=True))
     node.declare_parameter('publish_clock', True, d(
         'publish /clock (one world per domain should)', read_only=True))
-    node.declare_parameter('resource_paths', [scenes_dir], d(
-        'directories that spawn and load_world may read files from', read_only=True))
+    node.declare_parameter('resource_paths', Parameter.Type.STRING_ARRAY, d(
+        'directories that spawn and load_world may read files from, besides the installed '
+        'scenes and objects (see builtin_resources)', read_only=True))
+    node.declare_parameter('builtin_resources', True, d(
+        f'whether the installed scenes and objects ({scenes_dir}) stay readable besides '
+        'resource_paths', read_only=True))
     node.declare_parameter('kp', c.kp, d(
         'PD stiffness for position commands on joints without a position actuator',
         fmin=0, fmax=1e6))
@@ -96,6 +109,10 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('max_bodies', c.max_bodies, d(
         'most bodies the world may hold; a spawn past it is refused', read_only=True,
         imin=2, imax=100_000))
+    node.declare_parameter('mesh_cache_mb', c.mesh_cache_mb, d(
+        "MuJoCo's cache of processed meshes (MiB): a second spawn of a robot, and edits of a "
+        'world holding robots, reuse their meshes from it; 0 turns it off', read_only=True,
+        imin=0, imax=1_000_000))
     _declare_perception(node)
 
 
@@ -155,4 +172,5 @@ def world_config(node: Node) -> WorldConfig:
         # Twice the fastest publisher, so that every publishing tick finds a new snapshot.
         snapshot_rate_hz=2 * max(p('tf_rate_hz'), p('joint_states_rate_hz')),
         kp=p('kp'), kd=p('kd'), allow_interpenetration=p('allow_interpenetration'),
-        max_bodies=p('max_bodies'), divergence_policy=p('divergence_policy'))
+        max_bodies=p('max_bodies'), divergence_policy=p('divergence_policy'),
+        mesh_cache_mb=p('mesh_cache_mb'))
