@@ -238,3 +238,167 @@ def test_world_contact_defaults_reach_every_body_of_a_spawned_model():
         for name in ('reacher/target', 'reacher/fingertip', 'reacher/sideS'):
             g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name)
             assert m.geom_friction[g][0] == pytest.approx(0.3), name
+
+
+def _write(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def test_includes_with_mujocoinclude_roots_and_dotdot_inside_the_roots_load(tmp_path):
+    """What published models do: <mujocoinclude> files, and includes that climb to a sibling."""
+    _write(tmp_path / 'shared' / 'parts.xml',
+           '<mujocoinclude><body name="arm"><joint name="j" type="hinge"/>'
+           '<geom type="capsule" size="0.05 0.2"/></body></mujocoinclude>')
+    model = _write(tmp_path / 'robot' / 'robot.xml',
+                   '<mujoco><worldbody><body name="base"><freejoint/><geom size="0.1"/>'
+                   '<include file="../shared/parts.xml"/></body></worldbody></mujoco>')
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('bot', sources.from_file(str(model), allowed_roots=[str(tmp_path)]), (2, 2, 1))
+    assert 'bot/j' in w.joint_names()
+
+
+def test_dotdot_that_leaves_the_roots_is_refused_like_any_outside_file(tmp_path):
+    from sim_node.core.errors import MissingAssetsError
+    _write(tmp_path / 'secret' / 'parts.xml', '<mujocoinclude/>')
+    model = _write(tmp_path / 'allowed' / 'robot.xml',
+                   '<mujoco><worldbody><include file="../secret/parts.xml"/>'
+                   '<body><geom size="0.1"/></body></worldbody></mujoco>')
+    with pytest.raises(MissingAssetsError, match='not inside the directories'):
+        sources.from_file(str(model), allowed_roots=[str(tmp_path / 'allowed')])
+
+
+def test_a_second_spawn_of_the_same_files_reads_and_checks_nothing_again(tmp_path):
+    """The checked copy is kept by path, inode, size and mtime: the file is not read again."""
+    from conftest import write_mesh_model
+    model = write_mesh_model(tmp_path, 1000)
+    first = sources.from_file(str(model), allowed_roots=[str(tmp_path)])
+    mesh = tmp_path / 'big.stl'
+    st = mesh.stat()
+    data = mesh.read_bytes()
+    mesh.write_bytes(b'\0' * len(data))  # same size; the mtime put back below
+    os.utime(mesh, ns=(st.st_atime_ns, st.st_mtime_ns))
+    second = sources.from_file(str(model), allowed_roots=[str(tmp_path)])
+    assert [m.file for m in second.spec.meshes] == [m.file for m in first.spec.meshes]
+    assert open(second.spec.meshes[0].file, 'rb').read() == data  # the checked copy
+
+
+def test_a_skinned_model_keeps_its_bones_when_its_root_takes_the_entity_name(tmp_path):
+    """dm_control's dog: a skin's bones name bodies; the root's rename must reach them."""
+    model = _write(tmp_path / 'skinned.xml', """<mujoco><worldbody>
+      <body name="torso" pos="0 0 0.3"><freejoint/><geom size="0.1"/>
+        <body name="leg" pos="0 0 -0.1"><joint name="knee"/><geom size="0.05"/></body>
+      </body></worldbody>
+      <deformable><skin name="fur" vertex="0 0 0.3  0.1 0 0.3  0 0.1 0.3  0 0 0.2"
+          face="0 1 2  0 1 3  0 2 3  1 2 3">
+        <bone body="torso" bindpos="0 0 0.3" bindquat="1 0 0 0" vertid="0 1 2" vertweight="1 1 1"/>
+        <bone body="leg" bindpos="0 0 0.2" bindquat="1 0 0 0" vertid="3" vertweight="1"/>
+      </skin></deformable></mujoco>""")
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('dog', sources.from_file(str(model), allowed_roots=[str(tmp_path)]), (2, 2, 1))
+    with w.locked() as (m, _):
+        bones = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(b))
+                 for b in m.skin_bonebodyid]
+    assert bones == ['dog', 'dog/leg']
+
+
+def _png(path, width=8, height=8):
+    """Write a small RGB PNG (a gradient) with Pillow."""
+    from PIL import Image
+    img = Image.new('RGB', (width, height))
+    img.putdata([(x * 30 % 256, y * 30 % 256, 90) for y in range(height) for x in range(width)])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    img.save(path)
+    return path
+
+
+def test_textures_heightfields_frames_replicate_and_nested_includes_work(tmp_path):
+    """MJCF features of standalone files: each works when spawned, files read by the reader."""
+    _png(tmp_path / 'textures' / 'wood.png')
+    _png(tmp_path / 'terrain.png', 16, 16)
+    _write(tmp_path / 'parts' / 'inner.xml',
+           '<mujocoinclude><geom name="inner" type="sphere" size="0.03" pos="0 0 0.2"/>'
+           '</mujocoinclude>')
+    _write(tmp_path / 'parts' / 'outer.xml',
+           '<mujocoinclude><include file="parts/inner.xml"/></mujocoinclude>')
+    model = _write(tmp_path / 'features.xml', """<mujoco>
+      <compiler texturedir="textures"/>
+      <asset>
+        <texture name="wood" type="2d" file="wood.png"/>
+        <material name="wood" texture="wood"/>
+        <hfield name="terrain" file="../terrain.png" size="0.3 0.3 0.05 0.01"/>
+      </asset>
+      <worldbody>
+        <body name="base" pos="0 0 0.5"><freejoint/>
+          <geom type="box" size="0.1 0.1 0.05" material="wood"/>
+          <include file="parts/outer.xml"/>
+          <frame name="ring" pos="0 0 0.1">
+            <replicate count="4" euler="0 0 90">
+              <geom name="tooth" type="box" size="0.01 0.01 0.01" pos="0.12 0 0"/>
+            </replicate>
+          </frame>
+        </body>
+        <body name="ground_patch" pos="0 0 0.01"><geom type="hfield" hfield="terrain"/></body>
+      </worldbody></mujoco>""")
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('features', sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+            (2.5, -2.5, 0.3))
+    with w.locked() as (m, _):
+        names = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(m.ngeom)}
+        assert m.nhfield == 1 and m.ntex >= 1
+    assert 'features/inner' in names
+    assert sum(1 for n in names if n and n.startswith('features/tooth')) == 4
+    w.step(50)
+
+
+def test_a_model_asset_is_refused_naming_the_element(tmp_path):
+    from sim_node.core.errors import UnsupportedFormatError
+    _write(tmp_path / 'gripper.xml', '<mujoco><worldbody><body name="g"><geom size="0.1"/>'
+           '</body></worldbody></mujoco>')
+    model = _write(tmp_path / 'arm.xml', '<mujoco><asset><model name="g" file="gripper.xml"/>'
+                   '</asset><worldbody><body name="arm"><geom size="0.1"/><attach model="g" '
+                   'body="g" prefix="g_"/></body></worldbody></mujoco>')
+    with pytest.raises(UnsupportedFormatError, match='<model>'):
+        sources.from_file(str(model), allowed_roots=[str(tmp_path)])
+
+
+def test_a_plugin_shipped_with_mujoco_works_in_a_spawned_model(tmp_path):
+    """An <extension> plugin MuJoCo ships (its PID actuator) drives a spawned joint."""
+    model = _write(tmp_path / 'pid.xml', """<mujoco>
+      <extension><plugin plugin="mujoco.pid"><instance name="pid">
+        <config key="kp" value="5"/><config key="kd" value="1"/></instance></plugin>
+      </extension>
+      <worldbody><body name="base"><geom type="box" size="0.05 0.05 0.05"/>
+        <body name="arm" pos="0 0 0.1"><joint name="hinge" axis="0 1 0"/>
+          <geom type="capsule" size="0.02" fromto="0 0 0 0.2 0 0" mass="1"/></body>
+      </body></worldbody>
+      <actuator><plugin name="servo" joint="hinge" plugin="mujoco.pid" instance="pid"/>
+      </actuator></mujoco>""")
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('servo', sources.from_file(str(model), allowed_roots=[str(tmp_path)]),
+            (-2.5, 2.5, 0.3))
+    with w.locked() as (m, d):
+        assert m.nplugin >= 1
+        d.ctrl[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, 'servo/servo')] = 0.5
+    w.step(2000)
+    assert w.get_joint_states()['servo/hinge'][0] == pytest.approx(0.5, abs=0.1)
+
+
+def test_urdf_package_uris_resolve_in_the_readable_folders(tmp_path):
+    """package://<pkg>/... in a URDF: <folder>/<pkg>/... for each readable folder."""
+    from conftest import write_mesh_model
+    pkg = tmp_path / 'my_robot_description' / 'meshes'
+    pkg.mkdir(parents=True)
+    write_mesh_model(pkg, 200)  # big.stl
+    urdf = _write(tmp_path / 'robot.urdf', """<robot name="r">
+      <link name="base"><collision><geometry>
+        <mesh filename="package://my_robot_description/meshes/big.stl"/>
+      </geometry></collision><inertial><mass value="1"/>
+        <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    </robot>""")
+    src = sources.from_file(str(urdf), allowed_roots=[str(tmp_path)])
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('r', src, (2.5, 2.5, 1.0))
+    with w.locked() as (m, _):
+        assert m.nmesh >= 1
