@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test bench bench-gym bench-scale bench-flood bench-cameras snapshot clean
+.PHONY: setup run test bench bench-gym bench-scale bench-flood bench-cameras bench-models snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -31,6 +31,10 @@ bench-flood: setup
 
 bench-cameras: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/cameras.py
+
+# Robot files from robosuite, gymnasium-robotics and dm_control (fetched once into .build/corpus)
+bench-models: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/models.py
 
 # A PNG of a scene: make snapshot [SCENE=default] [OUT=snapshot.png] [ARGS='--camera overview']
 SCENE ?= default

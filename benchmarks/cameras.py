@@ -30,6 +30,8 @@ from sim_node.core.config import WorldConfig  # noqa: E402
 from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.rendering import choose_backend  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from verdict import verdict  # noqa: E402, I100
 
 SCENE = str(Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml')
 RESOLUTIONS = ((160, 120), (320, 240), (640, 480))
@@ -157,6 +159,8 @@ def main(seconds: float = 3.0, rounds: int = 3) -> None:
     print(f'  loop rtf=0, one 320x240 at 10 Hz   : {ten:9.0f} steps/s '
           f'({statistics.median(fps["10hz"]):.1f} frames/s)')
     print(f'  ratio 10 Hz camera / none          : {ten / none:9.2f}   (target >= 0.9)')
+    verdict(ten / none >= 0.9, f'loop with a 10 Hz camera / without, {ten / none:.2f} '
+            '(target >= 0.9)')
     print(f'  loop rtf=0, one 320x240 flat out   : {flat:9.0f} steps/s '
           f'({statistics.median(fps["flat"]):.1f} frames/s)')
     print(f'  ratio flat-out camera / none       : {flat / none:9.2f}')

@@ -15,6 +15,9 @@ import sys
 import threading
 import time
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from verdict import verdict  # noqa: E402, I100
+
 FLOOD_HZ = 10_000
 PHASE_SEC = 4.0
 
@@ -72,6 +75,8 @@ def main() -> None:
         print(f'  no flood                         {alone:7.1f} x real time')
         print(f'  {hz_c:6.0f} Hz to an unheard topic      {control:7.1f}  ({control / alone:.2f})')
         print(f'  {hz:6.0f} Hz to joint_commands         {flooded:7.1f}  ({flooded / alone:.2f})')
+        verdict(flooded / alone >= 0.9, f'node rate under a {hz:.0f} Hz joint-command flood / '
+                f'without, {flooded / alone:.2f} (target >= 0.9)')
     finally:
         client.close()
         os.killpg(proc.pid, signal.SIGINT)

@@ -30,6 +30,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from sim_node.gym_env import ReachTask, SimEnv, Task  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from verdict import verdict  # noqa: E402, I100
 
 SCENE = str(Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml')
 GYM_ASSETS = Path(gym.__file__).parent / 'envs' / 'mujoco' / 'assets'
@@ -163,6 +165,8 @@ def main(n: int = 20000, rounds: int = 5) -> None:
               f'SimEnv, same model file and task: {ra:8.0f}   ratio {ra / rb:5.2f}'
               f'   (target >= 1.0; same run: max |obs diff| {obs_gap:.1e}, '
               f'|reward diff| {rew_gap:.1e})')
+        verdict(ra / rb >= 1.0, f'SimEnv / Gymnasium {name} steps per second, {ra / rb:.2f} '
+                '(target >= 1.0)')
     ra, rb, _ = compare(SimEnv(ReachTask()), GymnasiumReach(), n, rounds)
     print(f'  framework only, sim/Reach-v0 Task on default.xml, frame skip '
           f'{ReachTask.frame_skip}: MujocoEnv subclass {rb:8.0f}   SimEnv {ra:8.0f}   '

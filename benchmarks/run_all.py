@@ -34,6 +34,7 @@ from sim_node.core import sources  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
 from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
+from verdict import summary, verdict  # noqa: E402, I100
 
 SCENE = str(Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml')
 
@@ -85,6 +86,7 @@ def bench_throughput(seconds: float = 3.0) -> None:
     print(f'  bare Python mj_step loop : {bare:10.0f} steps/s')
     print(f'  SimLoop rtf=0 + 100 Hz consumer: {ours:10.0f} steps/s')
     print(f'  ratio loop/bare          : {ours / bare:10.2f}   (target >= 0.9)')
+    verdict(ours / bare >= 0.9, f'loop / bare mj_step, {ours / bare:.2f} (target >= 0.9)')
 
 
 def world_with_bodies(n_bodies: int) -> World:
@@ -114,6 +116,9 @@ def bench_spawn(counts=(10, 100, 500), n_spawns: int = 30) -> None:
         nb = world.model_info.body_names.__len__() - n_spawns
         print(f'  {nb:4d} bodies: median {statistics.median(lat):6.1f} ms, '
               f'p95 {float(np.percentile(lat, 95)):6.1f} ms   (target < 50 ms at 100)')
+        if nb == 100:
+            p95 = float(np.percentile(lat, 95))
+            verdict(p95 < 50, f'spawn into a 100-body world, p95 {p95:.1f} ms (target < 50 ms)')
 
 
 def bench_spawn_model(model: str = 'humanoid', n_spawns: int = 10) -> None:
@@ -158,6 +163,8 @@ def bench_realtime(seconds: float) -> None:
     loop.stop()
     print(f'[real time] factor 1.0 over {seconds:.0f} s: sim/wall = {ratio:.4f} '
           f'(error {abs(ratio - 1) * 100:.2f} %, target within 0.5 %)')
+    verdict(abs(ratio - 1) <= 0.005, f'real-time factor 1.0 tracked to '
+            f'{abs(ratio - 1) * 100:.2f} % (target within 0.5 %)')
 
 
 def main() -> None:
@@ -174,6 +181,7 @@ def main() -> None:
     command_flood.main()
     import cameras
     cameras.main()
+    summary()
 
 
 if __name__ == '__main__':

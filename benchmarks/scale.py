@@ -36,6 +36,7 @@ from sim_node.core import sources  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
 from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
+from verdict import verdict  # noqa: E402, I100
 
 DEFAULT_SCENE = ROOT / 'scenes' / 'default.xml'
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -146,6 +147,9 @@ def bench_node_vs_bare(label: str, path: str, target: float, rounds: int = 5,
     print(f'  {label:15s} bare mj_step {b:8.0f} steps/s   node {n:8.0f} steps/s   '
           f'ratio {n / b:5.2f} (target >= {target}; rounds {min(per_round):.2f}-'
           f'{max(per_round):.2f})   /tf {statistics.median(tf):5.1f} msg/s (target 100)')
+    verdict(n / b >= target, f'{label}: node / bare mj_step, {n / b:.2f} (target >= {target})')
+    verdict(statistics.median(tf) >= 95, f'{label}: /tf at {statistics.median(tf):.1f} msg/s '
+            '(target 100, within 5 %)')
 
 
 def bench_message_costs(n: int = 1000) -> None:
@@ -176,6 +180,7 @@ def bench_message_costs(n: int = 1000) -> None:
     t0 = time.perf_counter()
     data = markers.markers(info, snap.time, frames)
     marker_ms = (time.perf_counter() - t0) * 1e3
+    verdict(ours <= 1.0, f'/tf serialization, {ours:.3f} us per transform (target <= 1 us)')
     print(f'  /tf for {len(bodies)} bodies: {ours:.3f} us per transform (target <= 1 us); '
           f'from Python objects {objects:.1f} us ({objects / ours:.0f}x)')
     print(f'  markers for {len(info.geoms)} geoms on a model change: one message of '
@@ -210,6 +215,9 @@ def bench_memory_and_lag(paths: dict) -> None:
             run.close()
         target = '  (target <= 150 MiB)' if label == 'default scene' else ''
         print(f'  node peak RSS, {label:15s}: {rss:6.0f} MiB{target}')
+        if label == 'default scene':
+            verdict(rss <= 150, f'node peak RSS on the default scene, {rss:.0f} MiB '
+                    '(target <= 150 MiB)')
         if lag:
             print(f'    get_simulation_state at real_time_factor 1: "{lag}"')
 
