@@ -80,36 +80,47 @@ def slow_source(tmp_path):
     return sources.from_file(str(model), allowed_roots=[str(tmp_path)])
 
 
-def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping(slow_source):
-    """A 150k-face mesh takes seconds to compile; the loop must not stall for it."""
-    import threading
-    src = slow_source
-    loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
-    loop.start()
-    stalls, done = [0.0], threading.Event()
+class StallWatch:
+    """The longest wall time a running loop's simulated time stood still, watched meanwhile."""
 
-    def watch() -> None:  # the longest wall time the simulated time stood still
-        last_t, since = loop.latest_snapshot().time, time.monotonic()
-        while not done.is_set():
-            t = loop.latest_snapshot().time
-            now = time.monotonic()
+    def __init__(self, loop: SimLoop):
+        import threading
+        self.loop, self.longest = loop, 0.0
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._watch)
+
+    def _watch(self) -> None:
+        last_t, since = self.loop.world.time, time.monotonic()
+        while not self._done.is_set():
+            t, now = self.loop.world.time, time.monotonic()
             if t != last_t:
                 last_t, since = t, now
-            stalls[0] = max(stalls[0], now - since)
-            time.sleep(0.002)
-    watcher = threading.Thread(target=watch)
+            self.longest = max(self.longest, now - since)
+            time.sleep(0.001)
+
+    def __enter__(self) -> 'StallWatch':
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._done.set()
+        self._thread.join()
+
+
+def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping(slow_source):
+    """A 150k-face mesh takes seconds to compile; the loop must not stall for it."""
+    loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
+    loop.start()
     try:
         time.sleep(0.3)
-        watcher.start()
-        t0 = time.monotonic()
-        loop.world.spawn('big', src, position=[0, 2, 1])
-        took = time.monotonic() - t0
-        done.set()
-        watcher.join()
+        with StallWatch(loop) as watch:
+            t0 = time.monotonic()
+            loop.world.spawn('big', slow_source, position=[0, 2, 1])
+            took = time.monotonic() - t0
         assert took > 0.5  # slow enough to mean something
-        assert stalls[0] < 0.3, f'the loop stood still {stalls[0]:.2f} s of a {took:.2f} s spawn'
+        assert watch.longest < 0.3, (f'the loop stood still {watch.longest:.2f} s of a '
+                                     f'{took:.2f} s spawn')
     finally:
-        done.set()
         loop.stop()
 
 
@@ -141,8 +152,6 @@ def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
     as an asset dict holding the GIL (160-330 ms at a stretch) and the world's compiled spec
     was copied under the lock: the loop stood still 0.33-1.1 s per spawn (issue 19).
     """
-    import threading
-
     from sim_node.core import sources
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'ros_env'))
     import corpus
@@ -150,26 +159,13 @@ def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
     panda = next(m for m in corpus.MODELS if 'panda' in m.path)
     loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
     loop.start()
-    stalls, done = [0.0], threading.Event()
-
-    def watch() -> None:
-        last_t, since = loop.world.time, time.monotonic()
-        while not done.is_set():
-            t, now = loop.world.time, time.monotonic()
-            if t != last_t:
-                last_t, since = t, now
-            stalls[0] = max(stalls[0], now - since)
-            time.sleep(0.001)
-    watcher = threading.Thread(target=watch)
     try:
         time.sleep(0.3)
-        watcher.start()
-        for i in range(3):
-            src = sources.from_file(str(panda.file), allowed_roots=[str(folder)])
-            loop.world.spawn(f'arm{i}', src, position=[2.0 + i, 3.0, 0.0])
-        done.set()
-        watcher.join()
-        assert stalls[0] < 0.1, f'the loop stood still {stalls[0] * 1e3:.0f} ms during a spawn'
+        with StallWatch(loop) as watch:
+            for i in range(3):
+                src = sources.from_file(str(panda.file), allowed_roots=[str(folder)])
+                loop.world.spawn(f'arm{i}', src, position=[2.0 + i, 3.0, 0.0])
+        assert watch.longest < 0.1, (f'the loop stood still {watch.longest * 1e3:.0f} ms '
+                                     'during a spawn')
     finally:
-        done.set()
         loop.stop()
