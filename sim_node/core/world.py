@@ -478,14 +478,19 @@ class World(StateWrites, WorldEdits):
         if scope != RESET_ALL and not 0 <= scope <= _SCOPE_BITS:
             raise InvalidArgumentError(ERR_SCOPE.format(scope=scope))
         scope = _SCOPE_BITS if scope in (0, RESET_ALL) else scope
-        with self._locked():
-            if scope & RESET_SPAWNED and self._spawned:
+        if scope & RESET_SPAWNED:
+            def plan() -> tuple:
                 doomed = dict(self._spawned)
-                self._edit_locked(lambda spec: [editor.remove(
+                return (lambda spec: [editor.remove(
                     spec, n, meta['frame'], meta['assets'], meta.get('defaults', ()))
-                    for n, meta in doomed.items()], spawned={}, overrides={
+                    for n, meta in doomed.items()], None, {}, {
                     k: v for k, v in self._overrides.items() if k not in doomed},
-                    removed=len(doomed))
+                    len(doomed), None)
+            with self._locked():
+                anything = bool(self._spawned)
+            if anything:  # built outside the lock like every removal; the state below
+                self._change(plan)
+        with self._locked():
             if scope & RESET_STATE:
                 self._reset_state_locked(keep_time=not scope & RESET_TIME)
             elif scope & RESET_TIME:

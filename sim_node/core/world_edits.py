@@ -176,15 +176,15 @@ class WorldEdits:
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
         g = check_finite('gravity', gravity, 3)
-        with self._locked():
-            self._edit_locked(lambda spec: setattr(spec.option, 'gravity', g.tolist()))
+        self._change(lambda: (lambda spec: setattr(spec.option, 'gravity', g.tolist()),
+                              None, None, None, 0, None))
 
     def set_timestep(self, timestep: float) -> None:
         (dt,) = check_finite('timestep', [timestep], 1)
         if not 0 < dt <= 0.1:
             raise InvalidArgumentError(f'timestep must be in (0, 0.1] s, got {timestep}')
-        with self._locked():
-            self._edit_locked(lambda spec: setattr(spec.option, 'timestep', float(dt)))
+        self._change(lambda: (lambda spec: setattr(spec.option, 'timestep', float(dt)),
+                              None, None, None, 0, None))
 
     def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
                      rolling: Optional[float] = None) -> None:
@@ -193,7 +193,7 @@ class WorldEdits:
 
         It wins over surfaces without friction of their own (see :func:`editor.apply_contact`).
         """
-        with self._locked():
+        def plan() -> tuple:
             rec = self._index.entity(name)
             cur = (self._model.geom_friction[rec.geom_ids[0]] if rec.geom_ids
                    else np.array([1.0, 0.005, 0.0001]))
@@ -201,7 +201,8 @@ class WorldEdits:
                                           cur[2] if rolling is None else rolling], 3)
             if np.any(f < 0):
                 raise InvalidArgumentError(f'friction must be >= 0, got {f.tolist()}')
-            self._set_override_locked(name, 'friction', f)
+            return self._plan_override_locked(name, 'friction', f)
+        self._change(plan)
 
     def set_restitution(self, name: str, restitution: float) -> None:
         """
@@ -211,15 +212,15 @@ class WorldEdits:
         :func:`editor.apply_contact`).
         """
         e = self._check_restitution(restitution)
-        with self._locked():
-            self._index.entity(name)
-            self._set_override_locked(name, 'restitution', e)
+        self._change(lambda: self._plan_override_locked(name, 'restitution', e))
 
-    def _set_override_locked(self, name: str, key: str, value) -> None:
+    def _plan_override_locked(self, name: str, key: str, value) -> tuple:
+        """Return the World._change plan of one entity's contact setting."""
         own = {**self._overrides.get(name, {}), key: value}
         geoms = [self._index.geom_names[g] for g in self._index.entity(name).geom_ids]
-        self._edit_locked(lambda spec: editor.apply_contact(
-            spec, geoms, *self._contact_of(own)), overrides={**self._overrides, name: own})
+        contact = self._contact_of(own)
+        return (lambda spec: editor.apply_contact(spec, geoms, *contact), None, None,
+                {**self._overrides, name: own}, 0, None)
 
     def _contact_of(self, own: dict) -> tuple:
         """(friction, restitution, priority) for geoms with settings `own` (maybe none)."""
@@ -272,16 +273,21 @@ class WorldEdits:
             if m_new == 0:
                 if rec.category == ROBOT:
                     raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
-                if rec.has_free_joint:
+                if rec.has_free_joint:  # welded where it is now: under the lock, as it moves
                     self._kinematics_locked()
                     pos, q = state.body_pose(self._data, rec.root_body)
                     self._edit_locked(lambda spec: editor.weld_in_place(
                         spec, self._frame_of(name), rec, pos, q))
                 return
+
+        def plan() -> tuple:
+            rec = self._index.entity(name)
             total = float(sum(self._model.body_mass[b] for b in rec.body_ids))
             if total <= 0:
                 raise IncorrectStateError(ERR_NO_MASS.format(name=name))
             model, index = self._model, self._index
-            self._edit_locked(lambda spec: (
+            return (lambda spec: (
                 editor.free(spec, rec) if rec.category == STATIC else None,
-                editor.scale_mass(spec, model, index, rec, m_new / total)))
+                editor.scale_mass(spec, model, index, rec, m_new / total)),
+                None, None, None, 0, None)
+        self._change(plan)
