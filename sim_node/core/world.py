@@ -613,8 +613,10 @@ class World(StateWrites, WorldEdits):
         """
         Apply `edit` to a copy of the spec, compile it and commit it, all under the lock.
 
-        For edits that read the live state as they are made (welding a body where it is now);
-        everything else goes through :meth:`_change`. Only if the copy compiles (and `check`
+        For edits that read the live state as they are made (welding a body where it is now,
+        moving a welded entity within a state write) and the rare ones not moved yet (adding
+        a body to an entity, the default contact); spawn, delete, reset of the spawned,
+        contact, mass, gravity and timestep go through :meth:`_change`. Only if the copy compiles (and `check`
         passes) does it become the world. A failed compile or check leaves the world, its spec
         and its generation exactly as they were.
 
