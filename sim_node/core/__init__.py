@@ -5,6 +5,8 @@ Modules, one job each: :mod:`.world` (the lock, the generation, the recompile, a
 methods that lock, validate and delegate), :mod:`.index` (names and addresses of one model),
 :mod:`.control` (joint commands), :mod:`.guard` (divergence), :mod:`.editor` (MjSpec edits),
 :mod:`.state` (reading and writing state), :mod:`.sources` (what can be spawned),
+:mod:`.assets` (model files resolved, checked and copied once), :mod:`.trajectory` (joint
+trajectories in simulated time, driven per step by :mod:`.control` under the world lock),
 :mod:`.loop` (the stepping thread), :mod:`.checks` and :mod:`.quat` (shared helpers).
 
 Threading contract

@@ -8,7 +8,7 @@ joint no longer exists, while the others stay in force. The world calls every me
 """
 
 import threading
-from typing import Sequence
+from typing import Optional, Sequence
 
 import mujoco
 import numpy as np
@@ -17,10 +17,17 @@ from .checks import check_finite
 from .errors import InvalidArgumentError
 from .index import ModelIndex
 from .records import EFFORT, MODES, POSITION, VELOCITY
+from .trajectory import INVALID_GOAL, SUCCESSFUL, Tracker
 
 ERR_MODE = 'unknown command mode {mode!r}; use one of ' + ', '.join(MODES)
 ERR_LENGTH = '{what}: {n} names but {m} values'
 ERR_GAINS = 'gains must be >= 0, got kp={kp}, kd={kd}'
+ERR_CLAIMED = ('joint {name!r} was commanded on joint_commands while the trajectory drove it: '
+               'the trajectory gave its joints up (as to a second controller claiming them)')
+ERR_PREEMPTED = 'Current goal cancelled due to new incoming action.'
+ERR_CANCELED = 'canceled: the joints hold where they were'
+ERR_RESET = 'the world was reset: the trajectory ended'
+ERR_GONE = 'a joint of the trajectory left the world (its entity was deleted)'
 
 _NONE_INT = np.zeros(0, int)
 
@@ -42,6 +49,7 @@ class Control:
         self.kp, self.kd = float(kp), float(kd)
         self._pd_dof = _NONE_INT  # qfrc_applied entries the current binding writes
         self.per_step = False  # True when PD torques or servo targets change every step
+        self._runs: dict = {}  # entity -> _Run: trajectories being followed
 
     # ---------------------------------------------------------------- any thread
 
@@ -95,6 +103,9 @@ class Control:
             i = index.joint_index.get(name)
             if i is None:
                 continue  # the joint was deleted after the command was staged
+            for run in [r for r in self._runs.values() if name in r.tracker.trajectory.joints]:
+                self._end_run(run, INVALID_GOAL, ERR_CLAIMED.format(name=name), data,
+                              hold=False)
             act = index.joint_actuators[i].get(mode)
             if act is not None:
                 data.ctrl[act] = value
@@ -108,6 +119,8 @@ class Control:
         with self._stage_lock:
             self._staged.clear()
         self._held.clear()
+        for run in list(self._runs.values()):
+            self._end_run(run, INVALID_GOAL, ERR_RESET, data, hold=False)
         self.bind(index, model, data)
 
     def bind(self, index: ModelIndex, model: mujoco.MjModel, data: mujoco.MjData,
@@ -155,10 +168,92 @@ class Control:
         self._pd_kp = np.where(is_pos, self.kp * m0, 0.0)
         self._pd_kd = np.where(is_eff, 0.0, self.kd * m0)
         self._pd_bias = ~is_eff
-        self.per_step = bool(len(self._pd_dof) or len(self._servo_act))
+        for run in list(self._runs.values()):
+            if not run.bind(index, model):
+                self._end_run(run, INVALID_GOAL, ERR_GONE, data, hold=False, rebind=False)
+        self.per_step = bool(len(self._pd_dof) or len(self._servo_act) or self._runs)
+
+    # ---------------------------------------------------------------- trajectories
+
+    def start_run(self, entity: str, tracker: Tracker, index: ModelIndex,
+                  model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """
+        Follow a trajectory on an entity's joints from the next step on.
+
+        It takes its joints from held commands and from a trajectory already running on the
+        entity, which ends canceled (a new goal preempts the old one, as the controller does).
+        """
+        old = self._runs.get(entity)
+        if old is not None:
+            self._end_run(old, INVALID_GOAL, ERR_PREEMPTED, data, hold=False, canceled=True,
+                          rebind=False)
+        joints = tracker.trajectory.joints
+        self._held = {n: c for n, c in self._held.items() if n not in joints}
+        run = _Run(entity, tracker)
+        self._runs[entity] = run
+        self.bind(index, model, data)
+
+    def cancel_run(self, entity: str, run: '_Run', data: mujoco.MjData,
+                   index: ModelIndex, model: mujoco.MjModel) -> None:
+        """End a running trajectory as canceled: its joints hold where they are now."""
+        if self._runs.get(entity) is run:
+            self._end_run(run, SUCCESSFUL, ERR_CANCELED, data, hold=False, canceled=True,
+                          rebind=False)
+            self.bind(index, model, data)
+
+    def run_of(self, entity: str) -> Optional['_Run']:
+        return self._runs.get(entity)
+
+    def _end_run(self, run: '_Run', code: int, message: str, data: mujoco.MjData,
+                 hold: bool, canceled: bool = False, rebind: bool = True) -> None:
+        """
+        Take a trajectory off its joints; they hold a position from the next step on.
+
+        :param hold: hold the trajectory's last point (it succeeded); else where they are.
+        """
+        if self._runs.get(run.entity) is run:
+            del self._runs[run.entity]
+        tracker = run.tracker
+        if tracker.status.code is None:
+            tracker.status.code, tracker.status.message = code, message
+        tracker.status.canceled = canceled
+        joints = tracker.trajectory.joints
+        if run.qadr is not None:
+            data.qfrc_applied[run.pd_dof] = 0
+            where = np.array(tracker.trajectory.positions[-1] if hold
+                             else data.qpos[run.qadr], dtype=float)
+            for name, q, act in zip(joints, where, run.act):
+                if act < 0:  # PD, held like a position command; a servo just keeps its target
+                    self._held.setdefault(name, (POSITION, float(q)))
+            acts = run.act >= 0
+            data.ctrl[run.act[acts]] = where[acts]
+        run.done.set()
+        if rebind and run.index is not None:
+            self.bind(run.index, run.model, data)
+
+    def _drive_runs(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Before one step: every trajectory's targets at this time, and its judgement."""
+        t = data.time
+        for run in list(self._runs.values()):
+            q, v = data.qpos[run.qadr], data.qvel[run.dof]
+            code = run.tracker.judge(t, q, v)
+            if code is not None:
+                self._end_run(run, code, run.tracker.status.message, data,
+                              hold=code == SUCCESSFUL)
+                continue
+            qd, vd, _ = run.tracker.status.desired
+            acts = run.act >= 0
+            data.ctrl[run.act[acts]] = qd[acts]
+            pd = ~acts
+            dof = run.dof[pd]
+            data.qfrc_applied[dof] = (run.m0[pd] * (self.kp * (qd[pd] - q[pd])
+                                                    + self.kd * (vd[pd] - v[pd]))
+                                      + data.qfrc_bias[dof])
 
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Before one step: PD torques and moving servo targets from the current state."""
+        if self._runs:
+            self._drive_runs(model, data)
         dof = self._pd_dof
         q = data.qpos[self._pd_qpos]
         v = data.qvel[dof]
@@ -174,3 +269,27 @@ class Control:
             lo, hi = self._servo_range[:, 0], self._servo_range[:, 1]
             data.ctrl[self._servo_act] = np.where(self._servo_limited,
                                                   np.clip(target, lo, hi), target)
+
+
+class _Run:
+    """A trajectory being followed, bound to one model's addresses (world lock held)."""
+
+    def __init__(self, entity: str, tracker: Tracker):
+        self.entity, self.tracker = entity, tracker
+        self.done = threading.Event()
+        self.qadr = self.dof = self.act = self.m0 = self.pd_dof = None
+        self.index = self.model = None
+
+    def bind(self, index: ModelIndex, model: mujoco.MjModel) -> bool:
+        """Take the addresses of its joints in `index`; False if one is gone."""
+        joints = self.tracker.trajectory.joints
+        if any(n not in index.joint_index for n in joints):
+            return False
+        idx = np.array([index.joint_index[n] for n in joints], dtype=int)
+        self.qadr, self.dof = index.joint_qposadr[idx], index.joint_dofadr[idx]
+        self.act = np.array([index.joint_actuators[i].get(POSITION, -1) for i in idx],
+                            dtype=int)
+        self.m0 = model.dof_M0[self.dof]
+        self.pd_dof = self.dof[self.act < 0]
+        self.index, self.model = index, model
+        return True

@@ -51,6 +51,7 @@ class ModelIndex:
     joint_qposadr: np.ndarray
     joint_dofadr: np.ndarray
     joint_actuators: tuple  # per joint: {mode: actuator id}
+    joint_entity: tuple  # per joint: the name of the entity it belongs to
     geom_names: tuple  # (ngeom,) '' for unnamed
     entities: tuple  # EntityRecord, in model order
     entity_by_name: dict
@@ -114,12 +115,14 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
     for meta in spawned.values():
         if meta.get('root_link') and meta['bodies'] and meta['bodies'][0] in ids:
             alias[ids[meta['bodies'][0]]] = meta['root_link']
+    joint_entity = tuple(names[root_of[m.jnt_bodyid[j]]] for j in jids)
     info = ModelInfo(
         generation=generation, timestep=float(m.opt.timestep), body_names=names,
         body_parent=parent, body_root=root_of, body_has_joint=m.body_jntnum > 0,
         body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
         body_alias=tuple(alias), joint_names=jnames, geoms=_geom_visuals(m), entities=entities,
-        cameras=devices.cameras(m), sensors=devices.sensors(m), sites=devices.sites(m))
+        cameras=devices.cameras(m), sensors=devices.sensors(m), sites=devices.sites(m),
+        joint_entity=joint_entity)
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,
@@ -127,6 +130,7 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
         joint_qposadr=m.jnt_qposadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_dofadr=m.jnt_dofadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_actuators=_classify_actuators(m, jids),
+        joint_entity=joint_entity,
         geom_names=tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ''
                          for g in range(m.ngeom)),
         entities=entities, entity_by_name={e.name: e for e in entities}, info=info)

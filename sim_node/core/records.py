@@ -133,6 +133,7 @@ class ModelInfo:
     cameras: tuple = ()  # CameraSpec
     sensors: tuple = ()  # SensorSpec
     sites: tuple = ()  # SiteSpec of every named site
+    joint_entity: tuple = ()  # for joint_names: the entity each joint belongs to
 
 
 @dataclass(frozen=True)

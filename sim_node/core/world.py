@@ -19,7 +19,7 @@ import numpy as np
 
 from . import assets, checks, editor, guard
 from . import index as model_index
-from . import sources, state, transfer
+from . import sources, state, trajectory, transfer
 from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
@@ -305,6 +305,59 @@ class World(StateWrites, WorldEdits):
         with self._locked():
             index = self._index
         self._control.stage(index, names, values, mode)
+
+    def follow_trajectory(self, entity: str, joint_names: Sequence[str],
+                          times: Sequence[float], positions: Sequence[Sequence[float]],
+                          velocities: Sequence[Sequence[float]] = (),
+                          accelerations: Sequence[Sequence[float]] = (),
+                          start_time: float = 0.0, path_tolerance: Optional[dict] = None,
+                          goal_tolerance: Optional[dict] = None,
+                          goal_time_tolerance: float = 0.0) -> 'TrajectoryHandle':
+        """
+        Drive an entity's joints along a trajectory in simulated time (a new one preempts).
+
+        :param times: (k,) seconds after the start of each point, increasing.
+        :param positions: (k, n); `velocities` and `accelerations` empty or (k, n): the
+            fields given choose linear, cubic or quintic interpolation.
+        :param start_time: simulated time of the start (0: now); a trajectory that would end
+            before now is refused.
+        :param path_tolerance: joint -> (position, velocity, acceleration) limits on the
+            error along the way; goal_tolerance likewise at the end; 0 or absent: not checked.
+        :param goal_time_tolerance: how long after the end the goal tolerance may take to be
+            met (0: no limit).
+        :raises TrajectoryError: with FollowJointTrajectory's error code.
+        """
+        with self._locked():
+            index, d = self._index, self._data
+            known = dict(zip(index.joint_names, index.joint_entity))
+            t, q, v, a = trajectory.check(joint_names, times, positions, velocities,
+                                          accelerations, known, entity)
+            now = float(d.time)
+            start = now if start_time <= 0 else float(start_time)
+            if start + t[-1] < now:
+                raise trajectory.TrajectoryError(trajectory.OLD_HEADER_TIMESTAMP,
+                                                 trajectory.ERR_OLD.format(end=start + t[-1],
+                                                                           now=now))
+            idx = index.joints(joint_names)
+            names = tuple(joint_names)
+            traj = trajectory.Trajectory(
+                joints=names, start=start, times=t, positions=q, velocities=v,
+                accelerations=a, start_positions=d.qpos[index.joint_qposadr[idx]].copy(),
+                start_velocities=(d.qvel[index.joint_dofadr[idx]].copy() if v is not None
+                                  else np.zeros(len(names))),
+                path_tolerance=_tolerance(names, path_tolerance),
+                goal_tolerance=_tolerance(names, goal_tolerance),
+                goal_time_tolerance=max(0.0, float(goal_time_tolerance)))
+            tracker = trajectory.Tracker(traj)
+            self._control.start_run(entity, tracker, index, self._model, d)
+            self._cached = None
+            return TrajectoryHandle(self, entity, self._control.run_of(entity))
+
+    def _cancel_trajectory(self, handle: 'TrajectoryHandle') -> None:
+        with self._locked():
+            self._control.cancel_run(handle.entity, handle.run, self._data, self._index,
+                                     self._model)
+            self._cached = None
 
     def set_gains(self, kp: float, kd: float) -> None:
         """PD gains for joints commanded without a matching actuator."""
@@ -616,9 +669,9 @@ class World(StateWrites, WorldEdits):
         For edits that read the live state as they are made (welding a body where it is now,
         moving a welded entity within a state write) and the rare ones not moved yet (adding
         a body to an entity, the default contact); spawn, delete, reset of the spawned,
-        contact, mass, gravity and timestep go through :meth:`_change`. Only if the copy compiles (and `check`
-        passes) does it become the world. A failed compile or check leaves the world, its spec
-        and its generation exactly as they were.
+        contact, mass, gravity and timestep go through :meth:`_change`. Only if the copy
+        compiles (and `check` passes) does it become the world. A failed compile or check
+        leaves the world, its spec and its generation exactly as they were.
 
         :param spawned: the spawned-entity table that goes with the edited spec.
         :param overrides: likewise, per-entity contact settings.
@@ -712,3 +765,41 @@ class World(StateWrites, WorldEdits):
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         self._guard.bind(data)
         self._forward_locked()
+
+
+def _tolerance(names: tuple, given: Optional[dict]) -> trajectory.Tolerance:
+    """(n,) limits per joint from joint -> (position, velocity, acceleration); 0: unchecked."""
+    tol = trajectory.Tolerance.none(len(names))
+    for i, name in enumerate(names):
+        p, v, a = (given or {}).get(name, (0.0, 0.0, 0.0))
+        tol.position[i], tol.velocity[i], tol.acceleration[i] = (max(0.0, float(x))
+                                                                 for x in (p, v, a))
+    return tol
+
+
+class TrajectoryHandle:
+    """A trajectory a world follows: wait for it, read how it goes, cancel it."""
+
+    def __init__(self, world: World, entity: str, run):
+        self.world, self.entity, self.run = world, entity, run
+
+    @property
+    def status(self) -> trajectory.Status:
+        """Return the latest judgement: desired and actual, and the outcome once decided."""
+        return self.run.tracker.status
+
+    @property
+    def trajectory(self) -> trajectory.Trajectory:
+        return self.run.tracker.trajectory
+
+    def wait(self, timeout: Optional[float] = None) -> bool:
+        """Block until the trajectory has ended (True) or `timeout` wall seconds passed."""
+        return self.run.done.wait(timeout)
+
+    @property
+    def done(self) -> bool:
+        return self.run.done.is_set()
+
+    def cancel(self) -> None:
+        """End it now; the joints hold where they are (nothing if it has ended already)."""
+        self.world._cancel_trajectory(self)
