@@ -7,9 +7,11 @@ the executor's (services, reentrant; the housekeeping timer), ``sim-publisher`` 
 ``/tf`` and joint states from the newest snapshot, paced to absolute deadlines), ``sim-model``
 (per model generation: ``/tf_static``, markers and sensor publishers, which take up to
 hundreds of milliseconds for a mesh-heavy robot and would otherwise hold ``/clock`` back),
-the command drain's and the perception thread (cameras and scanners). Publishers that come and
-go with entities carry no QoS event handlers, so they are never in an executor's wait set and
-may be destroyed from any thread.
+the command drain's and the perception thread (cameras and scanners). FollowJointTrajectory
+goals (:mod:`.trajectories`) wait on executor threads of their own callback group.
+Publishers that come and go with entities carry no QoS event handlers, so they are never in an
+executor's wait set and may be destroyed from any thread; the action servers that come and go
+take no part in a wait set once destroyed (see :mod:`.trajectories`).
 """
 
 import collections
@@ -40,6 +42,7 @@ from .core.records import EFFORT, POSITION, VELOCITY
 from .core.world import World
 from .perception import Perception
 from .services import ERR_NO_WORLD, Sim, SimServices
+from .trajectories import TrajectoryServers
 
 NODE_NAME = 'sim'
 
@@ -127,6 +130,12 @@ class SimNode(SimServices, Node):
                                                      callback_group=self._pub_group)
         self.perception = Perception(self, params.perception_config(self), self._world_frame,
                                      self._frame_prefix, lambda: self._sim)
+        self.trajectories = TrajectoryServers(
+            self, ReentrantCallbackGroup(), lambda: self._sim,
+            lambda: tuple(p(n) for n in ('trajectory_path_tolerance',
+                                         'trajectory_goal_tolerance',
+                                         'trajectory_goal_time_tolerance',
+                                         'trajectory_feedback_hz')))
         self._make_services()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -298,6 +307,7 @@ class SimNode(SimServices, Node):
                 self._tf_static_pub.publish(static)  # one latched message: every static frame
                 self._marker_pub.publish(markers.markers(info, sim_time, frames))
                 self.perception.sync_sensors(info)
+                self.trajectories.sync(info)
             except Exception as exc:  # never die silently: say why, keep publishing
                 self.get_logger().error(f'publishing the model failed: {exc!r}',
                                         throttle_duration_sec=5.0)

@@ -86,6 +86,8 @@ SENSORY = """<mujoco model="sensory">
       <geom type="box" size="0.2 0.2 0.05"/>
       <camera name="eye" pos="0 0 0.1" xyaxes="1 0 0 0 1 0"/>
       {sites}
+      <body name="flap" pos="0 0 0.1"><joint name="hinge" axis="0 1 0"/>
+        <geom type="box" size="0.05 0.05 0.01" pos="0.1 0 0"/></body>
     </body>
   </worldbody>
   <sensor>{sensors}</sensor>
@@ -94,7 +96,12 @@ SENSORY = """<mujoco model="sensory">
 
 
 def test_an_entity_with_many_sensors_and_a_camera_comes_and_goes_200_times(node, watch, sim):
-    """Publishers made and destroyed under a busy executor never end the node (issue 19, #5)."""
+    """
+    Publishers and action servers come and go under a busy executor: the node lives (19, #5).
+
+    The entity has 40 touch sensors, a camera and a hinge (so a follow_joint_trajectory action
+    server of its own).
+    """
     sites = ''.join(f'<site name="s{i}" pos="{0.01 * i} 0 0.05" size="0.01"/>'
                     for i in range(40))
     sensors = ''.join(f'<touch name="t{i}" site="s{i}"/>' for i in range(40))

@@ -1,0 +1,225 @@
+"""
+FollowJointTrajectory for every entity with joints: what MoveIt sends to a trajectory controller.
+
+Each entity with hinge or slide joints gets an action server ``<entity>/follow_joint_trajectory``
+and a ``<entity>/controller_state`` topic (control_msgs/JointTrajectoryControllerState), made
+and removed with the entity. A goal becomes a core trajectory
+(:meth:`~sim_node.core.world.World.follow_trajectory`, in simulated time); the execute callback
+waits for it, sends feedback at ``trajectory_feedback_hz`` (wall time) and maps the outcome
+to the result: SUCCESSFUL and the controller's error codes, ABORTED for a violation or a
+preemption, CANCELED for a cancel (the joints then hold where they are).
+"""
+
+import threading
+from typing import Callable
+
+from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import JointTrajectoryControllerState
+from msg_adapters import convert
+from msg_adapters.perception import topic_token
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.exceptions import InvalidHandle
+from rclpy.waitable import NumberOfEntities
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+from .core import trajectory
+from .core.errors import SimError
+from .core.records import ModelInfo
+
+ERR_MULTI_DOF = 'multi-DOF trajectories are not supported: send joint trajectories'
+ERR_GONE = 'entity {entity!r} is not in the world (any more)'
+
+
+class _LeavableActionServer(ActionServer):
+    """
+    An action server that may be destroyed while an executor waits on the node.
+
+    rclpy's executor keeps a waitable whose context it could not enter in its list and still
+    adds it to the wait set and asks it whether it is ready: for a destroyed server that raised
+    ``InvalidHandle`` or ``RCLError`` ("action server pointer is invalid") out of ``spin()``,
+    and the node died (seen once in four runs of the trajectory tests). Here a destroyed
+    server takes no part, and it leaves the node before its handle goes.
+    """
+
+    def get_num_entities(self):
+        try:
+            return super().get_num_entities()
+        except (InvalidHandle, RCLError):
+            return NumberOfEntities()
+
+    def add_to_wait_set(self, wait_set) -> None:
+        try:
+            super().add_to_wait_set(wait_set)
+        except (InvalidHandle, RCLError):
+            pass
+
+    def is_ready(self, wait_set) -> bool:
+        try:
+            return super().is_ready(wait_set)
+        except (InvalidHandle, RCLError):
+            return False
+
+    def destroy(self) -> None:
+        self._node.remove_waitable(self)  # first: no new wait set takes it
+        super().destroy()
+
+
+def _seconds(d) -> float:
+    return d.sec + d.nanosec * 1e-9
+
+
+def tolerances(names, given, default: float) -> dict:
+    """
+    Joint -> (position, velocity, acceleration) limits, as the controller reads them.
+
+    `default` (a position limit for every joint; 0: not checked) unless the goal gives a joint
+    its own: a positive value replaces it, -1 means not checked, 0 keeps the default.
+    """
+    out = {n: (default, 0.0, 0.0) for n in names}
+    for tol in given:
+        if tol.name not in out:
+            continue
+        cur = list(out[tol.name])
+        for k, v in enumerate((tol.position, tol.velocity, tol.acceleration)):
+            if v > 0:
+                cur[k] = float(v)
+            elif v < 0:
+                cur[k] = 0.0
+        out[tol.name] = tuple(cur)
+    return out
+
+
+def _point(q=(), v=(), a=()) -> JointTrajectoryPoint:
+    return JointTrajectoryPoint(positions=[float(x) for x in q], velocities=[float(x) for x in v],
+                                accelerations=[float(x) for x in a])
+
+
+class TrajectoryServers:
+    """
+    The action servers and controller-state publishers of a node's entities.
+
+    :param current_sim: returns the node's loaded world (``Sim``) or None.
+    :param params: returns (path tolerance, goal tolerance, goal time tolerance, feedback Hz).
+    """
+
+    def __init__(self, node, callback_group, current_sim: Callable, params: Callable):
+        self._node = node
+        self._group = callback_group
+        self._current_sim = current_sim
+        self._params = params
+        self._servers: dict = {}  # entity -> (action server, controller_state publisher)
+        self._lock = threading.Lock()
+
+    def sync(self, info: ModelInfo) -> None:
+        """Make the servers of a model generation's entities with joints; drop the others."""
+        entities = sorted(set(info.joint_entity))
+        with self._lock:
+            for entity in [e for e in self._servers if e not in entities]:
+                server, pub = self._servers.pop(entity)
+                server.destroy()
+                self._node.destroy_publisher(pub)
+            for entity in entities:
+                if entity not in self._servers:
+                    self._servers[entity] = self._make(entity)
+
+    def close(self) -> None:
+        with self._lock:
+            for server, pub in self._servers.values():
+                server.destroy()
+                self._node.destroy_publisher(pub)
+            self._servers.clear()
+
+    def _make(self, entity: str) -> tuple:
+        base = topic_token(entity)
+        server = _LeavableActionServer(
+            self._node, FollowJointTrajectory, f'{base}/follow_joint_trajectory',
+            execute_callback=lambda goal: self._execute(entity, goal),
+            goal_callback=lambda goal: GoalResponse.ACCEPT,
+            cancel_callback=lambda goal: CancelResponse.ACCEPT,
+            callback_group=self._group)
+        pub = self._node.create_publisher(
+            JointTrajectoryControllerState, f'{base}/controller_state', 10,
+            event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
+        return server, pub
+
+    # ------------------------------------------------------------------ one goal
+
+    def _execute(self, entity: str, goal_handle):
+        goal = goal_handle.request
+        jt = goal.trajectory
+        result = FollowJointTrajectory.Result()
+        sim = self._current_sim()
+        path_tol, goal_tol, goal_time, feedback_hz = self._params()
+        try:
+            if goal.multi_dof_trajectory.joint_names:
+                raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS, ERR_MULTI_DOF)
+            if sim is None:
+                raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS,
+                                                 ERR_GONE.format(entity=entity))
+            names = list(jt.joint_names)
+            gtt = _seconds(goal.goal_time_tolerance)
+            handle = sim.world.follow_trajectory(
+                entity, names, [_seconds(p.time_from_start) for p in jt.points],
+                [list(p.positions) for p in jt.points], [list(p.velocities) for p in jt.points],
+                [list(p.accelerations) for p in jt.points],
+                start_time=_seconds(jt.header.stamp),
+                path_tolerance=tolerances(names, goal.path_tolerance, path_tol),
+                goal_tolerance=tolerances(names, goal.goal_tolerance, goal_tol),
+                goal_time_tolerance=gtt if gtt > 0 else goal_time)
+        except trajectory.TrajectoryError as exc:
+            goal_handle.abort()
+            result.error_code, result.error_string = exc.code, str(exc)
+            return result
+        except SimError as exc:
+            goal_handle.abort()
+            result.error_code = trajectory.INVALID_JOINTS
+            result.error_string = str(exc)
+            return result
+        period = 1.0 / max(feedback_hz, 1e-3)
+        while not handle.wait(period):
+            if goal_handle.is_cancel_requested:
+                handle.cancel()
+                break
+            self._report(entity, names, handle, goal_handle)
+        self._report(entity, names, handle, None)
+        st = handle.status
+        result.error_code, result.error_string = int(st.code or 0), st.message
+        if goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        elif st.code == trajectory.SUCCESSFUL and not st.canceled:
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        return result
+
+    def _report(self, entity: str, names: list, handle, goal_handle) -> None:
+        """Feedback (while running) and controller state, from the latest judgement."""
+        st = handle.status
+        if not st.desired:
+            return
+        (qd, vd, ad), (q, v) = st.desired, st.actual
+        stamp = convert.clock(st.time).clock
+        desired, actual = _point(qd, vd, ad), _point(q, v)
+        error = _point(qd - q, vd - v)
+        if goal_handle is not None and goal_handle.is_active:
+            fb = FollowJointTrajectory.Feedback(joint_names=names, desired=desired,
+                                                actual=actual, error=error)
+            fb.header.stamp = stamp
+            goal_handle.publish_feedback(fb)
+        with self._lock:
+            entry = self._servers.get(entity)
+        if entry is not None:
+            state = JointTrajectoryControllerState(joint_names=names, reference=desired,
+                                                   feedback=actual, error=error,
+                                                   speed_scaling_factor=1.0)
+            state.header.stamp = stamp
+            entry[1].publish(state)
+
+
+def duration(seconds: float) -> Duration:
+    """Return a builtin_interfaces Duration of `seconds` (for clients and tests)."""
+    sec = int(seconds)
+    return Duration(sec=sec, nanosec=int(round((seconds - sec) * 1e9)))

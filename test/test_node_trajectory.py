@@ -1,0 +1,240 @@
+"""
+FollowJointTrajectory over the wire, as MoveIt sends it, from a separate process.
+
+The node runs the default scene in real time; a two-joint arm without actuators (PD) is spawned
+by resource_string. Each behaviour of the controller is one test: success within the timing and
+at the last point, the error codes, preemption, cancel, tolerances, pause, feedback and the
+controller state, and the action server coming and going with its entity.
+"""
+
+import time
+
+from conftest import serve_node, wait_for, Watcher
+from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import JointTolerance, JointTrajectoryControllerState
+import pytest
+from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
+from sim_node.trajectories import duration
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+ARM = """<mujoco><worldbody><body name="base"><geom type="box" size="0.05 0.05 0.05"/>
+  <body name="upper" pos="0 0 0.2"><joint name="j1" axis="0 1 0"/>
+    <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+    <body name="lower" pos="0.3 0 0"><joint name="j2" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/></body></body>
+  </body></worldbody></mujoco>"""
+JOINTS = ['arm/j1', 'arm/j2']
+STATUS_SUCCEEDED, STATUS_CANCELED, STATUS_ABORTED = 4, 5, 6
+
+
+@pytest.fixture(scope='module')
+def node():
+    yield from serve_node('trajectory_feedback_hz:=20.0')
+
+
+@pytest.fixture(scope='module')
+def watch(node, rclpy_context):
+    w = Watcher()
+    yield w
+    w.close()
+
+
+@pytest.fixture
+def arm(sim, watch):
+    """Return the module's client (world reset and playing) with the arm spawned."""
+    from sensor_msgs.msg import JointState
+    sim.spawn('arm', resource_string=ARM, position=(2.0, 2.0, 1.0))
+    # Held level and still before each test: the arm has no actuators and would swing down.
+    pub = watch.node.create_publisher(JointState, 'joint_commands', 10)
+    pub.publish(JointState(name=JOINTS, position=[0.0, 0.0]))
+    client = ActionClient(watch.node, FollowJointTrajectory, 'arm/follow_joint_trajectory')
+    assert client.wait_for_server(timeout_sec=15)
+    wait_for(lambda: 'arm/j1' in watch.joint_states.name and abs(joint(watch, 'arm/j1')) < 0.01
+             and abs(watch.joint_states.velocity[list(watch.joint_states.name).index(
+                 'arm/j1')]) < 0.01, timeout=10)
+    yield sim, client
+    client.destroy()
+    watch.node.destroy_publisher(pub)
+
+
+def goal(points, joints=JOINTS, stamp_sec: float = 0.0, goal_tol: float = 0.0,
+         goal_time: float = 0.0, path_tol: float = 0.0):
+    g = FollowJointTrajectory.Goal()
+    g.trajectory.joint_names = list(joints)
+    g.trajectory.header.stamp.sec = int(stamp_sec)
+    for t, q in points:
+        g.trajectory.points.append(JointTrajectoryPoint(positions=list(q),
+                                                        time_from_start=duration(t)))
+    if goal_tol:
+        g.goal_tolerance = [JointTolerance(name=n, position=goal_tol) for n in joints]
+    if path_tol:
+        g.path_tolerance = [JointTolerance(name=n, position=path_tol) for n in joints]
+    g.goal_time_tolerance = duration(goal_time)
+    return g
+
+
+def send(client, g, feedback=None) -> ClientGoalHandle:
+    future = client.send_goal_async(g, feedback_callback=feedback)
+    wait_for(future.done, timeout=10)
+    handle = future.result()
+    assert handle.accepted
+    return handle
+
+
+def result_of(handle: ClientGoalHandle, timeout: float = 20.0):
+    future = handle.get_result_async()
+    wait_for(future.done, timeout=timeout)
+    res = future.result()
+    return res.status, res.result
+
+
+def joint(watch, name: str) -> float:
+    js = watch.joint_states
+    return js.position[list(js.name).index(name)]
+
+
+def test_a_three_point_trajectory_succeeds_on_time_at_its_last_point(arm, watch):
+    sim, client = arm
+    feedback = []
+    t0 = watch.latest_clock()
+    h = send(client, goal([(0.4, (0.3, -0.3)), (0.8, (0.6, -0.6)), (1.2, (0.8, -0.4))],
+                          goal_tol=0.01, goal_time=0.5), feedback.append)
+    status, res = result_of(h)
+    t1 = watch.latest_clock()
+    assert status == STATUS_SUCCEEDED and res.error_code == 0, res.error_string
+    assert t1 - t0 <= 1.2 * 1.2 + 0.5
+    # Success comes when the tolerance is first met; the PD then settles there.
+    wait_for(lambda: abs(joint(watch, 'arm/j1') - 0.8) < 0.01
+             and abs(joint(watch, 'arm/j2') + 0.4) < 0.01, timeout=3)
+    assert len(feedback) >= 5  # 20 Hz over about a second
+    fb = feedback[-1].feedback
+    assert list(fb.joint_names) == JOINTS and len(fb.desired.positions) == 2
+    # along the interpolated path, PD gains kp 400, kd 40 per unit of joint inertia
+    assert max(abs(e) for f in feedback for e in f.feedback.error.positions) < 0.05
+
+
+R = FollowJointTrajectory.Result
+
+
+@pytest.mark.parametrize('case', [
+    {'joints': ['arm/j1', 'arm/nope'], 'code': R.INVALID_JOINTS, 'text': 'nope'},
+    {'joints': ['j1'], 'code': R.INVALID_JOINTS, 'text': "did you mean 'arm/j1'"},
+    {'joints': ['arm/j1', 'left_elbow'], 'code': R.INVALID_JOINTS, 'text': 'one entity'},
+    {'points': [(1.0, (0.1, 0.1)), (1.0, (0.2, 0.2))], 'code': R.INVALID_GOAL,
+     'text': 'increase'},
+    {'points': [(1.0, (0.1,))], 'code': R.INVALID_GOAL, 'text': '1 positions for 2'},
+    {'points': [], 'code': R.INVALID_GOAL, 'text': 'no points'},
+    {'stamp': 1, 'code': R.OLD_HEADER_TIMESTAMP, 'text': 'past'},
+], ids=['unknown', 'hint', 'two-entities', 'times', 'size', 'empty', 'old-stamp'])
+def test_bad_goals_end_aborted_with_the_controllers_codes(arm, watch, case):
+    sim, client = arm
+    wait_for(lambda: (watch.latest_clock() or 0) > 3.0, timeout=10)  # a stamp of 1 s is old
+    points = case.get('points', [(0.5, (0.1, 0.1))])
+    h = send(client, goal(points, joints=case.get('joints', JOINTS),
+                          stamp_sec=case.get('stamp', 0)))
+    status, res = result_of(h)
+    assert status == STATUS_ABORTED
+    assert res.error_code == case['code'] and case['text'] in res.error_string
+
+
+def test_a_new_goal_preempts_the_running_one(arm, watch):
+    sim, client = arm
+    first = send(client, goal([(5.0, (1.0, -1.0))]))
+    time.sleep(0.5)
+    second = send(client, goal([(0.5, (-0.2, 0.2))], goal_tol=0.02, goal_time=1.0))
+    status, res = result_of(first)
+    assert status == STATUS_ABORTED
+    assert res.error_code == FollowJointTrajectory.Result.INVALID_GOAL
+    assert 'new incoming action' in res.error_string
+    status, res = result_of(second)
+    assert status == STATUS_SUCCEEDED and res.error_code == 0
+
+
+def test_cancel_holds_the_joints_where_they_are(arm, watch):
+    sim, client = arm
+    h = send(client, goal([(4.0, (1.2, 0.0))]))
+    time.sleep(1.5)
+    future = h.cancel_goal_async()
+    wait_for(future.done, timeout=5)
+    status, _ = result_of(h)
+    assert status == STATUS_CANCELED
+    time.sleep(0.3)
+    here = joint(watch, 'arm/j1')
+    assert 0.1 < here < 1.1  # stopped midway
+    time.sleep(1.0)
+    assert abs(joint(watch, 'arm/j1') - here) < 0.02
+
+
+def test_a_path_tolerance_violation_aborts_naming_the_joint(arm):
+    sim, client = arm
+    h = send(client, goal([(0.05, (2.0, 0.0))], path_tol=0.05))
+    status, res = result_of(h)
+    assert status == STATUS_ABORTED
+    assert res.error_code == FollowJointTrajectory.Result.PATH_TOLERANCE_VIOLATED
+    assert "'arm/j1'" in res.error_string and 'position error' in res.error_string
+
+
+def test_a_goal_tolerance_violation_aborts_after_the_goal_time_tolerance(arm, watch):
+    sim, client = arm
+    # 0.5 rad in 10 ms, and then 0.2 s to be within a micro-radian: the PD cannot
+    h = send(client, goal([(0.01, (0.5, 0.0))], goal_tol=1e-6, goal_time=0.2))
+    status, res = result_of(h)
+    assert status == STATUS_ABORTED
+    assert res.error_code == FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED
+    assert 'goal tolerance' in res.error_string
+
+
+def test_paused_the_trajectory_waits(arm, watch):
+    sim, client = arm
+    sim.pause()
+    try:
+        time.sleep(0.3)
+        before = joint(watch, 'arm/j1')
+        h = send(client, goal([(0.5, (before + 0.4, 0.0))], goal_tol=0.02, goal_time=1.0))
+        time.sleep(1.0)
+        assert abs(joint(watch, 'arm/j1') - before) < 1e-6  # time stood still, so did it
+    finally:
+        sim.play()
+    status, res = result_of(h)
+    assert status == STATUS_SUCCEEDED, res.error_string
+
+
+def test_the_controller_state_is_published_while_a_goal_runs(arm, watch):
+    sim, client = arm
+    states = []
+    sub = watch.node.create_subscription(JointTrajectoryControllerState, 'arm/controller_state',
+                                         states.append, 10)
+    try:
+        h = send(client, goal([(1.0, (0.3, 0.3))]))
+        result_of(h)
+        wait_for(lambda: len(states) >= 3, timeout=5)
+        s = states[-1]
+        assert list(s.joint_names) == JOINTS and len(s.reference.positions) == 2
+        assert len(s.feedback.positions) == 2 and s.speed_scaling_factor == 1.0
+    finally:
+        watch.node.destroy_subscription(sub)
+
+
+def test_a_joint_command_on_a_driven_joint_ends_the_trajectory(arm, watch):
+    sim, client = arm
+    from sensor_msgs.msg import JointState
+    pub = watch.node.create_publisher(JointState, 'joint_commands', 10)
+    h = send(client, goal([(5.0, (1.0, 0.0))]))
+    time.sleep(0.5)
+    pub.publish(JointState(name=['arm/j2'], position=[-0.3]))
+    status, res = result_of(h)
+    assert status == STATUS_ABORTED and 'joint_commands' in res.error_string
+    watch.node.destroy_publisher(pub)
+
+
+def test_the_action_server_comes_and_goes_with_its_entity(arm, watch):
+    from rclpy.action.graph import get_action_server_names_and_types_by_node
+    sim, client = arm
+
+    def names():  # the node's servers (our own client keeps the action's name in the graph)
+        return {n for n, _ in get_action_server_names_and_types_by_node(watch.node, 'sim', '/')}
+    wait_for(lambda: '/arm/follow_joint_trajectory' in names(), timeout=10)
+    assert '/robot/follow_joint_trajectory' in names()  # the scene's robot has one too
+    sim.delete('arm')
+    wait_for(lambda: '/arm/follow_joint_trajectory' not in names(), timeout=10)
