@@ -24,6 +24,15 @@ SCENES = ROOT / 'scenes'
 DEFAULT_SCENE = SCENES / 'default.xml'
 
 
+#: A two-joint arm without actuators (PD drives it), 1 kg links of 0.3 m, for trajectory tests.
+TWO_JOINT_ARM = """<mujoco><worldbody><body name="base"><geom type="box" size="0.05 0.05 0.05"/>
+  <body name="upper" pos="0 0 0.2"><joint name="j1" axis="0 1 0"/>
+    <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+    <body name="lower" pos="0.3 0 0"><joint name="j2" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/></body></body>
+  </body></worldbody></mujoco>"""
+
+
 def installed_prefix() -> Path:
     prefix = os.environ.get('SIM_PREFIX')
     if not prefix:

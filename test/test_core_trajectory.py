@@ -6,7 +6,7 @@ and accelerations), not against the implementation. Behaviours use the default s
 (four hinge joints with position servos) and a spawned two-joint arm without actuators (PD).
 """
 
-from conftest import DEFAULT_SCENE
+from conftest import DEFAULT_SCENE, TWO_JOINT_ARM
 import numpy as np
 import pytest
 from sim_node.core import sources, trajectory
@@ -70,12 +70,7 @@ def run_until_done(w, handle, seconds: float) -> None:
             return
 
 
-ARM_PD = """<mujoco><worldbody><body name="base"><geom type="box" size="0.05 0.05 0.05"/>
-  <body name="upper" pos="0 0 0.2"><joint name="j1" axis="0 1 0"/>
-    <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
-    <body name="lower" pos="0.3 0 0"><joint name="j2" axis="0 1 0"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/></body></body>
-  </body></worldbody></mujoco>"""
+ARM_PD = TWO_JOINT_ARM
 PD_JOINTS = ['arm/j1', 'arm/j2']
 
 

@@ -9,7 +9,7 @@ controller state, and the action server coming and going with its entity.
 
 import time
 
-from conftest import serve_node, wait_for, Watcher
+from conftest import serve_node, TWO_JOINT_ARM, wait_for, Watcher
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance, JointTrajectoryControllerState
 import pytest
@@ -18,12 +18,7 @@ from rclpy.action.client import ClientGoalHandle
 from sim_node.trajectories import duration
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-ARM = """<mujoco><worldbody><body name="base"><geom type="box" size="0.05 0.05 0.05"/>
-  <body name="upper" pos="0 0 0.2"><joint name="j1" axis="0 1 0"/>
-    <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
-    <body name="lower" pos="0.3 0 0"><joint name="j2" axis="0 1 0"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/></body></body>
-  </body></worldbody></mujoco>"""
+ARM = TWO_JOINT_ARM
 JOINTS = ['arm/j1', 'arm/j2']
 STATUS_SUCCEEDED, STATUS_CANCELED, STATUS_ABORTED = 4, 5, 6
 
