@@ -36,3 +36,10 @@ def diagnostics(status: LoopStatus, name: str) -> DiagnosticArray:
                                    values=[KeyValue(key=k, value=str(v))
                                            for k, v in values.items()])]
     return msg
+
+
+def refused_command(why: str, names: list, name: str) -> DiagnosticStatus:
+    """Return a WARN status for a refused joint command: why, and the names it gave."""
+    return DiagnosticStatus(level=DiagnosticStatus.WARN, name=name, hardware_id='mujoco',
+                            message=f'joint command refused: {why}'[:1000],
+                            values=[KeyValue(key='names', value=', '.join(names)[:1000])])

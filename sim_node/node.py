@@ -68,6 +68,10 @@ class _LogForwarder(logging.Handler):
         self.records.append(record)
 
 
+#: How long a refused joint command stays in /diagnostics (wall seconds).
+REFUSAL_SHOWN_SEC = 10.0
+
+
 class SimNode(SimServices, Node):
     """
     Publishes /clock, /tf, /tf_static, markers and joint_states; serves simulation_interfaces.
@@ -113,6 +117,7 @@ class SimNode(SimServices, Node):
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._diagnostics_name = f'{self.get_fully_qualified_name()}: physics'
         self._diagnosed = (None, 0.0)  # (divergence report, wall time) last published
+        self._refused_command: Optional[tuple] = None  # (why, names, wall time) the latest
         # Taken in batches on a thread, not by the executor (see command_drain).
         self._commands = CommandDrain(self, 'joint_commands', self._on_joint_command)
         # Publishing runs on a thread of its own, paced to absolute deadlines: rclpy timers
@@ -345,18 +350,31 @@ class SimNode(SimServices, Node):
         self._drain_logs()
         self._publish_diagnostics()
 
-    def _publish_diagnostics(self) -> None:
-        """/diagnostics once a second, and at once when the physics diverges."""
+    def _publish_diagnostics(self, force: bool = False) -> None:
+        """
+        /diagnostics once a second, and at once when the physics diverges.
+
+        Also at once (at most ten times a second) when a joint command is refused: a status
+        ``<node>: joint_commands`` says why (the joint, and for an unknown name the closest
+        valid ones) and stays in the messages for REFUSAL_SHOWN_SEC.
+        """
         sim = self._sim
         if sim is None:
             return
         status = sim.loop.status()
         now = time.monotonic()
         last_report, last_time = self._diagnosed
-        if status.divergence is last_report and now - last_time < 1.0:
+        if force and now - last_time < 0.1:
+            return
+        if not force and status.divergence is last_report and now - last_time < 1.0:
             return
         self._diagnosed = (status.divergence, now)
-        self._diagnostics_pub.publish(diagnostics.diagnostics(status, self._diagnostics_name))
+        msg = diagnostics.diagnostics(status, self._diagnostics_name)
+        refused = self._refused_command
+        if refused is not None and now - refused[2] < REFUSAL_SHOWN_SEC:
+            msg.status.append(diagnostics.refused_command(
+                refused[0], refused[1], f'{self.get_fully_qualified_name()}: joint_commands'))
+        self._diagnostics_pub.publish(msg)
 
     def _drain_logs(self) -> None:
         log = self.get_logger()
@@ -388,3 +406,5 @@ class SimNode(SimServices, Node):
         except SimError as exc:
             self.get_logger().warning(f'joint command refused: {exc}',
                                       throttle_duration_sec=1.0)
+            self._refused_command = (str(exc), list(msg.name), time.monotonic())
+            self._publish_diagnostics(force=True)

@@ -233,3 +233,21 @@ def test_the_action_server_comes_and_goes_with_its_entity(arm, watch):
     assert '/robot/follow_joint_trajectory' in names()  # the scene's robot has one too
     sim.delete('arm')
     wait_for(lambda: '/arm/follow_joint_trajectory' not in names(), timeout=10)
+
+
+def test_a_refused_joint_command_is_reported_on_diagnostics_with_the_closest_names(arm, watch):
+    """Not only in the node's log: /diagnostics says which joint and what was meant."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from sensor_msgs.msg import JointState
+    got = []
+    sub = watch.node.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)
+    pub = watch.node.create_publisher(JointState, 'joint_commands', 10)
+    try:
+        def reported() -> bool:
+            pub.publish(JointState(name=['j1'], position=[0.1]))
+            return any(s.name.endswith(': joint_commands') and "did you mean 'arm/j1'"
+                       in s.message and s.level == s.WARN for m in got for s in m.status)
+        wait_for(reported, timeout=10, interval=0.3)
+    finally:
+        watch.node.destroy_subscription(sub)
+        watch.node.destroy_publisher(pub)

@@ -4,6 +4,7 @@ Input checks shared by the core: names, finite values, poses.
 Error texts are constants so tests can match them.
 """
 
+import difflib
 import re
 from typing import Optional, Sequence
 
@@ -70,3 +71,12 @@ def check_namespace(namespace: str) -> str:
     if namespace and not NAMESPACE_RE.match(namespace):
         raise NamespaceInvalidError(ERR_NAMESPACE.format(ns=namespace))
     return namespace
+
+
+def closest_hint(name: str, candidates: Sequence[str]) -> str:
+    """Return "; did you mean ...?" naming the closest valid names ('' when none is close)."""
+    tail = name.split('/')[-1]
+    close = [c for c in candidates if c.split('/')[-1] == tail]
+    close += [c for c in difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.6)
+              if c not in close]
+    return f'; did you mean {", ".join(repr(c) for c in close[:3])}?' if close else ''

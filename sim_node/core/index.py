@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from . import devices
+from .checks import closest_hint
 from .errors import NotFoundError
 from .records import (DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT,
                       STATIC, VELOCITY)
@@ -80,7 +81,8 @@ class ModelIndex:
         for n in names:
             i = self.joint_index.get(n)
             if i is None:
-                raise NotFoundError(ERR_UNKNOWN_JOINT.format(name=n))
+                raise NotFoundError(ERR_UNKNOWN_JOINT.format(name=n)
+                                    + closest_hint(n, self.joint_names))
             idx.append(i)
         return np.asarray(idx, dtype=int)
 

@@ -18,6 +18,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from . import checks
+
 # FollowJointTrajectory's error codes (the controller's meaning; the node maps them 1:1).
 SUCCESSFUL, INVALID_GOAL, INVALID_JOINTS, OLD_HEADER_TIMESTAMP = 0, -1, -2, -3
 PATH_TOLERANCE_VIOLATED, GOAL_TOLERANCE_VIOLATED = -4, -5
@@ -160,7 +162,7 @@ def check(joint_names: Sequence[str], times: Sequence[float], positions: Sequenc
         owner = known.get(name)
         if owner is None:
             raise TrajectoryError(INVALID_JOINTS, ERR_UNKNOWN.format(
-                name=name, hint=closest_hint(name, [j for j, e in known.items()
+                name=name, hint=checks.closest_hint(name, [j for j, e in known.items()
                                                     if e == entity])))
     owners = sorted({known[n] for n in names})
     if len(owners) > 1:
@@ -200,16 +202,6 @@ def check(joint_names: Sequence[str], times: Sequence[float], positions: Sequenc
     if arrays[2] is not None and arrays[1] is None:
         raise TrajectoryError(INVALID_GOAL, 'accelerations are given without velocities')
     return (t, *arrays)
-
-
-def closest_hint(name: str, candidates: Sequence[str]) -> str:
-    """'; did you mean ...?' naming the closest valid names ('' when none is close)."""
-    import difflib
-    tail = name.split('/')[-1]
-    close = [c for c in candidates if c.split('/')[-1] == tail]
-    close += [c for c in difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.6)
-              if c not in close]
-    return f'; did you mean {", ".join(repr(c) for c in close[:3])}?' if close else ''
 
 
 @dataclass
