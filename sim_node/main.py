@@ -10,15 +10,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from .core.errors import SimError
 
 
-#: How often Python hands the GIL between threads (s; Python's default is 0.005). The stepping
-#: loop and the /clock and /tf publisher each need the GIL for a moment many times a second;
-#: while a service thread parses a model or the model thread serializes markers, each of those
-#: moments waited up to a whole interval, several in a row (50-60 ms /clock gaps in a spawn).
-SWITCH_INTERVAL_SEC = 0.001
-
-
 def main(args=None) -> int:
-    sys.setswitchinterval(SWITCH_INTERVAL_SEC)
     rclpy.init(args=args)  # returns None on Jazzy: no `with` block
     node = executor = None
     code = 0
