@@ -199,13 +199,12 @@ def store() -> AssetStore:
 
 
 def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[Sequence[str]],
-            budget: Budget) -> list:
+            budget: Budget) -> None:
     """
     Expand includes and check every file the document names; rewrite it to use the copies.
 
     :param base_dir: where relative names resolve (None: text from a client, absolute only).
     :param allowed_roots: directories files may be read from (None: anywhere).
-    :returns: the paths of the checked copies the document now names.
     :raises MissingAssetsError: a file missing, outside the allowed directories, or relative
         in text without a folder.
     :raises UnsupportedAssetsError: not a regular file, or over a budget.
@@ -226,7 +225,6 @@ def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[
             value = elem.attrib[attr]
             candidates = _candidates(value, elem.tag, dirs, base_dir, is_urdf, allowed_roots)
             elem.set(attr, reader.read(value, candidates, elem.tag))
-    return reader.paths
 
 
 def _candidates(value: str, tag: str, dirs: dict, base: Optional[Path], is_urdf: bool,
@@ -309,7 +307,6 @@ class Reader:
     def __init__(self, allowed_roots: Optional[Sequence[str]], budget: Budget):
         self.roots = allowed_roots
         self.budget = budget
-        self.paths: list = []
         self._total = 0
 
     def read(self, value: str, candidates: list, tag: str) -> str:
@@ -321,8 +318,6 @@ class Reader:
             stored = _STORE.put(key, real, self._read_bytes(value, real, st))
         self._count(stored.size)
         self._check_content(value, tag, stored)
-        if stored.path not in self.paths:
-            self.paths.append(stored.path)
         return stored.path
 
     def load(self, value: str, candidates: list) -> bytes:

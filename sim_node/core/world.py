@@ -532,17 +532,10 @@ class World(StateWrites, WorldEdits):
             raise InvalidArgumentError(ERR_SCOPE.format(scope=scope))
         scope = _SCOPE_BITS if scope in (0, RESET_ALL) else scope
         if scope & RESET_SPAWNED:
-            def plan() -> tuple:
-                doomed = dict(self._spawned)
-                return (lambda spec: [editor.remove(
-                    spec, n, meta['frame'], meta['assets'], meta.get('defaults', ()))
-                    for n, meta in doomed.items()], None, {}, {
-                    k: v for k, v in self._overrides.items() if k not in doomed},
-                    len(doomed), None)
             with self._locked():
                 anything = bool(self._spawned)
             if anything:  # built outside the lock like every removal; the state below
-                self._change(plan)
+                self._change(lambda: self._plan_removal_locked(list(self._spawned)))
         with self._locked():
             if scope & RESET_STATE:
                 self._reset_state_locked(keep_time=not scope & RESET_TIME)

@@ -162,15 +162,21 @@ class WorldEdits:
         """
         def plan() -> tuple:
             self._index.entity(name)
-            meta = self._spawned.get(name)
-            if meta is None:
+            if name not in self._spawned:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
-            return (lambda spec: editor.remove(spec, name, meta['frame'], meta['assets'],
-                                               meta.get('defaults', ())),
-                    None, {k: v for k, v in self._spawned.items() if k != name},
-                    {k: v for k, v in self._overrides.items() if k != name}, 1, None)
+            return self._plan_removal_locked([name])
 
         self._change(plan)
+
+    def _plan_removal_locked(self, names: Sequence[str]) -> tuple:
+        """Return the World._change plan that removes spawned entities `names`."""
+        doomed = {n: self._spawned[n] for n in names}
+        return (lambda spec: [editor.remove(spec, n, meta['frame'], meta['assets'],
+                                            meta.get('defaults', ()))
+                              for n, meta in doomed.items()],
+                None, {k: v for k, v in self._spawned.items() if k not in doomed},
+                {k: v for k, v in self._overrides.items() if k not in doomed}, len(doomed),
+                None)
 
     # ---------------------------------------------------------------- physics parameters
 
