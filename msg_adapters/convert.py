@@ -212,7 +212,8 @@ def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
     """
     Welded bodies: their fixed pose in the parent body's frame, for /tf_static.
 
-    Also the identity from a spawned URDF's entity frame to its root link's own frame.
+    Also the identity from an entity's frame to its root body's own frame (the root link of
+    its robot description), and the mount of a root body that has joints.
 
     :param frames: (nbody,) frame names from :func:`frame_names`.
     """
@@ -223,6 +224,10 @@ def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
            for b in range(1, len(info.body_names)) if not info.body_has_joint[b]]
     out += [transform(frames[b], prefix + alias, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
             for b, alias in enumerate(info.body_alias) if alias]
+    # At the world's origin: the root link of the robot description of an entity whose
+    # top-level bodies move by joints of their own (see ModelInfo.body_mount).
+    out += [transform(frames[0], prefix + mount, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
+            for mount in info.body_mount if mount]
     return TFMessage(transforms=out)
 
 

@@ -35,6 +35,8 @@ def test_published_tf_bytes_are_the_worlds_poses():
     stamps = {(t.header.stamp.sec, t.header.stamp.nanosec) for t in msg.transforms}
     assert stamps == {(0, int(round(snap.time * 1e9)))}
     ids = {n: b for b, n in enumerate(convert.frame_names(info, 'world'))}
+    # A robot's links hang from its root body's own frame (the identity from the root's).
+    ids.update({alias: b for b, alias in enumerate(info.body_alias) if alias})
     for t in msg.transforms:
         b, p = ids[t.child_frame_id], ids[t.header.frame_id]
         tr, r = t.transform.translation, t.transform.rotation
@@ -80,8 +82,10 @@ def test_one_frame_rule_and_urdf_links_named_as_robot_state_publisher_names_them
     # A tree: every frame has exactly one parent.
     children = [c for _, c in edges]
     assert len(children) == len(set(children))
-    # Scene robot links are <entity>/<body> too, like spawned ones.
-    assert ('r2/robot', 'r2/robot/left_link1') in edges
+    # Scene robot links are <entity>/<body> too, like spawned ones, and hang from the root
+    # body's own frame <entity>/<root> (the root link of the robot's description).
+    assert ('r2/robot/robot', 'r2/robot/left_link1') in edges
+    assert ('r2/robot', 'r2/robot/robot') in edges
     # With frame_prefix:=r2/arm/, robot_state_publisher publishes exactly these link frames.
     assert {('r2/arm/base_link', 'r2/arm/link1'), ('r2/arm/link1', 'r2/arm/tool0')} <= set(edges)
     assert ('r2/world', 'r2/arm') in edges and ('r2/arm', 'r2/arm/base_link') in edges

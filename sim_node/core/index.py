@@ -27,6 +27,8 @@ _ONE_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_S
 _JOINT_TRN = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 STATE_SPEC = int(mujoco.mjtState.mjSTATE_INTEGRATION)
+#: The frame a root body with joints of its own is moved from (``<entity>/world``).
+MOUNT = 'world'
 _GEOM_TYPES = {int(mujoco.mjtGeom.mjGEOM_PLANE): 'plane',
                int(mujoco.mjtGeom.mjGEOM_SPHERE): 'sphere',
                int(mujoco.mjtGeom.mjGEOM_CAPSULE): 'capsule',
@@ -113,16 +115,22 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
     root_of = entity_root[top_of]
     root_of[0] = 0
     entities = _entity_records(m, names, root_of, spawned)
-    alias = [''] * m.nbody
-    for meta in spawned.values():
-        if meta.get('root_link') and meta['bodies'] and meta['bodies'][0] in ids:
-            alias[ids[meta['bodies'][0]]] = meta['root_link']
     joint_entity = tuple(names[root_of[m.jnt_bodyid[j]]] for j in jids)
+    alias = _root_aliases(entities, spawned, set(joint_entity), m.nbody)
+    mount = [''] * m.nbody
+    for rec in entities:  # a root moved by joints of its own (not free), several top bodies
+        jnt = range(m.body_jntadr[rec.root_body],
+                    m.body_jntadr[rec.root_body] + m.body_jntnum[rec.root_body])
+        tops = sum(1 for b in rec.body_ids if parent[b] == 0)
+        if alias[rec.root_body] and (tops > 1 or any(int(m.jnt_type[j]) != _FREE
+                                                     for j in jnt)):
+            mount[rec.root_body] = f'{rec.name}/{MOUNT}'
     info = ModelInfo(
         generation=generation, timestep=float(m.opt.timestep), body_names=names,
         body_parent=parent, body_root=root_of, body_has_joint=m.body_jntnum > 0,
         body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
-        body_alias=tuple(alias), joint_names=jnames, geoms=_geom_visuals(m), entities=entities,
+        body_alias=alias, body_mount=tuple(mount), joint_names=jnames, geoms=_geom_visuals(m),
+        entities=entities,
         cameras=devices.cameras(m), sensors=devices.sensors(m), sites=devices.sites(m),
         joint_entity=joint_entity)
     return ModelIndex(
@@ -136,6 +144,24 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
         geom_names=tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ''
                          for g in range(m.ngeom)),
         entities=entities, entity_by_name={e.name: e for e in entities}, info=info)
+
+
+def _root_aliases(entities: tuple, spawned: dict, with_joints: set, nbody: int) -> tuple:
+    """
+    Return each root body's own frame ``<entity>/<root>`` (robots and spawned URDFs).
+
+    ``<root>`` is the root body's name in its own model (a scene entity's: the entity's name;
+    a spawned model's: its first top-level body's, before the spawn renamed it), so the
+    entity's robot description has a root link that robot_state_publisher, given
+    ``frame_prefix: <entity>/``, names as we do.
+    """
+    alias = [''] * nbody
+    for rec in entities:
+        meta = spawned.get(rec.name)
+        if rec.name in with_joints or (meta and meta.get('urdf')):
+            alias[rec.root_body] = (meta.get('root_link') if meta else '') or \
+                f'{rec.name}/{rec.name}'
+    return tuple(alias)
 
 
 def _classify_actuators(m: mujoco.MjModel, jids: list) -> tuple:

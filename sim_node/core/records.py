@@ -127,6 +127,11 @@ class ModelInfo:
     #: root (the entity's own frame) that the root's child links hang from, so every link's
     #: frame is named as robot_state_publisher names it with ``frame_prefix:=<entity>/``.
     body_alias: tuple
+    #: (nbody,) for the root body of an entity with joints whose root has joints of its own
+    #: (other than a free joint) or that has several top-level bodies: ``<entity>/world``, a
+    #: frame at the world's origin, the root link of the entity's robot description, which
+    #: the top-level bodies hang from.
+    body_mount: tuple
     joint_names: tuple  # hinge and slide joints only, in model order
     geoms: tuple  # GeomVisual for every visible geom
     entities: tuple  # EntityRecord

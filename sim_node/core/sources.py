@@ -92,6 +92,8 @@ class SpawnSource:
     description: str = ''
     #: Its default classes, outermost first (attached as ``<entity>/<class>``).
     default_classes: tuple = ()
+    #: The MJCF or URDF text it was parsed from ('' for primitives, meshes and specs).
+    text: str = ''
 
     def __post_init__(self):
         if self.kind == 'mjcf':
@@ -214,6 +216,7 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
                      compile_alone=False)
     source.default_classes = tuple(d.attrib['class'] for d in root.iter('default')
                                    if 'class' in d.attrib)
+    source.text = text
     return source
 
 

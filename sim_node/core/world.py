@@ -10,6 +10,7 @@ divergence check to :mod:`.guard`, spec edits to :mod:`.editor`, state reads and
 import contextlib
 import ctypes
 import logging
+from pathlib import Path
 import threading
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
 import warnings
@@ -17,7 +18,7 @@ import warnings
 import mujoco
 import numpy as np
 
-from . import assets, checks, editor, guard
+from . import assets, checks, description, editor, guard
 from . import index as model_index
 from . import sources, state, trajectory, transfer
 from .checks import check_finite
@@ -43,6 +44,8 @@ ERR_COMPILE = 'the model does not compile: {err}'
 ERR_SCOPE = ('reset scope {scope} has undefined bits: use 0 (all), 255 (all) or a combination '
              'of 1 (time), 2 (state) and 4 (spawned)')
 ERR_STEPS = 'steps must be >= 1, got {n}'
+ERR_NO_DESCRIPTION = ('entity {name!r} has no hinge or slide joints: only robots have a robot '
+                      'description')
 #: Compact the spec (see World._compacted) after this many spawned entities were removed.
 COMPACT_AFTER_REMOVALS = 32
 #: Times an edit is built outside the lock before it is done under it (see World._change).
@@ -214,6 +217,26 @@ class World(StateWrites, WorldEdits):
         """Hinge and slide joints, the ones joint commands and joint_states cover."""
         with self._locked():
             return list(self._index.joint_names)
+
+    def robot_description(self, name: str, mesh_dir: Optional[str] = None) -> str:
+        """
+        Return the URDF of an entity with joints or spawned from URDF (:mod:`.description`).
+
+        Built outside the world lock from the current model (models are replaced, never changed
+        in place, by edits). :param mesh_dir: where mesh geometry is written as STL (None: meshes
+        are left out).
+        """
+        with self._locked():
+            rec = self._index.entity(name)
+            meta = self._spawned.get(name) or {}
+            model, info = self._model, self._index.info
+        if meta.get('urdf'):
+            return description.renamed_urdf(meta['urdf'], name)
+        if not info.body_alias[rec.root_body]:
+            raise InvalidArgumentError(ERR_NO_DESCRIPTION.format(name=name))
+        return description.from_model(model, rec.body_ids, info.body_alias[rec.root_body],
+                                      info.body_mount[rec.root_body],
+                                      None if mesh_dir is None else Path(mesh_dir))
 
     def entity_bounds(self, name: str) -> tuple:
         """Axis-aligned bounds of an entity's geoms in the world frame: (min (3,), max (3,))."""

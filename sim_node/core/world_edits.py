@@ -104,8 +104,9 @@ class WorldEdits:
         def edit(spec: mujoco.MjSpec) -> None:
             (meta['frame'], meta['bodies'], root,
              meta['defaults']) = editor.attach(spec, name, source, pos, q)
-            # A URDF's root link keeps a frame of its own name (see ModelInfo.body_alias).
-            meta['root_link'] = f'{name}/{root}' if source.kind == 'urdf' else ''
+            # Its root body's own frame (see ModelInfo.body_alias), and a URDF's own text.
+            meta['root_link'] = f'{name}/{root}'
+            meta['urdf'] = source.text if source.kind == 'urdf' else ''
             if contact is not None:
                 geoms = [g.name for b in meta['bodies']
                          for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]

@@ -1,0 +1,359 @@
+"""
+URDF robot descriptions of the world's entities, for robot_state_publisher, RViz and MoveIt.
+
+An entity spawned from URDF is described by its own text (:func:`renamed_urdf`: its joints
+renamed as the spawn renamed them). Any other entity with joints is described from the compiled
+model (:func:`from_model`):
+
+* one link per body. A link's name is its frame without the ``<entity>/`` prefix, so
+  robot_state_publisher with ``frame_prefix: <entity>/`` names every link as ``/tf`` does; the
+  root link is the root body's frame ``<entity>/<root>`` (:attr:`.records.ModelInfo.body_alias`);
+* hinge -> revolute (continuous when unlimited), slide -> prismatic, welded -> fixed,
+  ball and free -> floating (robot_state_publisher cannot move those: their bodies' frames come
+  from ``/tf`` only). Joint names are those on ``joint_states``. MuJoCo turns a body about each
+  joint's anchor, in order, by ``qpos - qpos0``; URDF turns a child link about its joint's
+  origin by the joint value. A body whose joint is off its origin, or that has several joints,
+  therefore gets an intermediate link per joint (``<link>/<joint>``, never on ``/tf``) and a
+  fixed joint back to the body's own link; a joint's ``ref`` is folded into its origin;
+* ``<limit>``: the joint's range; effort from the joint's or its actuator's force range;
+  velocity 0 (MuJoCo has no velocity limit; MoveIt reads its own from joint_limits.yaml).
+  An unlimited slide is written with +-1e6 m, as URDF requires bounds for prismatic joints;
+* inertials as compiled (principal axes); visual geometry for visible geoms (groups 0-2),
+  collision geometry for geoms that collide. Boxes, spheres and cylinders as themselves, a
+  capsule as a cylinder and two spheres, an ellipsoid and a mesh as binary STL files written
+  under `mesh_dir` (named by content, written once) and named by ``file://`` URIs, which RViz
+  reads on the same machine. Planes and height fields are left out.
+"""
+
+import copy
+import hashlib
+import math
+import os
+from pathlib import Path
+import tempfile
+from typing import Optional, Sequence
+from xml.etree import ElementTree as ET  # writing only: parsing goes through defusedxml
+
+import defusedxml.ElementTree as SafeET
+import mujoco
+import numpy as np
+
+_HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+_SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
+_BOX, _SPHERE, _CAPSULE, _CYLINDER, _ELLIPSOID, _MESH = (
+    int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_SPHERE),
+    int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER),
+    int(mujoco.mjtGeom.mjGEOM_ELLIPSOID), int(mujoco.mjtGeom.mjGEOM_MESH))
+UNLIMITED_SLIDE_M = 1e6
+_EPS = 1e-12
+
+
+def renamed_urdf(text: str, entity: str) -> str:
+    """Return a spawned URDF as given, its joints named as on joint_states (``<entity>/<j>``)."""
+    root = SafeET.fromstring(text)
+    for joint in root.iter('joint'):  # <robot><joint> and <transmission><joint>
+        if joint.get('name'):
+            joint.set('name', f'{entity}/{joint.get("name")}')
+    for mimic in root.iter('mimic'):
+        if mimic.get('joint'):
+            mimic.set('joint', f'{entity}/{mimic.get("joint")}')
+    return ET.tostring(root, encoding='unicode')
+
+
+def link_name(entity: str, body_name: str) -> str:
+    """Return the link of a non-root body: its frame (``<entity>/<name>``) less the prefix."""
+    prefix = entity + '/'
+    return body_name[len(prefix):] if body_name.startswith(prefix) else body_name
+
+
+def from_model(m: mujoco.MjModel, bodies: Sequence[int], root_frame: str,
+               mount_frame: str = '', mesh_dir: Optional[Path] = None) -> str:
+    """
+    Return the URDF of one entity, from a compiled model.
+
+    :param bodies: the entity's bodies in model order, its root first.
+    :param root_frame: the root body's own frame, ``<entity>/<root link>``.
+    :param mount_frame: ``<entity>/world``, a frame at the world's origin, for an entity whose
+        root body has joints of its own or that has several top-level bodies: the URDF's root
+        link, which its top-level bodies hang from by their joints.
+    :param mesh_dir: where mesh and ellipsoid geometry is written as STL (None: left out).
+    """
+    root = bodies[0]
+    entity = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, root)
+    links = {root: link_name(entity, root_frame)}
+    for b in bodies[1:]:
+        links[b] = link_name(entity, _body_name(m, b))
+    robot = ET.Element('robot', name=entity)
+    taken = set(links.values())
+    joint_names = set()
+    writer = _Writer(m, mesh_dir)
+    mount = link_name(entity, mount_frame) if mount_frame else ''
+    if mount:
+        taken.add(mount)
+        ET.SubElement(robot, 'link', name=mount)
+    for b in bodies:
+        link = ET.SubElement(robot, 'link', name=links[b])
+        _inertial(m, b, link)
+        for g in range(m.body_geomadr[b], m.body_geomadr[b] + m.body_geomnum[b]):
+            writer.geom(g, link)
+    for b in bodies[0 if mount else 1:]:
+        parent = int(m.body_parentid[b])
+        _joints(m, b, entity, links[parent] if parent else mount, links[b], robot, taken,
+                joint_names)
+    ET.indent(robot)
+    return ET.tostring(robot, encoding='unicode')
+
+
+def _body_name(m: mujoco.MjModel, b: int) -> str:
+    return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f'body_{b}'
+
+
+def _unique(name: str, taken: set) -> str:
+    out, i = name, 1
+    while out in taken:
+        i += 1
+        out = f'{name}_{i}'
+    taken.add(out)
+    return out
+
+
+def _joints(m: mujoco.MjModel, b: int, entity: str, parent: str, child: str,
+            robot: ET.Element, taken: set, joint_names: set) -> None:
+    """Add the URDF joints from `parent`'s link to body `b`'s link `child`."""
+    # The transform still to place, in `parent`'s frame: the body's pose in its parent.
+    pos, quat = m.body_pos[b].copy(), m.body_quat[b].copy()
+    jids = range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+    for k, j in enumerate(jids):
+        jtype = int(m.jnt_type[j])
+        jname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'joint_{j}'
+        anchor = m.jnt_pos[j] if jtype not in (_SLIDE, _FREE) else np.zeros(3)
+        axis = m.jnt_axis[j]
+        ref = float(m.qpos0[m.jnt_qposadr[j]]) if jtype in (_HINGE, _SLIDE) else 0.0
+        # The joint's frame: at the anchor, turned (or shifted) back by its reference value.
+        jpos = pos + _rotate(quat, anchor)
+        jquat = quat
+        if jtype == _HINGE and ref:
+            jquat = _mul(quat, _axis_angle(axis, -ref))
+        elif jtype == _SLIDE and ref:
+            jpos = jpos - _rotate(quat, axis * ref)
+        last = k == len(jids) - 1
+        direct = last and not np.any(np.abs(anchor) > _EPS)
+        to = child if direct else _unique(f'{child}/{link_name(entity, jname)}', taken)
+        if not direct:
+            ET.SubElement(robot, 'link', name=to)
+        joint = ET.SubElement(robot, 'joint', name=_unique(jname, joint_names),
+                              type=_urdf_type(m, j))
+        _origin(joint, jpos, jquat)
+        ET.SubElement(joint, 'parent', link=parent)
+        ET.SubElement(joint, 'child', link=to)
+        if jtype in (_HINGE, _SLIDE):
+            ET.SubElement(joint, 'axis', xyz=_fmt(axis))
+            _limit(m, j, joint)
+        parent = to
+        pos, quat = -np.asarray(anchor, dtype=float), np.array([1.0, 0.0, 0.0, 0.0])
+    if parent != child:  # welded, or after an intermediate link: a fixed joint to the body
+        joint = ET.SubElement(robot, 'joint', name=_unique(f'{child}_fixed', joint_names),
+                              type='fixed')
+        _origin(joint, pos, quat)
+        ET.SubElement(joint, 'parent', link=parent)
+        ET.SubElement(joint, 'child', link=child)
+
+
+def _urdf_type(m: mujoco.MjModel, j: int) -> str:
+    jtype = int(m.jnt_type[j])
+    if jtype == _HINGE:
+        return 'revolute' if m.jnt_limited[j] else 'continuous'
+    if jtype == _SLIDE:
+        return 'prismatic'
+    return 'floating'
+
+
+def _limit(m: mujoco.MjModel, j: int, joint: ET.Element) -> None:
+    effort = _effort(m, j)
+    if int(m.jnt_type[j]) == _HINGE and not m.jnt_limited[j]:
+        if effort:
+            ET.SubElement(joint, 'limit', effort=_num(effort), velocity='0')
+        return
+    lo, hi = ((float(m.jnt_range[j, 0]), float(m.jnt_range[j, 1])) if m.jnt_limited[j]
+              else (-UNLIMITED_SLIDE_M, UNLIMITED_SLIDE_M))
+    ET.SubElement(joint, 'limit', lower=_num(lo), upper=_num(hi), effort=_num(effort),
+                  velocity='0')
+
+
+def _effort(m: mujoco.MjModel, j: int) -> float:
+    """Return the largest force of a joint: its own force range, else its actuators'."""
+    if m.jnt_actfrclimited[j]:
+        return float(np.max(np.abs(m.jnt_actfrcrange[j])))
+    best = 0.0
+    for a in range(m.nu):
+        if m.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT or m.actuator_trnid[a, 0] != j:
+            continue
+        gear = abs(float(m.actuator_gear[a, 0]))
+        if m.actuator_forcelimited[a]:
+            best = max(best, float(np.max(np.abs(m.actuator_forcerange[a]))) * gear)
+        elif m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE and m.actuator_ctrllimited[a]:
+            best = max(best, float(np.max(np.abs(m.actuator_ctrlrange[a]))) * gear)
+    return best
+
+
+def _inertial(m: mujoco.MjModel, b: int, link: ET.Element) -> None:
+    mass = float(m.body_mass[b])
+    if mass <= 0:
+        return
+    inertial = ET.SubElement(link, 'inertial')
+    _origin(inertial, m.body_ipos[b], m.body_iquat[b])
+    ET.SubElement(inertial, 'mass', value=_num(mass))
+    i = m.body_inertia[b]
+    ET.SubElement(inertial, 'inertia', ixx=_num(i[0]), ixy='0', ixz='0', iyy=_num(i[1]),
+                  iyz='0', izz=_num(i[2]))
+
+
+class _Writer:
+    """Visual and collision elements of geoms; mesh files written once per content."""
+
+    def __init__(self, m: mujoco.MjModel, mesh_dir: Optional[Path]):
+        self._m = m
+        self._dir = mesh_dir
+        self._meshes: dict = {}  # mesh id -> URI
+
+    def geom(self, g: int, link: ET.Element) -> None:
+        m = self._m
+        rgba = m.mat_rgba[m.geom_matid[g]] if m.geom_matid[g] >= 0 else m.geom_rgba[g]
+        visible = m.geom_group[g] <= 2 and rgba[3] > 0
+        collides = bool(m.geom_contype[g] or m.geom_conaffinity[g])
+        parts = self._shapes(g) if visible or collides else []
+        for pos, quat, shape in parts:
+            for tag, on in (('visual', visible), ('collision', collides)):
+                if not on:
+                    continue
+                el = ET.SubElement(link, tag)
+                _origin(el, pos, quat)
+                el.append(copy.deepcopy(shape))
+                if tag == 'visual':
+                    mat = ET.SubElement(el, 'material', name=f'rgba_{_fmt(rgba, 3, "_")}')
+                    ET.SubElement(mat, 'color', rgba=_fmt(rgba, 6))
+
+    def _shapes(self, g: int) -> list:
+        """(pos, quat, <geometry>) in the body frame: one, or three for a capsule."""
+        m = self._m
+        kind, size = int(m.geom_type[g]), m.geom_size[g]
+        pos, quat = m.geom_pos[g], m.geom_quat[g]
+
+        def geometry(tag: str, **attrs) -> ET.Element:
+            el = ET.Element('geometry')
+            ET.SubElement(el, tag, **attrs)
+            return el
+
+        if kind == _BOX:
+            return [(pos, quat, geometry('box', size=_fmt(2 * size)))]
+        if kind == _SPHERE:
+            return [(pos, quat, geometry('sphere', radius=_num(size[0])))]
+        if kind == _CYLINDER:
+            return [(pos, quat, geometry('cylinder', radius=_num(size[0]),
+                                         length=_num(2 * size[1])))]
+        if kind == _CAPSULE:
+            ends = [pos + _rotate(quat, np.array([0.0, 0.0, s * size[1]])) for s in (1, -1)]
+            return [(pos, quat, geometry('cylinder', radius=_num(size[0]),
+                                         length=_num(2 * size[1])))] + [
+                (end, quat, geometry('sphere', radius=_num(size[0]))) for end in ends]
+        if kind == _ELLIPSOID and self._dir is not None:
+            return [(pos, quat, geometry('mesh', filename=self._write(*_unit_sphere()),
+                                         scale=_fmt(size)))]
+        if kind == _MESH and self._dir is not None:
+            mid = int(m.geom_dataid[g])
+            if mid not in self._meshes:
+                va, vn = m.mesh_vertadr[mid], m.mesh_vertnum[mid]
+                fa, fn = m.mesh_faceadr[mid], m.mesh_facenum[mid]
+                self._meshes[mid] = self._write(m.mesh_vert[va:va + vn],
+                                                m.mesh_face[fa:fa + fn])
+            return [(pos, quat, geometry('mesh', filename=self._meshes[mid]))]
+        return []
+
+    def _write(self, verts: np.ndarray, faces: np.ndarray) -> str:
+        """Write a binary STL named by its content (once) and return its file:// URI."""
+        tri = np.asarray(verts, dtype=np.float32)[np.asarray(faces, dtype=np.int64)]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        lengths = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0)
+        rec = np.zeros(len(tri), dtype=[('n', '<f4', 3), ('v', '<f4', (3, 3)), ('a', '<u2')])
+        rec['n'], rec['v'] = normals, tri
+        body = rec.tobytes()
+        digest = hashlib.blake2b(body, digest_size=16).hexdigest()
+        path = Path(self._dir) / f'{digest}.stl'
+        if not path.exists():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix='.part')
+            with os.fdopen(fd, 'wb') as f:
+                f.write(b'sim: MuJoCo mesh'.ljust(80, b' '))
+                f.write(np.uint32(len(tri)).tobytes())
+                f.write(body)
+            os.chmod(tmp, 0o644)
+            os.replace(tmp, path)
+        return path.resolve().as_uri()
+
+
+_SPHERE_MESH: Optional[tuple] = None
+
+
+def _unit_sphere(n: int = 16) -> tuple:
+    """(vertices, faces) of a unit UV sphere (for ellipsoids, scaled)."""
+    global _SPHERE_MESH
+    if _SPHERE_MESH is None:
+        th = np.linspace(0, np.pi, n + 1)
+        ph = np.linspace(0, 2 * np.pi, 2 * n, endpoint=False)
+        v = np.array([[np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)]
+                      for t in th for p in ph])
+        w = 2 * n
+        f = []
+        for i in range(n):
+            for k in range(w):
+                a, b = i * w + k, i * w + (k + 1) % w
+                c, d = a + w, b + w
+                f += [(a, c, b), (b, c, d)]
+        _SPHERE_MESH = (v, np.array(f))
+    return _SPHERE_MESH
+
+
+# ---------------------------------------------------------------------- numbers and frames
+
+def _num(x: float, digits: int = 12) -> str:
+    return f'{float(x) + 0.0:.{digits}g}'  # + 0.0: no '-0'
+
+
+def _fmt(values, digits: int = 12, sep: str = ' ') -> str:
+    return sep.join(_num(v, digits) for v in values)
+
+
+def _origin(el: ET.Element, pos, quat_wxyz) -> None:
+    ET.SubElement(el, 'origin', xyz=_fmt(pos), rpy=_fmt(rpy(quat_wxyz)))
+
+
+def rpy(quat_wxyz) -> tuple:
+    """Return roll, pitch, yaw as URDF has them (fixed axes: R = Rz(yaw) Ry(pitch) Rx(roll))."""
+    r = np.zeros(9)
+    mujoco.mju_quat2Mat(r, np.asarray(quat_wxyz, dtype=float) / np.linalg.norm(quat_wxyz))
+    r = r.reshape(3, 3)
+    sp = -r[2, 0]
+    if abs(sp) < 1 - 1e-9:
+        return (math.atan2(r[2, 1], r[2, 2]), math.asin(sp), math.atan2(r[1, 0], r[0, 0]))
+    # Gimbal lock: pitch +-90 degrees; only yaw - roll (or yaw + roll) is defined.
+    return (0.0, math.copysign(math.pi / 2, sp), math.atan2(-r[0, 1], r[1, 1]))
+
+
+def _rotate(quat_wxyz, v) -> np.ndarray:
+    out = np.zeros(3)
+    mujoco.mju_rotVecQuat(out, np.asarray(v, dtype=float), np.asarray(quat_wxyz, dtype=float))
+    return out
+
+
+def _mul(a, b) -> np.ndarray:
+    out = np.zeros(4)
+    mujoco.mju_mulQuat(out, np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+    return out
+
+
+def _axis_angle(axis, angle: float) -> np.ndarray:
+    out = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(out, np.asarray(axis, dtype=float), angle)
+    return out
