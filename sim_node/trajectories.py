@@ -64,7 +64,10 @@ class _LeavableActionServer(ActionServer):
 
     def destroy(self) -> None:
         self._node.remove_waitable(self)  # first: no new wait set takes it
-        super().destroy()
+        try:
+            super().destroy()
+        except ValueError:  # rclpy's destroy ends by removing it from the node: done above
+            pass
 
 
 def _seconds(d) -> float:
