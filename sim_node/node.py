@@ -5,8 +5,9 @@ Callbacks convert the request, call the core, convert the answer (``msg_adapters
 makes no ``mj_*`` call and never touches MjData. Its threads besides the world's stepping loop:
 the executor's (services, reentrant; the housekeeping timer), ``sim-publisher`` (``/clock``,
 ``/tf`` and joint states from the newest snapshot, paced to absolute deadlines), ``sim-model``
-(per model generation: ``/tf_static``, markers and sensor publishers, which take up to
-hundreds of milliseconds for a mesh-heavy robot and would otherwise hold ``/clock`` back),
+(per model generation: ``/tf_static``, markers, sensor publishers and robot descriptions,
+which take up to hundreds of milliseconds for a mesh-heavy robot and would otherwise hold
+``/clock`` back),
 the command drain's and the perception thread (cameras and scanners). FollowJointTrajectory
 goals (:mod:`.trajectories`) wait on executor threads of their own callback group.
 Publishers that come and go with entities carry no QoS event handlers, so they are never in an
@@ -40,6 +41,7 @@ from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
 from .core.records import EFFORT, POSITION, VELOCITY
 from .core.world import World
+from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
 from .services import ERR_NO_WORLD, Sim, SimServices
 from .trajectories import TrajectoryServers
@@ -141,6 +143,9 @@ class SimNode(SimServices, Node):
                                          'trajectory_goal_tolerance',
                                          'trajectory_goal_time_tolerance',
                                          'trajectory_feedback_hz')))
+        self.descriptions = RobotDescriptions(
+            self, lambda: self._sim,
+            Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())
         self._make_services()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -313,6 +318,7 @@ class SimNode(SimServices, Node):
                 self._marker_pub.publish(markers.markers(info, sim_time, frames))
                 self.perception.sync_sensors(info)
                 self.trajectories.sync(info)
+                self.descriptions.sync(info)
             except Exception as exc:  # never die silently: say why, keep publishing
                 self.get_logger().error(f'publishing the model failed: {exc!r}',
                                         throttle_duration_sec=5.0)

@@ -125,6 +125,10 @@ def declare(node: Node, scenes_dir: str) -> None:
         "MuJoCo's cache of processed meshes (MiB): a second spawn of a robot, and edits of a "
         'world holding robots, reuse their meshes from it; 0 turns it off', read_only=True,
         imin=0, imax=1_000_000))
+    node.declare_parameter('robot_description_mesh_dir', '', d(
+        'where robot descriptions write mesh geometry (STL files named by content, read by RViz '
+        "through file:// URIs); '' = $XDG_CACHE_HOME/sim/meshes (~/.cache/sim/meshes)",
+        read_only=True))
     _declare_perception(node)
 
 

@@ -272,22 +272,26 @@ class _Writer:
 
     def _write(self, verts: np.ndarray, faces: np.ndarray) -> str:
         """Write a binary STL named by its content (once) and return its file:// URI."""
-        tri = np.asarray(verts, dtype=np.float32)[np.asarray(faces, dtype=np.int64)]
-        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        lengths = np.linalg.norm(normals, axis=1, keepdims=True)
-        normals = np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0)
-        rec = np.zeros(len(tri), dtype=[('n', '<f4', 3), ('v', '<f4', (3, 3)), ('a', '<u2')])
-        rec['n'], rec['v'] = normals, tri
-        body = rec.tobytes()
-        digest = hashlib.blake2b(body, digest_size=16).hexdigest()
-        path = Path(self._dir) / f'{digest}.stl'
-        if not path.exists():
+        verts = np.ascontiguousarray(verts, dtype=np.float32)
+        faces = np.ascontiguousarray(faces, dtype=np.int32)
+        digest = hashlib.blake2b(verts.tobytes(), digest_size=16)
+        digest.update(faces.tobytes())
+        path = Path(self._dir) / f'{digest.hexdigest()}.stl'
+        if not path.exists():  # the triangles only when the file is new
+            tri = verts[faces]
+            normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            lengths = np.linalg.norm(normals, axis=1, keepdims=True)
+            normals = np.divide(normals, lengths, out=np.zeros_like(normals),
+                                where=lengths > 0)
+            rec = np.zeros(len(tri), dtype=[('n', '<f4', 3), ('v', '<f4', (3, 3)),
+                                            ('a', '<u2')])
+            rec['n'], rec['v'] = normals, tri
             path.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=path.parent, suffix='.part')
             with os.fdopen(fd, 'wb') as f:
                 f.write(b'sim: MuJoCo mesh'.ljust(80, b' '))
                 f.write(np.uint32(len(tri)).tobytes())
-                f.write(body)
+                f.write(rec.tobytes())
             os.chmod(tmp, 0o644)
             os.replace(tmp, path)
         return path.resolve().as_uri()

@@ -1,0 +1,83 @@
+"""
+``<entity>/robot_description``: a URDF for every entity with joints, for RViz and MoveIt.
+
+std_msgs/String, reliable and transient local (as robot_state_publisher offers it), depth 1: a
+late subscriber gets the description at once. Made when the entity comes, sent again when its
+description changes (a new mass, a welded part), removed when it goes. The text comes from
+:meth:`~sim_node.core.world.World.robot_description` (a spawned URDF as given, otherwise written
+from the compiled model, meshes as STL files under ``robot_description_mesh_dir``), built on the
+node's model thread, never on the physics'.
+"""
+
+import os
+from pathlib import Path
+import threading
+from typing import Callable
+
+from msg_adapters.perception import topic_token
+from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from .core.errors import SimError
+from .core.records import ModelInfo
+
+DESCRIPTION_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def default_mesh_dir() -> Path:
+    """Return ``$XDG_CACHE_HOME/sim/meshes``, else ``~/.cache/sim/meshes``."""
+    cache = os.environ.get('XDG_CACHE_HOME') or str(Path.home() / '.cache')
+    return Path(cache) / 'sim' / 'meshes'
+
+
+def described_entities(info: ModelInfo) -> list:
+    """Return the entities that have a description: robots and spawned URDFs."""
+    return [e.name for e in info.entities if info.body_alias[e.root_body]]
+
+
+class RobotDescriptions:
+    """
+    The robot_description publishers of a node's entities.
+
+    :param current_sim: returns the node's loaded world (``Sim``) or None.
+    :param mesh_dir: where mesh geometry is written.
+    """
+
+    def __init__(self, node, current_sim: Callable, mesh_dir: Path):
+        self._node = node
+        self._current_sim = current_sim
+        self._mesh_dir = mesh_dir
+        self._pubs: dict = {}  # entity -> (publisher, the text last sent)
+        self._lock = threading.Lock()
+
+    def sync(self, info: ModelInfo) -> None:
+        """Describe a model generation's robots: new ones, and those whose text changed."""
+        sim = self._current_sim()
+        if sim is None:
+            return
+        entities = described_entities(info)
+        with self._lock:
+            for entity in [e for e in self._pubs if e not in entities]:
+                self._node.destroy_publisher(self._pubs.pop(entity)[0])
+        for entity in entities:
+            try:
+                text = sim.world.robot_description(entity, str(self._mesh_dir))
+            except SimError:  # gone since this generation: the next sync drops it
+                continue
+            with self._lock:
+                pub, sent = self._pubs.get(entity, (None, None))
+                if pub is None:
+                    pub = self._node.create_publisher(
+                        String, f'{topic_token(entity)}/robot_description', DESCRIPTION_QOS,
+                        event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
+                if text != sent:
+                    pub.publish(String(data=text))
+                self._pubs[entity] = (pub, text)
+
+    def close(self) -> None:
+        with self._lock:
+            for pub, _ in self._pubs.values():
+                self._node.destroy_publisher(pub)
+            self._pubs.clear()
