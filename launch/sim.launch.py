@@ -2,22 +2,43 @@
 Start the sim node and RViz showing its TF and markers: ``ros2 launch sim sim.launch.py``.
 
 Arguments: ``scene`` (a scene name or file, default ``default``), ``real_time_factor``,
-``paused``, ``rviz`` (``false`` for the node alone).
+``paused``, ``rviz`` (``false`` for the node alone), ``entity`` (an entity with joints, e.g.
+``robot``, shown in RViz as a RobotModel from its ``robot_description``).
 """
 
+from pathlib import Path
+import tempfile
+
+from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from launch_ros.substitutions import FindPackageShare
+from sim_node.rviz_config import with_robot_model
 
 ARGUMENTS = {
     'scene': ('default', 'scene name (see get_available_worlds) or MJCF file'),
     'real_time_factor': ('1.0', '1 real time, 0 as fast as possible'),
     'paused': ('false', 'start paused'),
     'rviz': ('true', 'start RViz with rviz/sim.rviz (TF and markers)'),
+    'entity': ('', 'an entity with joints (e.g. robot) to show in RViz as a RobotModel'),
 }
+#: Launch arguments that are not node parameters.
+LAUNCH_ONLY = ('rviz', 'entity')
+
+
+def _rviz(context):
+    config = Path(get_package_share_directory('sim')) / 'rviz' / 'sim.rviz'
+    entity = LaunchConfiguration('entity').perform(context)
+    if entity:
+        with tempfile.NamedTemporaryFile('w', prefix='sim-', suffix='.rviz',
+                                         delete=False) as f:
+            f.write(with_robot_model(config.read_text(), entity))
+        config = Path(f.name)
+    return [Node(package='rviz2', executable='rviz2', name='rviz2', output='screen',
+                 arguments=['-d', str(config)], parameters=[{'use_sim_time': True}],
+                 condition=IfCondition(LaunchConfiguration('rviz')))]
 
 
 def generate_launch_description():
@@ -29,9 +50,5 @@ def generate_launch_description():
              parameters=[{'scene': config['scene'],
                           'real_time_factor': config['real_time_factor'],
                           'paused': config['paused']}]),
-        Node(package='rviz2', executable='rviz2', name='rviz2', output='screen',
-             arguments=['-d', PathJoinSubstitution([FindPackageShare('sim'), 'rviz',
-                                                    'sim.rviz'])],
-             parameters=[{'use_sim_time': True}],
-             condition=IfCondition(config['rviz'])),
+        OpaqueFunction(function=_rviz),
     ])

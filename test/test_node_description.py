@@ -188,3 +188,26 @@ def test_meshes_are_files_rviz_can_read_and_the_description_goes_with_its_entity
              and not any(n.startswith('/pendulum/') for n, _ in
                          watch.node.get_service_names_and_types()))
     assert watch.node.get_publishers_info_by_topic('/robot/robot_description')
+
+
+def test_the_launch_files_robot_model_display_reads_our_topic_and_frames(sim, watch):
+    """``entity:=robot``: RViz's RobotModel reads the description and finds every link's frame."""
+    from conftest import installed_prefix
+    from sim_node.rviz_config import with_robot_model
+    import yaml
+    base = (installed_prefix() / 'share' / 'sim' / 'rviz' / 'sim.rviz').read_text()
+    config = yaml.safe_load(with_robot_model(base, 'robot'))
+    display = next(d for d in config['Visualization Manager']['Displays']
+                   if d['Class'] == 'rviz_default_plugins/RobotModel')
+    topic = display['Description Topic']
+    assert topic['Durability Policy'] == 'Transient Local'
+    assert dict(watch.node.get_topic_names_and_types())[topic['Value']] == ['std_msgs/msg/String']
+    links = [link.get('name') for link in
+             SafeET.fromstring(description(watch, 'robot')).findall('link')]
+    with watch.lock:
+        frames = {**watch.tf, **watch.tf_static}
+    # RViz joins its TF prefix and a link name with '/'
+    assert all(f"{display['TF Prefix']}/{link}" in frames for link in links), links
+    others = [d for d in config['Visualization Manager']['Displays']
+              if d['Class'] != 'rviz_default_plugins/RobotModel']
+    assert others == yaml.safe_load(base)['Visualization Manager']['Displays']

@@ -479,11 +479,14 @@ def test_launch_file_and_rviz_config_match_what_the_node_offers(sim):
     tree = ast.parse(launch_text)
     args = next(n.value for n in tree.body if isinstance(n, ast.Assign)
                 and n.targets[0].id == 'ARGUMENTS')
-    launch_params = {k.value for k in args.keys} - {'rviz'}
+    launch_only = next(n.value for n in tree.body if isinstance(n, ast.Assign)
+                       and n.targets[0].id == 'LAUNCH_ONLY')
+    launch_params = {k.value for k in args.keys} - {e.value for e in launch_only.elts}
     listed = sim.call('sim/list_parameters', ListParameters, ListParameters.Request(),
                       check=False)
     assert launch_params <= set(listed.result.names)
     assert "'sim.rviz'" in launch_text and (share / 'rviz' / 'sim.rviz').is_file()
+    assert 'with_robot_model' in launch_text and "'entity'" in launch_text
     rviz = yaml.safe_load((share / 'rviz' / 'sim.rviz').read_text())
     manager = rviz['Visualization Manager']
     assert manager['Global Options']['Fixed Frame'] == 'world'
