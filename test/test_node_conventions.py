@@ -64,7 +64,9 @@ def test_two_worlds_in_one_domain_do_not_collide(rclpy_context):
     try:
         wait_for(lambda: 'robot2/box_a' in watch.tf and 'box_a' in watch.tf, timeout=15)
         assert watch.tf['robot2/box_a'][1] == 'robot2/world'
-        assert watch.tf['robot2/robot/left_link1'][1] == 'robot2/robot'
+        # links hang from the root body's own frame (the root link of robot_description)
+        assert watch.tf['robot2/robot/left_link1'][1] == 'robot2/robot/robot'
+        wait_for(lambda: watch.tf_static.get('robot2/robot/robot', (0, ''))[1] == 'robot2/robot')
         assert watch.tf['box_a'][1] == 'world'
         wait_for(lambda: watch2.markers, timeout=10)
         frames = {m.header.frame_id for m in watch2.markers.values()}
