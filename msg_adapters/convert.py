@@ -25,6 +25,7 @@ from .cdr import TfTemplate
 # Core exceptions -> simulation_interfaces Result codes, in one table. Service-specific codes
 # (SpawnEntity.Response.NAME_NOT_UNIQUE, ...) are looked up by name on the response type.
 RESULT_CODES = (
+    (errors.FeatureUnsupportedError, Result.RESULT_FEATURE_UNSUPPORTED, None),
     (errors.NotFoundError, Result.RESULT_NOT_FOUND, None),
     (errors.NameNotUniqueError, Result.RESULT_OPERATION_FAILED, 'NAME_NOT_UNIQUE'),
     (errors.NameInvalidError, Result.RESULT_OPERATION_FAILED, 'NAME_INVALID'),
@@ -35,6 +36,7 @@ RESULT_CODES = (
     (errors.MissingAssetsError, Result.RESULT_OPERATION_FAILED, 'MISSING_ASSETS'),
     (errors.UnsupportedAssetsError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_ASSETS'),
     (errors.InvalidPoseError, Result.RESULT_OPERATION_FAILED, 'INVALID_POSE'),
+    (errors.OperationFailedError, Result.RESULT_OPERATION_FAILED, None),
     (errors.IncorrectStateError, Result.RESULT_INCORRECT_STATE, None),
     (errors.CapacityError, Result.RESULT_OPERATION_FAILED, None),
     (errors.InvalidArgumentError, Result.RESULT_OPERATION_FAILED, None),
@@ -143,7 +145,9 @@ def entity_filters(filters) -> dict:
                                               '(radius, 0, 0)')
         out['region'] = Region('sphere', vec_from_msg(b.points[0]), vec_from_msg(b.points[1]))
     elif b.type == Bounds.TYPE_CONVEX_HULL:
-        raise errors.UnsupportedFormatError('convex hull bounds filters are not supported')
+        raise errors.FeatureUnsupportedError(
+            'convex hull bounds filters are not supported (ENTITY_BOUNDS_CONVEX is not listed): '
+            'use a box or a sphere')
     return out
 
 

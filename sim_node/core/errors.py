@@ -11,6 +11,10 @@ class SimError(Exception):
     """Base of every error the core raises on bad input or impossible requests."""
 
 
+class FeatureUnsupportedError(SimError):
+    """An option the simulator does not offer (answered FEATURE_UNSUPPORTED, 0)."""
+
+
 class NotFoundError(SimError):
     """An entity, joint or resource that does not exist."""
 
@@ -61,6 +65,15 @@ class CapacityError(SimError):
 
 class IncorrectStateError(SimError):
     """A request that the simulation's current state does not allow."""
+
+
+class OperationFailedError(IncorrectStateError):
+    """
+    A valid request the state does not allow, where the standard answers OPERATION_FAILED (4).
+
+    Stepping while playing (StepSimulation, SimulateSteps) and a velocity for a static entity
+    (SetEntityState) are such cases; a script may still catch them as IncorrectStateError.
+    """
 
 
 class DivergenceError(SimError):

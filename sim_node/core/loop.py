@@ -22,7 +22,8 @@ from typing import Callable, Optional
 import weakref
 
 from .config import WorldConfig
-from .errors import DivergenceError, IncorrectStateError, InvalidArgumentError, SimError
+from .errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
+                     OperationFailedError, SimError)
 from .records import LoopStatus, RESET_STATE, Snapshot
 from .world import World
 
@@ -225,7 +226,8 @@ class SimLoop:
         Returns steps completed.
 
         :param feedback: called as ``feedback(completed, remaining)`` from this thread.
-        :raises IncorrectStateError: the loop is playing, or is not running.
+        :raises OperationFailedError: the loop is playing (an IncorrectStateError).
+        :raises IncorrectStateError: the loop is not running.
         :raises DivergenceError: the physics diverged during these steps.
         """
         if n < 1:
@@ -235,7 +237,7 @@ class SimLoop:
             if self._failure:
                 raise IncorrectStateError(self._failure)
             if not self._paused:
-                raise IncorrectStateError(ERR_STEP_WHILE_PLAYING)
+                raise OperationFailedError(ERR_STEP_WHILE_PLAYING)
             if not self.running:
                 raise IncorrectStateError(ERR_NOT_RUNNING)
             if self._pending_steps:

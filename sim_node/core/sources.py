@@ -32,6 +32,8 @@ ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
 ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
                 '<robot> (URDF)')
 ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
+ERR_NOT_XML = ('unsupported format: the text is not XML (it starts {start!r}); give MJCF '
+               '(<mujoco>) or URDF (<robot>)')
 ERR_COMPILE = 'the model does not compile: {err}'
 ERR_FILE_MISSING = 'file not found: {path}'
 ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
@@ -160,6 +162,8 @@ def check_model_text(text: str, base_dir: Optional[str] = None,
     if not text or not text.strip():
         raise NoResourceError(ERR_EMPTY)
     _check_size(len(text.encode()), max_bytes)
+    if not text.lstrip('\ufeff \t\r\n').startswith('<'):  # JSON, YAML, USD ascii, OBJ, ...
+        raise UnsupportedFormatError(ERR_NOT_XML.format(start=text.strip()[:20]))
     root = assets.parse(text)  # no DOCTYPE or entities, nesting bounded
     if root.tag not in ('mujoco', 'robot'):
         raise UnsupportedFormatError(ERR_ROOT_TAG.format(tag=root.tag[:100]))

@@ -11,7 +11,7 @@ import numpy as np
 
 from . import editor, quat, state
 from .checks import check_finite, check_pose
-from .errors import IncorrectStateError
+from .errors import OperationFailedError
 from .records import EntityRecord
 
 ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it cannot have a '
@@ -73,8 +73,8 @@ class StateWrites:
             if rec.has_free_joint:
                 continue
             if any(v is not None and np.any(v != 0) for v in (lin, ang)):
-                raise IncorrectStateError(ERR_STATIC_TWIST.format(name=rec.name,
-                                                                  category=rec.category))
+                raise OperationFailedError(ERR_STATIC_TWIST.format(name=rec.name,
+                                                                   category=rec.category))
             root = rec.root_body
             if pos is not None and not (
                     np.allclose(pos, d.xpos[root], rtol=0, atol=1e-9)
