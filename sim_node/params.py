@@ -125,6 +125,13 @@ def declare(node: Node, scenes_dir: str) -> None:
         "MuJoCo's cache of processed meshes (MiB): a second spawn of a robot, and edits of a "
         'world holding robots, reuse their meshes from it; 0 turns it off', read_only=True,
         imin=0, imax=1_000_000))
+    node.declare_parameter('allow_second_simulator', False, d(
+        'start even when another simulator serves the same services in this namespace (they '
+        'would answer calls at random)', read_only=True))
+    node.declare_parameter('max_steps_per_request', 1_000_000, d(
+        'most steps one step_simulation request may ask for (about 15-50 s of the default '
+        'scene free-running); larger ones are refused: use the simulate_steps action',
+        imin=1, imax=2 ** 62))
     node.declare_parameter('robot_description_mesh_dir', '', d(
         'where robot descriptions write mesh geometry (STL files named by content, read by RViz '
         "through file:// URIs); '' = $XDG_CACHE_HOME/sim/meshes (~/.cache/sim/meshes)",

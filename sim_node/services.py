@@ -5,6 +5,11 @@ Each callback converts the request, calls the core, converts the answer (``msg_a
 of :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameters and lifecycle.
 """
 
+import os
+import signal
+import threading
+import time
+
 from msg_adapters import convert, markers
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from simulation_interfaces import srv as si_srv
@@ -23,7 +28,12 @@ from .core.world import World
 from .qos import SERVICE_QOS
 
 MAX_RESOURCE_STRING_BYTES = 5_000_000
+QUIT_DELAY_SEC = 0.3  # after the QUITTING answer, before the process ends
 ERR_NO_WORLD = 'no world is loaded; call load_world first'
+ERR_TOO_MANY_STEPS = ('{n} steps is more than one step_simulation request may take '
+                      '(max_steps_per_request {limit}): use the simulate_steps action '
+                      '(simulation_interfaces/action/SimulateSteps), which reports progress and '
+                      'can be cancelled')
 
 
 class Sim:
@@ -119,7 +129,7 @@ class SimServices:
 
     def _source_for(self, uri: str, resource_string: str) -> sources.SpawnSource:
         roots = self._resource_paths
-        if resource_string:
+        if resource_string and not uri:  # the standard: a uri, when given, wins
             # from_model_text refuses text over max_bytes (UNSUPPORTED_ASSETS) before parsing.
             return sources.from_model_text(resource_string, base_dir=None,
                                            allowed_roots=roots,
@@ -257,8 +267,15 @@ class SimServices:
 
     def _srv_step(self, request, response):
         sim = self._require()
+        limit = self._param('max_steps_per_request')
+        if request.steps > limit:
+            response.result = Result(result=Result.RESULT_OPERATION_FAILED,
+                                     error_message=ERR_TOO_MANY_STEPS.format(n=request.steps,
+                                                                             limit=limit))
+            return response
         if request.steps > 0:  # 0 steps: nothing to do, answered OK
             sim.loop.step(int(request.steps))
+            self._stopped = False  # stepped from STOPPED: paused, no longer at the reset state
         response.result = convert.ok()
         return response
 
@@ -283,11 +300,13 @@ class SimServices:
         target = request.state.state
         s = SimulationState
         resp = si_srv.SetSimulationState.Response
-        if target == s.STATE_QUITTING or target not in (s.STATE_PLAYING, s.STATE_PAUSED,
-                                                        s.STATE_STOPPED):
+        if target == s.STATE_QUITTING:
+            return self._quit(response)
+        if target not in (s.STATE_PLAYING, s.STATE_PAUSED, s.STATE_STOPPED):
             response.result = Result(result=resp.INCORRECT_TRANSITION, error_message=(
                 f'cannot set state {target}: use PLAYING ({s.STATE_PLAYING}), PAUSED '
-                f'({s.STATE_PAUSED}) or STOPPED ({s.STATE_STOPPED})'))
+                f'({s.STATE_PAUSED}), STOPPED ({s.STATE_STOPPED}) or QUITTING '
+                f'({s.STATE_QUITTING})'))
             return response
         sim = self._require()
         sim.loop.cancel_steps()  # any state request ends a step request in progress
@@ -316,6 +335,30 @@ class SimServices:
         response.result = convert.ok()
         return response
 
+    def _quit(self, response):
+        """
+        QUITTING: stop the simulation (a full reset, as STOPPED), answer, then end the process.
+
+        The answer goes first (the caller hears OK); 0.3 s later the node stops its threads and
+        ends as on Ctrl-C, exit status 0, its services gone, well within 2 s.
+        """
+        sim = self._sim
+        if sim is not None:
+            sim.loop.cancel_steps()
+            sim.loop.pause()
+            sim.world.reset(RESET_ALL)
+            self._stopped = True
+            self._after_change(sim)
+        self.get_logger().info('QUITTING requested: the simulation is stopped; exiting')
+
+        def leave():
+            time.sleep(QUIT_DELAY_SEC)
+            self.shutdown()
+            os.kill(os.getpid(), signal.SIGINT)
+        threading.Thread(target=leave, name='sim-quit', daemon=True).start()
+        response.result = convert.ok()
+        return response
+
     def _act_simulate(self, goal_handle):
         sim = self._sim
         total = int(goal_handle.request.steps)
@@ -337,6 +380,7 @@ class SimServices:
                                            error_message=f'canceled after {done} steps')
                     return result
                 done += sim.loop.step(min(chunk, total - done))
+                self._stopped = False
                 fb = SimulateSteps.Feedback(completed_steps=done, remaining_steps=total - done)
                 goal_handle.publish_feedback(fb)
         except SimError as exc:

@@ -13,7 +13,7 @@ from conftest import serve_node, wait_for, Watcher
 import pytest
 from sim_node.client import SimClient, SimServiceError
 from simulation_interfaces.msg import EntityCategory, Result, SimulationState
-from simulation_interfaces.srv import SetEntityState, SpawnEntity
+from simulation_interfaces.srv import SetEntityState, SetSimulationState, SpawnEntity
 
 BOX = ('<mujoco><worldbody><body name="b"><freejoint/>'
        '<geom type="box" size=".05 .05 .05" mass=".3"/></body></worldbody></mujoco>')
@@ -84,8 +84,10 @@ def test_tf_stamps_are_simulation_time_one_stamp_per_message(sim, watch):
 
 def test_step_simulation_advances_clock_by_exactly_n_steps(sim, watch):
     sim.pause()
-    with pytest.raises(SimServiceError):
-        sim.pause()  # already paused: ALREADY_IN_TARGET_STATE
+    sim.pause()  # already paused: fine for the client, which only wants that state
+    with pytest.raises(SimServiceError) as info:
+        sim.set_state(SimulationState.STATE_PAUSED)  # the service says so
+    assert info.value.code == SetSimulationState.Response.ALREADY_IN_TARGET_STATE
     time.sleep(0.3)
     before = wait_for(watch.latest_clock)
     sim.step(250)  # /clock may show the steps in progress; it ends exactly 250 steps on
@@ -93,9 +95,17 @@ def test_step_simulation_advances_clock_by_exactly_n_steps(sim, watch):
     time.sleep(0.3)
     assert watch.latest_clock() == pytest.approx(before + 250 * 0.002, abs=1e-6)
     sim.play()
+    t0 = sim.entity_state('box_a')['stamp']
     with pytest.raises(SimServiceError) as info:
         sim.step(1)
-    assert info.value.code == Result.RESULT_INCORRECT_STATE
+    # StepSimulation.srv: not paused -> OPERATION_FAILED (not Result.msg's INCORRECT_STATE)
+    assert info.value.code == Result.RESULT_OPERATION_FAILED
+    assert 'pause' in info.value.message
+    assert sim.state() == SimulationState.STATE_PLAYING
+    with pytest.raises(SimServiceError) as info:
+        sim.simulate_steps(10)
+    assert info.value.code == Result.RESULT_OPERATION_FAILED
+    assert sim.entity_state('box_a')['stamp'] > t0  # still playing
 
 
 def test_simulate_steps_action_reports_feedback(sim):
@@ -182,6 +192,10 @@ BAD_SPAWNS = [
      SpawnEntity.Response.RESOURCE_PARSE_ERROR),
     ({'name': 'x', 'resource_string': '<sdf version="1.9"/>'},
      SpawnEntity.Response.UNSUPPORTED_FORMAT),
+    ({'name': 'x', 'resource_string': '{"mujoco": {"worldbody": {}}}'},  # JSON: not a format
+     SpawnEntity.Response.UNSUPPORTED_FORMAT),                          # we read, not a typo
+    ({'name': 'x', 'resource_string': '#usda 1.0\ndef Xform "box" {}'},
+     SpawnEntity.Response.UNSUPPORTED_FORMAT),
     ({'name': 'x', 'resource_string': '<mujoco><asset><mesh name="m" file="/etc/passwd.stl"/>'
       '</asset><worldbody><body><geom type="mesh" mesh="m"/></body></worldbody></mujoco>'},
      SpawnEntity.Response.MISSING_ASSETS),
@@ -215,7 +229,7 @@ def test_bad_spawn_gets_its_code_and_changes_nothing(sim, kwargs, code):
     (lambda s: s.delete('nobody'), Result.RESULT_NOT_FOUND),
     (lambda s: s.entity_state('nobody'), Result.RESULT_NOT_FOUND),
     (lambda s: s.set_entity_state('table', (0.75, 0, 0), linear=(1, 0, 0)),
-     Result.RESULT_INCORRECT_STATE),
+     Result.RESULT_OPERATION_FAILED),  # a twist for a static entity: SetEntityState.srv says 4
     (lambda s: s.set_entity_state('box_a', (0, 0, 1), orientation_xyzw=(0, 0, 0, 2)),
      SetEntityState.Response.INVALID_POSE),
     (lambda s: s.set_entity_state('box_a', (0, 0, 1), orientation_xyzw=(0, 0, 0, 0)),
@@ -378,22 +392,31 @@ def test_an_endless_step_request_ends_on_a_state_request_and_zero_steps_is_a_no_
     other = SimClient(timeout_sec=30)
     answers = []
 
-    def endless():
+    def endless():  # the most one request may take: some seconds to step
         answers.append(other.call('step_simulation', StepSimulation,
-                                  StepSimulation.Request(steps=2 ** 63 - 1), check=False))
+                                  StepSimulation.Request(steps=1_000_000), check=False))
     t = threading.Thread(target=endless)
     t.start()
     try:
         time.sleep(1.0)
         assert not answers  # still stepping
-        with pytest.raises(SimServiceError):
-            sim.pause()  # already paused (ALREADY_IN_TARGET_STATE), but it ends the request
+        with pytest.raises(SimServiceError):  # already paused, but it ends the request
+            sim.set_state(SimulationState.STATE_PAUSED)
         t.join(10)
         assert answers and answers[0].result.result == Result.RESULT_INCORRECT_STATE
         assert 'ended by a state request' in answers[0].result.error_message
         sim.step(10)  # no "another step request is still running"
         zero = sim.call('step_simulation', StepSimulation, StepSimulation.Request(steps=0))
         assert zero.result.result == Result.RESULT_OK
+        # More than max_steps_per_request: refused at once, pointing to the action
+        t0 = sim.entity_state('box_a')['stamp']
+        start = time.monotonic()
+        huge = sim.call('step_simulation', StepSimulation,
+                        StepSimulation.Request(steps=2 ** 63 - 1), check=False)
+        assert time.monotonic() - start < 5
+        assert huge.result.result == Result.RESULT_OPERATION_FAILED
+        assert 'simulate_steps' in huge.result.error_message
+        assert sim.entity_state('box_a')['stamp'] == t0
     finally:
         t.join(10)
         other.close()
