@@ -40,6 +40,7 @@ def main(args=None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    code = code or getattr(node, 'exit_code', 0)  # 2: another simulator had this name
     _exit_if_busy(code)
     return code
 

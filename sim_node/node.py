@@ -17,7 +17,10 @@ take no part in a wait set once destroyed (see :mod:`.trajectories`).
 
 import collections
 import logging
+import os
 from pathlib import Path
+import signal
+import sys
 import threading
 import time
 from typing import Optional
@@ -47,6 +50,13 @@ from .services import ERR_NO_WORLD, Sim, SimServices
 from .trajectories import TrajectoryServers
 
 NODE_NAME = 'sim'
+
+
+DUPLICATE_WINDOW_SEC = 8.0
+ERR_SECOND_SIMULATOR = ('another simulator already serves {service} (namespace {ns!r}): start '
+                        'this one in a namespace of its own with a frame prefix (--ros-args -r '
+                        '__ns:=/sim2 -p frame_prefix:=sim2/ -p publish_clock:=false, see the '
+                        'README), or set allow_second_simulator:=true')
 
 
 def _next_deadline(deadline: float, period: float, now: float) -> float:
@@ -119,6 +129,7 @@ class SimNode(SimServices, Node):
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._diagnostics_name = f'{self.get_fully_qualified_name()}: physics'
         self._diagnosed = (None, 0.0)  # (divergence report, wall time) last published
+        self.exit_code = 0  # main's exit status; 2 when another simulator had this name
         self._refused_command: Optional[tuple] = None  # (why, names, wall time) the latest
         # Taken in batches on a thread, not by the executor (see command_drain).
         self._commands = CommandDrain(self, 'joint_commands', self._on_joint_command)
@@ -200,6 +211,32 @@ class SimNode(SimServices, Node):
         self._model_thread.start()
         self._commands.start()
         self.perception.start()
+        if not self._param('allow_second_simulator'):
+            threading.Thread(target=self._leave_if_another_simulator, name='sim-alone',
+                             daemon=True).start()
+
+    def _leave_if_another_simulator(self, window_sec: float = DUPLICATE_WINDOW_SEC) -> None:
+        """
+        Exit (status 2, one line why) if another simulator serves our services here.
+
+        One simulator per name, checked in a node's first seconds: two would answer one service
+        name at random (seen: 3 of 4 fresh clients talked to one, the other to the other) and
+        publish two /clock. DDS discovery takes about 3 s here, so waiting for it before
+        starting would delay every start by as much: the check runs beside the start instead,
+        and only a node in its first `window_sec` looks (the one already running stays). Our own
+        server counts as one.
+        """
+        name = self.resolve_service_name('get_simulator_features')
+        deadline = time.monotonic() + window_sec
+        while time.monotonic() < deadline and self._publishing.is_set():
+            if self.count_services(name) > 1:
+                why = ERR_SECOND_SIMULATOR.format(service=name, ns=self.get_namespace())
+                print(f'[sim] cannot start: {why}', file=sys.stderr, flush=True)
+                self.exit_code = 2
+                self.shutdown()
+                os.kill(os.getpid(), signal.SIGINT)
+                return
+            time.sleep(0.1)
 
     def _install(self, world: World, name: str, uri: str, paused: bool = False) -> None:
         loop = SimLoop(world)

@@ -61,3 +61,37 @@ def _ignore(call) -> None:
         call()
     except Exception:  # noqa: B902 (the node went away mid-call, as intended)
         pass
+
+
+def test_quitting_answers_ok_stops_then_exits_with_status_0(start_node, client, watcher):
+    """Quitting (SetSimulationState): reset (stop) first, answer, then the process ends."""
+    import time
+    from simulation_interfaces.msg import SimulationState
+    node = start_node()
+    client.spawn('crate', uri='box', position=(0.3, 2.0, 1.0))
+    wait_for(lambda: (watcher.latest_clock() or 0) > 0.5, timeout=20)
+    t0 = time.monotonic()
+    client.set_state(SimulationState.STATE_QUITTING)  # raises unless the answer is OK
+    code = node.proc.wait(5)
+    assert code == 0 and time.monotonic() - t0 < 2.0, node.output()
+    out = node.output()
+    assert 'Traceback' not in out and '[ERROR]' not in out, out
+    # stopped before it went: the last /clock is back at the start
+    wait_for(lambda: watcher.latest_clock() == 0.0, timeout=2)
+    wait_for(lambda: 'get_simulation_state' not in ' '.join(
+        n for n, _ in client.node.get_service_names_and_types()), timeout=10)
+
+
+def test_a_second_simulator_in_the_same_namespace_refuses_to_start(start_node, client):
+    """Two would answer service calls at random: the second exits 2 with one line saying why."""
+    start_node()
+    client.entities()  # the first is up and answering
+    second = start_node()
+    assert second.proc.wait(30) == 2
+    out = second.output()
+    assert 'another simulator already serves' in out and '__ns:=' in out, out
+    assert 'Traceback' not in out
+    third = start_node('allow_second_simulator:=true', 'publish_clock:=false')
+    import time
+    time.sleep(3.0)
+    assert third.proc.poll() is None, third.output()  # allowed: it runs
