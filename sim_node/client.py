@@ -116,17 +116,53 @@ class SimClient:
         Keys: 'position', 'orientation_xyzw', 'linear', 'angular', 'linear_acceleration',
         'angular_acceleration', 'stamp', 'frame_id'.
         """
-        s = self.call('get_entity_state', srv.GetEntityState,
-                      srv.GetEntityState.Request(entity=name)).state
-        p, q = s.pose.position, s.pose.orientation
-        return {'position': (p.x, p.y, p.z), 'orientation_xyzw': (q.x, q.y, q.z, q.w),
-                'linear': (s.twist.linear.x, s.twist.linear.y, s.twist.linear.z),
-                'angular': (s.twist.angular.x, s.twist.angular.y, s.twist.angular.z),
-                'linear_acceleration': (s.acceleration.linear.x, s.acceleration.linear.y,
-                                        s.acceleration.linear.z),
-                'angular_acceleration': (s.acceleration.angular.x, s.acceleration.angular.y,
-                                         s.acceleration.angular.z),
-                'stamp': convert.stamp_to_sec(s.header.stamp), 'frame_id': s.header.frame_id}
+        return _state_dict(self.call('get_entity_state', srv.GetEntityState,
+                                     srv.GetEntityState.Request(entity=name)).state)
+
+    def entities_states(self, pattern: str = '') -> dict:
+        """Return {entity: state dict, as :meth:`entity_state`} of the entities `pattern` finds."""
+        req = srv.GetEntitiesStates.Request()
+        req.filters.filter = pattern
+        res = self.call('get_entities_states', srv.GetEntitiesStates, req)
+        return {name: _state_dict(s) for name, s in zip(res.entities, res.states)}
+
+    def entity_bounds(self, name: str) -> tuple:
+        """Return an entity's bounds: (Bounds.TYPE_*, [(x, y, z), ...]) as the node gives them."""
+        b = self.call('get_entity_bounds', srv.GetEntityBounds,
+                      srv.GetEntityBounds.Request(entity=name)).bounds
+        return b.type, [(p.x, p.y, p.z) for p in b.points]
+
+    def spawn_entities(self, requests: Sequence[dict]) -> list:
+        """
+        Spawn several entities in one call (SpawnEntities); return [(result code, name)].
+
+        Each request is a dict of :meth:`spawn`'s arguments (name, uri, resource_string,
+        position, orientation_xyzw, frame_id, allow_renaming, namespace). Per-item failures are
+        in the list; the call raises only when the service itself fails otherwise.
+        """
+        from simulation_interfaces.msg import Resource, SpawnEntity
+        items = []
+        for r in requests:
+            resource = Resource(uri=r.get('uri', ''), resource_string=r.get('resource_string', ''))
+            item = SpawnEntity(name=r.get('name', ''), entity_resource=resource,
+                               allow_renaming=r.get('allow_renaming', False),
+                               entity_namespace=r.get('namespace', ''))
+            item.initial_pose = _pose_stamped(r.get('position', (0, 0, 0)),
+                                              r.get('orientation_xyzw', (0, 0, 0, 1)),
+                                              r.get('frame_id', ''))
+            items.append(item)
+        res = self.call('spawn_entities', srv.SpawnEntities,
+                        srv.SpawnEntities.Request(spawn_requests=items), check=False)
+        if res.result.result not in (Result.RESULT_OK,
+                                     srv.SpawnEntities.Response.ENTITIES_SPAWN_FAILED):
+            raise SimServiceError('spawn_entities', res.result.result, res.result.error_message)
+        return [(r.result.result, r.entity_name) for r in res.results]
+
+    def worlds(self) -> list:
+        """Return the (name, uri) of every world the node can load (GetAvailableWorlds)."""
+        res = self.call('get_available_worlds', srv.GetAvailableWorlds,
+                        srv.GetAvailableWorlds.Request())
+        return [(w.name, w.world_resource.uri) for w in res.worlds]
 
     def set_entity_state(self, name: str, position: Sequence[float],
                          orientation_xyzw: Sequence[float] = (0, 0, 0, 1),
@@ -172,10 +208,19 @@ class SimClient:
                   srv.SetSimulationState.Request(state=SimulationState(state=state)))
 
     def play(self) -> None:
-        self.set_state(SimulationState.STATE_PLAYING)
+        """Play; already playing is fine (only the state matters to the caller)."""
+        self._ensure_state(SimulationState.STATE_PLAYING)
 
     def pause(self) -> None:
-        self.set_state(SimulationState.STATE_PAUSED)
+        """Pause; already paused is fine."""
+        self._ensure_state(SimulationState.STATE_PAUSED)
+
+    def _ensure_state(self, state: int) -> None:
+        try:
+            self.set_state(state)
+        except SimServiceError as exc:
+            if exc.code != srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE:
+                raise
 
     def simulate_steps(self, steps: int, feedback=None):
         """Run the simulate_steps action; `feedback(completed, remaining)` per update."""
@@ -206,6 +251,18 @@ class SimClient:
     def current_world(self) -> str:
         return self.call('get_current_world', srv.GetCurrentWorld,
                          srv.GetCurrentWorld.Request()).world.name
+
+
+def _state_dict(s: EntityState) -> dict:
+    p, q = s.pose.position, s.pose.orientation
+    return {'position': (p.x, p.y, p.z), 'orientation_xyzw': (q.x, q.y, q.z, q.w),
+            'linear': (s.twist.linear.x, s.twist.linear.y, s.twist.linear.z),
+            'angular': (s.twist.angular.x, s.twist.angular.y, s.twist.angular.z),
+            'linear_acceleration': (s.acceleration.linear.x, s.acceleration.linear.y,
+                                    s.acceleration.linear.z),
+            'angular_acceleration': (s.acceleration.angular.x, s.acceleration.angular.y,
+                                     s.acceleration.angular.z),
+            'stamp': convert.stamp_to_sec(s.header.stamp), 'frame_id': s.header.frame_id}
 
 
 def _pose_stamped(position, orientation_xyzw, frame_id: str) -> PoseStamped:
