@@ -157,13 +157,25 @@ def redact(text: str, resource_paths: Sequence[str], scenes_dir: Path,
 
 
 def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
-                    extra_sources: Optional[Sequence[str]] = None) -> list:
-    """(uri, description) of the installed objects and of files under the resource paths."""
+                    extra_sources: Optional[Sequence[str]] = None,
+                    unrecognised: Optional[list] = None) -> list:
+    """
+    Return (uri, description) of the installed objects and of files under the resource paths.
+
+    :param extra_sources: more folders (inside the resource paths) to list.
+    :param unrecognised: if given, an extra source that cannot be listed is skipped and why is
+        appended here (GetSpawnables answers OK and names them); otherwise it raises.
+    """
     out = []
     seen = set()
     folders = [scenes_dir / 'objects'] + [Path(p) for p in resource_paths]
     for src in extra_sources or ():
-        folders.append(check_folder(src, resource_paths))
+        try:
+            folders.append(check_folder(src, resource_paths))
+        except MissingAssetsError as exc:
+            if unrecognised is None:
+                raise
+            unrecognised.append(f'{src!r}: {exc}')
     for folder in folders:
         if not folder.is_dir():
             continue

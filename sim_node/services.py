@@ -249,10 +249,14 @@ class SimServices:
         return response
 
     def _srv_spawnables(self, request, response):
+        unrecognised = []  # the standard: named in error_message, and the call succeeds
         for uri, desc in resources.list_spawnables(self._resource_paths, self._scenes_dir,
-                                                   list(request.sources)):
+                                                   list(request.sources), unrecognised):
             response.spawnables.append(Spawnable(uri=uri, description=desc))
         response.result = convert.ok()
+        if unrecognised:
+            response.result.error_message = ('sources not recognised, left out: '
+                                             + '; '.join(unrecognised))
         return response
 
     # ---- simulation control
