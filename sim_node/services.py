@@ -72,6 +72,9 @@ class SimServices:
         }
         if hasattr(si_srv, 'SpawnEntities'):
             table['spawn_entities'] = (si_srv.SpawnEntities, self._srv_spawn_many)
+        # Interfaces of features we do not list: served, so a client hears why, not a timeout.
+        for name, srv_type, feature in UNSUPPORTED:
+            table[name] = (srv_type, _unsupported(feature))
         for name, (srv_type, handler) in table.items():
             self.create_service(srv_type, name, self._guard(srv_type, handler),
                                 qos_profile=SERVICE_QOS, callback_group=g)
@@ -457,6 +460,21 @@ class SimServices:
         response.world = WorldResource(name=sim.name, world_resource=_resource(sim.uri))
         response.result = convert.ok()
         return response
+
+
+#: Interfaces whose features GetSimulatorFeatures does not list: (service, type, feature).
+UNSUPPORTED = (('set_entity_info', si_srv.SetEntityInfo, 'ENTITY_INFO_SETTING'),
+               ('get_named_poses', si_srv.GetNamedPoses, 'NAMED_POSES'),
+               ('get_named_pose_bounds', si_srv.GetNamedPoseBounds, 'POSE_BOUNDS'))
+
+
+def _unsupported(feature: str):
+    def handler(request, response):
+        response.result = Result(result=Result.RESULT_FEATURE_UNSUPPORTED, error_message=(
+            f'{feature} is not supported by this simulator (see get_simulator_features)'))
+        return response
+    handler.__name__ = f'unsupported_{feature.lower()}'
+    return handler
 
 
 def _resource(uri: str) -> Resource:

@@ -433,11 +433,18 @@ def test_rule_20_every_listed_feature_answers_and_unlisted_ones_are_unsupported(
             assert prefix + service in names, f'feature {flag} is listed: {service} must exist'
     if F.ENTITY_STATE_GETTING in features:
         assert prefix + 'get_entities_states' in names
-    if F.ENTITY_INFO_SETTING not in features and prefix + 'set_entity_info' in names:
-        res = raw(sim, 'set_entity_info', srv.SetEntityInfo, entity=sim.entities()[0])
-        assert res.result.result == UNSUPPORTED
-    if F.NAMED_POSES not in features and prefix + 'get_named_poses' in names:
-        assert raw(sim, 'get_named_poses', srv.GetNamedPoses).result.result == UNSUPPORTED
+    # An unlisted feature whose interface is served must answer FEATURE_UNSUPPORTED (0).
+    unlisted = [(F.ENTITY_INFO_SETTING, 'set_entity_info', srv.SetEntityInfo,
+                 {'entity': sim.entities()[0]}),
+                (F.NAMED_POSES, 'get_named_poses', srv.GetNamedPoses, {}),
+                (F.POSE_BOUNDS, 'get_named_pose_bounds', srv.GetNamedPoseBounds,
+                 {'name': 'anything'})]
+    for flag, service, srv_type, fields in unlisted:
+        if flag not in features and prefix + service in names:
+            res = raw(sim, service, srv_type, **fields)
+            assert res.result.result == UNSUPPORTED and res.result.error_message, service
+    if not EXTERNAL:  # this node serves them, to say why
+        assert all(prefix + s in names for _, s, _, _ in unlisted)
 
 
 # ------------------------------------------------------------------ §4: per-service rules
