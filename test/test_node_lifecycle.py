@@ -63,11 +63,14 @@ def _ignore(call) -> None:
         pass
 
 
-def test_quitting_answers_ok_stops_then_exits_with_status_0(start_node, client, watcher):
+def test_quitting_answers_ok_stops_then_exits_with_status_0(start_node, rclpy_context, watcher):
     """Quitting (SetSimulationState): reset (stop) first, answer, then the process ends."""
     import time
+    from sim_node.client import SimClient
     from simulation_interfaces.msg import SimulationState
-    node = start_node()
+    # A namespace of its own: a node killed earlier may linger in the graph for seconds
+    node = start_node(namespace='/quitter')
+    client = SimClient(namespace='/quitter', timeout_sec=30)
     client.spawn('crate', uri='box', position=(0.3, 2.0, 1.0))
     wait_for(lambda: (watcher.latest_clock() or 0) > 0.5, timeout=20)
     t0 = time.monotonic()
@@ -78,8 +81,9 @@ def test_quitting_answers_ok_stops_then_exits_with_status_0(start_node, client, 
     assert 'Traceback' not in out and '[ERROR]' not in out, out
     # stopped before it went: the last /clock is back at the start
     wait_for(lambda: watcher.latest_clock() == 0.0, timeout=2)
-    wait_for(lambda: 'get_simulation_state' not in ' '.join(
-        n for n, _ in client.node.get_service_names_and_types()), timeout=10)
+    wait_for(lambda: '/quitter/get_simulation_state' not in
+             [n for n, _ in client.node.get_service_names_and_types()], timeout=10)
+    client.close()
 
 
 def test_a_second_simulator_in_the_same_namespace_refuses_to_start(start_node, client):
