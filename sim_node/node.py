@@ -27,8 +27,11 @@ from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 from msg_adapters import convert, diagnostics, markers
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -111,6 +114,8 @@ class SimNode(SimServices, Node):
         self._stopped = False  # STATE_STOPPED until play or pause
         self._published_generation = None
         self._published_seq = -1
+        self._tf_time: Optional[float] = None  # the stamp of the last /tf
+        self._tf_sent: set = set()  # the frames sent with that stamp
         self._moving = None
         self._forwarder = _LogForwarder()
         logging.getLogger('sim_node').addHandler(self._forwarder)
@@ -229,7 +234,11 @@ class SimNode(SimServices, Node):
         name = self.resolve_service_name('get_simulator_features')
         deadline = time.monotonic() + window_sec
         while time.monotonic() < deadline and self._publishing.is_set():
-            if self.count_services(name) > 1:
+            try:
+                others = self.count_services(name) - 1
+            except (RCLError, InvalidHandle):  # shutting down (SIGINT, SIGTERM): nothing to do
+                return
+            if others > 0:
                 why = ERR_SECOND_SIMULATOR.format(service=name, ns=self.get_namespace())
                 print(f'[sim] cannot start: {why}', file=sys.stderr, flush=True)
                 self.exit_code = 2
@@ -318,8 +327,30 @@ class SimNode(SimServices, Node):
             return
         self._published_seq = seq
         if len(self._moving):
+            self._publish_tf(info, snap)
+
+    def _publish_tf(self, info, snap) -> None:
+        """
+        /tf of a snapshot, never a frame twice with one stamp.
+
+        Every tf2 listener (RViz too) drops a transform whose stamp it already has and logs
+        TF_REPEATED_DATA. So when time has not moved since the last /tf (paused, stalled, a
+        service's snapshot), only frames not yet sent at this stamp go out: those of an entity
+        spawned meanwhile. A pose set while paused shows on /tf with the next step. A reset
+        (time going back) sends everything again: listeners handle that by the time jump.
+        """
+        if snap.time != self._tf_time:
             self._tf_pub.publish(convert.moving_tf(self._tf_template, info, snap,
                                                    self._moving))
+            self._tf_time = snap.time
+            self._tf_sent = {self._frames[b] for b in self._moving}
+            return
+        new = np.array([b for b in self._moving if self._frames[b] not in self._tf_sent],
+                       dtype=int)
+        if len(new):
+            template = convert.moving_tf_template(info, new, self._frames, self._frame_prefix)
+            self._tf_pub.publish(convert.moving_tf(template, info, snap, new))
+            self._tf_sent |= {self._frames[b] for b in new}
 
     def _publish_model(self, info, sim_time: float) -> None:
         """

@@ -5,6 +5,7 @@ Every test session keeps DDS discovery on loopback and uses its own ROS_DOMAIN_I
 on one machine never meet.
 """
 
+import collections
 import os
 from pathlib import Path
 import random
@@ -191,6 +192,7 @@ class Watcher:
         self.clock = []
         self.tf = {}  # child frame -> (stamp sec, parent, (x, y, z), (qx, qy, qz, qw))
         self.tf_stamps = []  # per /tf message: the set of stamps in it
+        self.tf_sends = collections.Counter()  # (child frame, stamp) -> times received
         self.tf_static = {}
         self.markers = {}  # (ns, id) -> marker
         self.joint_states = None
@@ -228,6 +230,8 @@ class Watcher:
     def _on_tf(self, msg):
         with self.lock:
             self.tf_stamps.append({self._sec(t.header.stamp) for t in msg.transforms})
+            self.tf_sends.update((t.child_frame_id, self._sec(t.header.stamp))
+                                 for t in msg.transforms)
             for ts in msg.transforms:
                 self.tf[ts.child_frame_id] = self._tf_entry(ts)
 

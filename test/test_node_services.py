@@ -5,6 +5,7 @@ One node process serves the whole module (start-up costs seconds); tests that ne
 world reset it first.
 """
 
+import collections
 import math
 import threading
 import time
@@ -80,6 +81,29 @@ def test_tf_stamps_are_simulation_time_one_stamp_per_message(sim, watch):
     assert abs(max(next(iter(s)) for s in stamps) - clock) < 1.0  # sim time, not wall time
     assert clock < 1e6
     assert 'table' in watch.tf_static and watch.tf_static['table'][1] == 'world'
+
+
+def test_tf_never_sends_a_frame_twice_with_one_stamp(sim, watch):
+    """tf2 listeners drop repeats and log TF_REPEATED_DATA: paused, nothing goes again."""
+    sim.pause()
+    time.sleep(0.3)
+    with watch.lock:
+        before = collections.Counter(watch.tf_sends)
+    for _ in range(20):  # each answer takes a snapshot
+        sim.entity_state('box_a')
+    sim.spawn('crate', uri='box', position=(0.3, 2.0, 1.0))
+    sim.set_entity_state('box_b', (0.9, 0.0, 1.5))
+    for _ in range(10):
+        sim.entities_states()
+    wait_for(lambda: 'crate' in watch.tf, timeout=5)  # spawned while paused: on /tf at once
+    sim.step(1)  # a new stamp: everything once more, box_b where it was set
+    wait_for(lambda: abs(watch.tf['box_b'][2][2] - 1.5) < 1e-3, timeout=5)
+    time.sleep(0.5)
+    with watch.lock:
+        sent = collections.Counter(watch.tf_sends)
+    sent.subtract(before)
+    repeated = {k: n for k, n in sent.items() if n > 1}
+    assert not repeated, sorted(repeated)[:5]
 
 
 def test_step_simulation_advances_clock_by_exactly_n_steps(sim, watch):
