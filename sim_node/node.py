@@ -20,6 +20,7 @@ import logging
 import os
 from pathlib import Path
 import signal
+import socket
 import sys
 import threading
 import time
@@ -29,14 +30,13 @@ from diagnostic_msgs.msg import DiagnosticArray
 from msg_adapters import convert, diagnostics, markers
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-from rclpy._rclpy_pybind11 import RCLError
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
@@ -55,8 +55,8 @@ from .trajectories import TrajectoryServers
 NODE_NAME = 'sim'
 
 
-DUPLICATE_WINDOW_SEC = 8.0
-ERR_SECOND_SIMULATOR = ('another simulator already serves {service} (namespace {ns!r}): start '
+DUPLICATE_WINDOW_SEC = 15.0
+ERR_SECOND_SIMULATOR = ('another simulator already runs in namespace {ns!r}: start '
                         'this one in a namespace of its own with a frame prefix (--ros-args -r '
                         '__ns:=/sim2 -p frame_prefix:=sim2/ -p publish_clock:=false, see the '
                         'README), or set allow_second_simulator:=true')
@@ -216,36 +216,47 @@ class SimNode(SimServices, Node):
         self._model_thread.start()
         self._commands.start()
         self.perception.start()
-        if not self._param('allow_second_simulator'):
-            threading.Thread(target=self._leave_if_another_simulator, name='sim-alone',
-                             daemon=True).start()
+        self._announce_instance()
 
-    def _leave_if_another_simulator(self, window_sec: float = DUPLICATE_WINDOW_SEC) -> None:
+    def _announce_instance(self, window_sec: float = DUPLICATE_WINDOW_SEC) -> None:
         """
-        Exit (status 2, one line why) if another simulator serves our services here.
+        One simulator per name: a newer node beside an older one says why and exits 2.
 
-        One simulator per name, checked in a node's first seconds: two would answer one service
-        name at random (seen: 3 of 4 fresh clients talked to one, the other to the other) and
-        publish two /clock. DDS discovery takes about 3 s here, so waiting for it before
-        starting would delay every start by as much: the check runs beside the start instead,
-        and only a node in its first `window_sec` looks (the one already running stays). Our own
-        server counts as one.
+        Two would answer one service name at random (seen: 3 of 4 fresh clients talked to one,
+        the other to the other) and publish two /clock. Each node publishes its start (wall
+        time, pid, host) on the hidden, latched ``_sim_instances`` topic of its namespace; for
+        `window_sec` after its start a node listens there, and leaves if it hears of an older
+        one (the older never yields, so exactly one stays). DDS discovery takes about 3 s here:
+        a check before starting would delay every start by as much.
         """
-        name = self.resolve_service_name('get_simulator_features')
+        self._instance = f'{time.time():.6f} {os.getpid()} {socket.gethostname()}'
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._instance_pub = self.create_publisher(String, '_sim_instances', qos)
+        self._instance_pub.publish(String(data=self._instance))
+        if self._param('allow_second_simulator'):
+            return
         deadline = time.monotonic() + window_sec
-        while time.monotonic() < deadline and self._publishing.is_set():
+
+        def heard(msg: String) -> None:
+            if time.monotonic() > deadline or msg.data == self._instance:
+                return
             try:
-                others = self.count_services(name) - 1
-            except (RCLError, InvalidHandle):  # shutting down (SIGINT, SIGTERM): nothing to do
-                return
-            if others > 0:
-                why = ERR_SECOND_SIMULATOR.format(service=name, ns=self.get_namespace())
-                print(f'[sim] cannot start: {why}', file=sys.stderr, flush=True)
+                older = (float(msg.data.split()[0]), msg.data) < \
+                    (float(self._instance.split()[0]), self._instance)
+            except (ValueError, IndexError):
+                return  # not ours
+            if older and self.exit_code == 0:
                 self.exit_code = 2
-                self.shutdown()
-                os.kill(os.getpid(), signal.SIGINT)
-                return
-            time.sleep(0.1)
+                threading.Thread(target=self._leave, name='sim-leave', daemon=True).start()
+        self.create_subscription(String, '_sim_instances', heard, qos,
+                                 callback_group=self._pub_group)
+
+    def _leave(self) -> None:
+        why = ERR_SECOND_SIMULATOR.format(ns=self.get_namespace())
+        print(f'[sim] cannot start: {why}', file=sys.stderr, flush=True)
+        self.shutdown()
+        os.kill(os.getpid(), signal.SIGINT)
 
     def _install(self, world: World, name: str, uri: str, paused: bool = False) -> None:
         loop = SimLoop(world)

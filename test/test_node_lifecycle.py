@@ -88,12 +88,13 @@ def test_quitting_answers_ok_stops_then_exits_with_status_0(start_node, rclpy_co
 
 def test_a_second_simulator_in_the_same_namespace_refuses_to_start(start_node, client):
     """Two would answer service calls at random: the second exits 2 with one line saying why."""
-    start_node()
+    first = start_node()
     client.entities()  # the first is up and answering
     second = start_node()
     assert second.proc.wait(30) == 2
     out = second.output()
-    assert 'another simulator already serves' in out and '__ns:=' in out, out
+    assert 'another simulator already runs' in out and '__ns:=' in out, out
+    assert first.proc.poll() is None, first.output()  # the older one stays
     assert 'Traceback' not in out
     third = start_node('allow_second_simulator:=true', 'publish_clock:=false')
     import time
