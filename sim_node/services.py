@@ -246,7 +246,8 @@ class SimServices:
         return response
 
     def _srv_get_bounds(self, request, response):
-        lo, hi = self._require().world.entity_bounds(request.entity)
+        # The standard: in the entity's canonical link frame (its root body's frame).
+        lo, hi = self._require().world.entity_bounds(request.entity, local=True)
         response.bounds = convert.bounds_box(lo, hi)
         response.result = convert.ok()
         return response

@@ -85,22 +85,28 @@ def write_free_body(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecor
                                                    ang)
 
 
-def bounds(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecord) -> tuple:
+def bounds(model: mujoco.MjModel, data: mujoco.MjData, rec: EntityRecord,
+           local: bool = False) -> tuple:
     """
-    Axis-aligned bounds of an entity's geoms (infinite planes left out) in the world frame.
+    Axis-aligned bounds of an entity's geoms (infinite planes left out).
 
-    (min (3,), max (3,)); the root body's position twice when it has no such geom.
+    In the world frame, or with `local` in the root body's frame (the entity's canonical
+    link frame, where GetEntityBounds gives them: they do not change as the entity moves).
+    (min (3,), max (3,)); the root body's position (or origin) twice when it has no such geom.
     """
+    root = rec.root_body
+    frame_rot = data.xmat[root].reshape(3, 3) if local else np.eye(3)
+    frame_pos = data.xpos[root] if local else np.zeros(3)
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for g in rec.geom_ids:
         if model.geom_type[g] == _PLANE:
             continue
-        rot = data.geom_xmat[g].reshape(3, 3)
-        c = data.geom_xpos[g] + rot @ model.geom_aabb[g, :3]
+        rot = frame_rot.T @ data.geom_xmat[g].reshape(3, 3)
+        c = frame_rot.T @ (data.geom_xpos[g] - frame_pos) + rot @ model.geom_aabb[g, :3]
         ext = np.abs(rot) @ model.geom_aabb[g, 3:]
         lo, hi = np.minimum(lo, c - ext), np.maximum(hi, c + ext)
     if not np.all(np.isfinite(lo)):
-        pos = data.xpos[rec.root_body].copy()
+        pos = np.zeros(3) if local else data.xpos[root].copy()
         return pos, pos
     return lo, hi
 

@@ -238,12 +238,16 @@ class World(StateWrites, WorldEdits):
                                       info.body_mount[rec.root_body],
                                       None if mesh_dir is None else Path(mesh_dir))
 
-    def entity_bounds(self, name: str) -> tuple:
-        """Axis-aligned bounds of an entity's geoms in the world frame: (min (3,), max (3,))."""
+    def entity_bounds(self, name: str, local: bool = False) -> tuple:
+        """
+        Axis-aligned bounds of an entity's geoms: (min (3,), max (3,)).
+
+        In the world frame, or with `local` in the entity's own (root body) frame.
+        """
         with self._locked():
             rec = self._index.entity(name)
             self._kinematics_locked()
-            return state.bounds(self._model, self._data, rec)
+            return state.bounds(self._model, self._data, rec, local)
 
     # ---------------------------------------------------------------- snapshots and state
 

@@ -526,6 +526,23 @@ def test_entity_bounds_are_a_box_by_default(sim, features):
     assert kind == Bounds.TYPE_BOX and len(points) == 2
 
 
+def test_entity_bounds_are_in_the_entitys_own_frame(sim, features):
+    """§4.10: in the entity's canonical link frame: moving or turning it changes nothing."""
+    needs(features, F.ENTITY_BOUNDS, F.ENTITY_STATE_SETTING, F.SPAWNING)
+    name = sim.spawn('conformance_item', uri=spawnable(sim), position=(1.5, -2.5, 1.5))
+    sim.pause()
+    sim.set_entity_state(name, (1.5, -2.5, 1.5))
+    kind, first = sim.entity_bounds(name)
+    yaw = 0.7
+    sim.set_entity_state(name, (-1.0, -2.0, 2.5), (0, 0, math.sin(yaw / 2), math.cos(yaw / 2)))
+    _, moved = sim.entity_bounds(name)
+    assert kind == Bounds.TYPE_BOX
+    assert [c for p in moved for c in p] == pytest.approx([c for p in first for c in p],
+                                                          abs=1e-9)
+    lo, hi = first
+    assert all(a < b for a, b in zip(lo, hi))
+
+
 def test_unload_then_load_world_states_and_codes(sim, features):
     needs(features, F.WORLD_LOADING, F.WORLD_UNLOADING, F.WORLD_INFO_GETTING)
     uri = raw(sim, 'get_current_world', srv.GetCurrentWorld).world.world_resource.uri
