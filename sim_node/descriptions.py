@@ -16,14 +16,13 @@ from typing import Callable
 
 from msg_adapters.perception import topic_token
 from rclpy.event_handler import PublisherEventCallbacks
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from .core.errors import SimError
 from .core.records import ModelInfo
+from .qos import LATCHED_QOS
 
-DESCRIPTION_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DESCRIPTION_QOS = LATCHED_QOS
 
 
 def default_mesh_dir() -> Path:

@@ -33,7 +33,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -49,6 +48,7 @@ from .core.records import EFFORT, POSITION, VELOCITY
 from .core.world import World
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
+from .qos import LATCHED_QOS
 from .services import ERR_NO_WORLD, Sim, SimServices
 from .trajectories import TrajectoryServers
 
@@ -115,7 +115,8 @@ class SimNode(SimServices, Node):
         self._published_generation = None
         self._published_seq = -1
         self._tf_time: Optional[float] = None  # the stamp of the last /tf
-        self._tf_sent: set = set()  # the frames sent with that stamp
+        self._tf_layout = ((), None)  # (frame names, moving bodies) that /tf went with
+        self._tf_added: set = set()  # frames sent since at the same stamp (new entities)
         self._moving = None
         self._forwarder = _LogForwarder()
         logging.getLogger('sim_node').addHandler(self._forwarder)
@@ -123,13 +124,11 @@ class SimNode(SimServices, Node):
 
         self._pub_group = MutuallyExclusiveCallbackGroup()
         self._srv_group = ReentrantCallbackGroup()
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                             reliability=ReliabilityPolicy.RELIABLE)
         self._clock_pub = (self.create_publisher(Clock, '/clock', 10)
                            if p('publish_clock') else None)
         self._tf_pub = self.create_publisher(TFMessage, '/tf', 100)
-        self._tf_static_pub = self.create_publisher(TFMessage, '/tf_static', latched)
-        self._marker_pub = self.create_publisher(MarkerArray, 'markers', latched)
+        self._tf_static_pub = self.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
+        self._marker_pub = self.create_publisher(MarkerArray, 'markers', LATCHED_QOS)
         self._joint_pub = self.create_publisher(JointState, 'joint_states', 10)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._diagnostics_name = f'{self.get_fully_qualified_name()}: physics'
@@ -230,9 +229,7 @@ class SimNode(SimServices, Node):
         a check before starting would delay every start by as much.
         """
         self._instance = f'{time.time():.6f} {os.getpid()} {socket.gethostname()}'
-        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self._instance_pub = self.create_publisher(String, '_sim_instances', qos)
+        self._instance_pub = self.create_publisher(String, '_sim_instances', LATCHED_QOS)
         self._instance_pub.publish(String(data=self._instance))
         if self._param('allow_second_simulator'):
             return
@@ -249,12 +246,17 @@ class SimNode(SimServices, Node):
             if older and self.exit_code == 0:
                 self.exit_code = 2
                 threading.Thread(target=self._leave, name='sim-leave', daemon=True).start()
-        self.create_subscription(String, '_sim_instances', heard, qos,
+        self.create_subscription(String, '_sim_instances', heard, LATCHED_QOS,
                                  callback_group=self._pub_group)
 
     def _leave(self) -> None:
         why = ERR_SECOND_SIMULATOR.format(ns=self.get_namespace())
         print(f'[sim] cannot start: {why}', file=sys.stderr, flush=True)
+        self.end_process()
+
+    def end_process(self, delay_sec: float = 0.0) -> None:
+        """After `delay_sec`, stop the node's threads and end as on Ctrl-C (main exits)."""
+        time.sleep(delay_sec)
         self.shutdown()
         os.kill(os.getpid(), signal.SIGINT)
 
@@ -354,14 +356,17 @@ class SimNode(SimServices, Node):
             self._tf_pub.publish(convert.moving_tf(self._tf_template, info, snap,
                                                    self._moving))
             self._tf_time = snap.time
-            self._tf_sent = {self._frames[b] for b in self._moving}
+            self._tf_layout, self._tf_added = (self._frames, self._moving), set()
             return
-        new = np.array([b for b in self._moving if self._frames[b] not in self._tf_sent],
-                       dtype=int)
+        frames, moving = self._tf_layout
+        if moving is self._moving:  # the layout it went with: every frame went already
+            return
+        sent = {frames[b] for b in moving} | self._tf_added  # built only when time stands
+        new = np.array([b for b in self._moving if self._frames[b] not in sent], dtype=int)
         if len(new):
             template = convert.moving_tf_template(info, new, self._frames, self._frame_prefix)
             self._tf_pub.publish(convert.moving_tf(template, info, snap, new))
-            self._tf_sent |= {self._frames[b] for b in new}
+            self._tf_added |= {self._frames[b] for b in new}
 
     def _publish_model(self, info, sim_time: float) -> None:
         """

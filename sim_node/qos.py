@@ -11,7 +11,12 @@ requests).
 Clients that may call together with many others should use :data:`SERVICE_QOS` too.
 """
 
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 SERVICE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE)
+
+#: Latched topics (/tf_static, markers, robot descriptions, the instance announcement): the
+#: last message reaches a subscriber that comes later, as robot_state_publisher offers it.
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                          reliability=ReliabilityPolicy.RELIABLE)

@@ -5,10 +5,7 @@ Each callback converts the request, calls the core, converts the answer (``msg_a
 of :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameters and lifecycle.
 """
 
-import os
-import signal
 import threading
-import time
 
 from msg_adapters import convert, markers
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -334,14 +331,18 @@ class SimServices:
             self._stopped = False
             sim.loop.pause()
         else:
-            sim.loop.pause()
-            sim.world.reset(RESET_ALL)
-            sim.loop.recover()
-            self._stopped = True
-            self._after_change(sim)
+            self._stop(sim)
         self._sync_paused_parameter()
         response.result = convert.ok()
         return response
+
+    def _stop(self, sim: Sim) -> None:
+        """Stop (STOPPED): pause and reset everything; a failed loop comes back."""
+        sim.loop.pause()
+        sim.world.reset(RESET_ALL)
+        sim.loop.recover()
+        self._stopped = True
+        self._after_change(sim)
 
     def _quit(self, response):
         """
@@ -353,17 +354,10 @@ class SimServices:
         sim = self._sim
         if sim is not None:
             sim.loop.cancel_steps()
-            sim.loop.pause()
-            sim.world.reset(RESET_ALL)
-            self._stopped = True
-            self._after_change(sim)
+            self._stop(sim)
         self.get_logger().info('QUITTING requested: the simulation is stopped; exiting')
-
-        def leave():
-            time.sleep(QUIT_DELAY_SEC)
-            self.shutdown()
-            os.kill(os.getpid(), signal.SIGINT)
-        threading.Thread(target=leave, name='sim-quit', daemon=True).start()
+        threading.Thread(target=self.end_process, args=(QUIT_DELAY_SEC,), name='sim-quit',
+                         daemon=True).start()
         response.result = convert.ok()
         return response
 

@@ -54,7 +54,6 @@ class ModelIndex:
     joint_qposadr: np.ndarray
     joint_dofadr: np.ndarray
     joint_actuators: tuple  # per joint: {mode: actuator id}
-    joint_entity: tuple  # per joint: the name of the entity it belongs to
     geom_names: tuple  # (ngeom,) '' for unnamed
     entities: tuple  # EntityRecord, in model order
     entity_by_name: dict
@@ -140,7 +139,6 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
         joint_qposadr=m.jnt_qposadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_dofadr=m.jnt_dofadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_actuators=_classify_actuators(m, jids),
-        joint_entity=joint_entity,
         geom_names=tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ''
                          for g in range(m.ngeom)),
         entities=entities, entity_by_name={e.name: e for e in entities}, info=info)

@@ -356,7 +356,7 @@ class World(StateWrites, WorldEdits):
         """
         with self._locked():
             index, d = self._index, self._data
-            known = dict(zip(index.joint_names, index.joint_entity))
+            known = dict(zip(index.joint_names, index.info.joint_entity))
             t, q, v, a = trajectory.check(joint_names, times, positions, velocities,
                                           accelerations, known, entity)
             now = float(d.time)
