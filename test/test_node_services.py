@@ -92,10 +92,12 @@ def test_tf_never_sends_a_frame_twice_with_one_stamp(sim, watch):
     for _ in range(20):  # each answer takes a snapshot
         sim.entity_state('box_a')
     sim.spawn('crate', uri='box', position=(0.3, 2.0, 1.0))
-    sim.set_entity_state('box_b', (0.9, 0.0, 1.5))
+    wait_for(lambda: 'crate' in watch.tf, timeout=5)  # spawned while paused: on /tf at once
+    for z in (1.3, 1.4, 1.5):  # changes while paused, each published apart: no frame again
+        sim.set_entity_state('box_b', (0.9, 0.0, z))
+        time.sleep(0.2)
     for _ in range(10):
         sim.entities_states()
-    wait_for(lambda: 'crate' in watch.tf, timeout=5)  # spawned while paused: on /tf at once
     sim.step(1)  # a new stamp: everything once more, box_b where it was set
     wait_for(lambda: abs(watch.tf['box_b'][2][2] - 1.5) < 1e-3, timeout=5)
     time.sleep(0.5)
