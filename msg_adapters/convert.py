@@ -35,6 +35,7 @@ RESULT_CODES = (
     (errors.ResourceParseError, Result.RESULT_OPERATION_FAILED, 'RESOURCE_PARSE_ERROR'),
     (errors.MissingAssetsError, Result.RESULT_OPERATION_FAILED, 'MISSING_ASSETS'),
     (errors.UnsupportedAssetsError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_ASSETS'),
+    (errors.UnsupportedElementsError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_ELEMENTS'),
     (errors.InvalidPoseError, Result.RESULT_OPERATION_FAILED, 'INVALID_POSE'),
     (errors.OperationFailedError, Result.RESULT_OPERATION_FAILED, None),
     (errors.IncorrectStateError, Result.RESULT_INCORRECT_STATE, None),
@@ -148,13 +149,21 @@ def entity_filters(filters) -> dict:
         raise errors.FeatureUnsupportedError(
             'convex hull bounds filters are not supported (ENTITY_BOUNDS_CONVEX is not listed): '
             'use a box or a sphere')
+    elif b.type != Bounds.TYPE_EMPTY:
+        raise errors.FeatureUnsupportedError(
+            f'bounds type {b.type} is none of the standard ones (0 empty, 1 box, 2 convex '
+            'hull, 3 sphere): use a box or a sphere')
+    if len(filters.tags.tags):
+        raise errors.FeatureUnsupportedError(
+            'tag filters are not supported (ENTITY_TAGS is not listed): entities carry no tags')
     return out
 
 
 def simulation_state(loop_state: str) -> SimulationState:
     code = {'playing': SimulationState.STATE_PLAYING, 'paused': SimulationState.STATE_PAUSED,
             'stopped': SimulationState.STATE_STOPPED,
-            'no_world': SimulationState.STATE_NO_WORLD}[loop_state]
+            'no_world': SimulationState.STATE_NO_WORLD,
+            'loading_world': SimulationState.STATE_LOADING_WORLD}[loop_state]
     return SimulationState(state=code)
 
 

@@ -22,7 +22,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Poin
 from sim_node.core import quat
 from sim_node.core.cameras import OPTICAL_FROM_MUJOCO_WXYZ
 from sim_node.core.lidar import LaserConfig, LaserReading
-from sim_node.core.records import CameraSpec, ModelInfo, SensorSpec, SiteSpec
+from sim_node.core.records import CameraSpec, EntityRecord, ModelInfo, SensorSpec, SiteSpec
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from tf2_msgs.msg import TFMessage
 
@@ -38,6 +38,11 @@ def topic_token(name: str) -> str:
     """Turn a MuJoCo name into valid ROS name tokens (``a b/1x`` -> ``a_b/_1x``)."""
     parts = [p for p in _NOT_IN_NAME.sub('_', name).split('/') if p]
     return '/'.join('_' + p if p[0].isdigit() else p for p in parts) or '_'
+
+
+def interface_base(entity: EntityRecord) -> str:
+    """Where an entity's own interfaces go: the namespace it was spawned with, else its name."""
+    return entity.namespace.rstrip('/') or topic_token(entity.name)
 
 
 def camera_frame(info: ModelInfo, cam: CameraSpec, prefix: str = '') -> str:

@@ -15,6 +15,7 @@ Tests and machines without ros2cli. Plain Python arguments in, plain values out;
 import time
 from typing import Optional, Sequence
 
+from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from msg_adapters import convert
 import rclpy
@@ -25,7 +26,11 @@ from simulation_interfaces import srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import EntityState, Result, SimulationState
 
-from .qos import SERVICE_QOS
+from .qos import FEEDBACK_QOS, SERVICE_QOS
+
+
+#: After a simulate_steps goal succeeds, how long a client waits for feedback in flight (s).
+FEEDBACK_DRAIN_SEC = 2.0
 
 
 class SimServiceError(RuntimeError):
@@ -222,24 +227,54 @@ class SimClient:
             if exc.code != srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE:
                 raise
 
-    def simulate_steps(self, steps: int, feedback=None):
-        """Run the simulate_steps action; `feedback(completed, remaining)` per update."""
-        client = ActionClient(self.node, SimulateSteps, self._name('simulate_steps'))
+    def simulate_steps(self, steps: int, feedback=None, cancel_when=None):
+        """
+        Run the simulate_steps action; return its Result (raise unless OK).
+
+        :param feedback: called as ``feedback(completed, remaining)`` on every feedback message.
+        :param cancel_when: called likewise; the goal is canceled the first time it returns true
+            (the Result then says after how many steps).
+        """
+        client = ActionClient(self.node, SimulateSteps, self._name('simulate_steps'),
+                              feedback_sub_qos_profile=FEEDBACK_QOS)
+        canceling, remaining = [], [steps]
+
+        def on_feedback(msg):
+            done, left = msg.feedback.completed_steps, msg.feedback.remaining_steps
+            remaining[0] = left
+            if feedback is not None:
+                feedback(done, left)
+            if cancel_when is not None and not canceling and cancel_when(done, left):
+                canceling.append(goal.result().cancel_goal_async())
         try:
             if not client.wait_for_server(timeout_sec=self._timeout):
                 raise TimeoutError('simulate_steps action server not available')
-            cb = None if feedback is None else (
-                lambda m: feedback(m.feedback.completed_steps, m.feedback.remaining_steps))
-            goal = client.send_goal_async(SimulateSteps.Goal(steps=steps), feedback_callback=cb)
+            goal = client.send_goal_async(SimulateSteps.Goal(steps=steps),
+                                          feedback_callback=on_feedback)
             self._executor.spin_until_future_complete(goal, self._timeout)
-            res = goal.result().get_result_async()
+            handle = goal.result()
+            if feedback is not None or cancel_when is not None:
+                # rclpy drops a goal's feedback once its result is in, and the two travel
+                # apart: ask for the result after the last feedback (or the goal's end).
+                self._spin_until(lambda: not remaining[0] or handle.status in (
+                    GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED), self._timeout)
+                if remaining[0] and handle.status == GoalStatus.STATUS_SUCCEEDED:
+                    self._spin_until(lambda: not remaining[0], FEEDBACK_DRAIN_SEC)
+            res = handle.get_result_async()
             self._executor.spin_until_future_complete(res, self._timeout)
+            if not res.done():
+                raise TimeoutError(f'simulate_steps did not finish within {self._timeout} s')
             result = res.result().result.result
             if result.result != Result.RESULT_OK:
                 raise SimServiceError('simulate_steps', result.result, result.error_message)
             return result
         finally:
             client.destroy()
+
+    def _spin_until(self, done, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while not done() and time.monotonic() < deadline:
+            self._executor.spin_once(timeout_sec=0.01)
 
     def load_world(self, uri: str = '', resource_string: str = '') -> str:
         return self.call('load_world', srv.LoadWorld, srv.LoadWorld.Request(

@@ -14,7 +14,7 @@ from pathlib import Path
 import threading
 from typing import Callable
 
-from msg_adapters.perception import topic_token
+from msg_adapters.perception import interface_base
 from rclpy.event_handler import PublisherEventCallbacks
 from std_msgs.msg import String
 
@@ -48,7 +48,7 @@ class RobotDescriptions:
         self._node = node
         self._current_sim = current_sim
         self._mesh_dir = mesh_dir
-        self._pubs: dict = {}  # entity -> (publisher, the text last sent)
+        self._pubs: dict = {}  # entity -> (publisher, the text last sent, its namespace)
         self._lock = threading.Lock()
 
     def sync(self, info: ModelInfo) -> None:
@@ -57,8 +57,9 @@ class RobotDescriptions:
         if sim is None:
             return
         entities = described_entities(info)
+        bases = {e.name: interface_base(e) for e in info.entities if e.name in entities}
         with self._lock:
-            for entity in [e for e in self._pubs if e not in entities]:
+            for entity in [e for e, v in self._pubs.items() if bases.get(e) != v[2]]:
                 self._node.destroy_publisher(self._pubs.pop(entity)[0])
         for entity in entities:
             try:
@@ -66,17 +67,17 @@ class RobotDescriptions:
             except SimError:  # gone since this generation: the next sync drops it
                 continue
             with self._lock:
-                pub, sent = self._pubs.get(entity, (None, None))
+                pub, sent, _ = self._pubs.get(entity, (None, None, None))
                 if pub is None:
                     pub = self._node.create_publisher(
-                        String, f'{topic_token(entity)}/robot_description', DESCRIPTION_QOS,
+                        String, f'{bases[entity]}/robot_description', DESCRIPTION_QOS,
                         event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
                 if text != sent:
                     pub.publish(String(data=text))
-                self._pubs[entity] = (pub, text)
+                self._pubs[entity] = (pub, text, bases[entity])
 
     def close(self) -> None:
         with self._lock:
-            for pub, _ in self._pubs.values():
+            for pub, _, _ in self._pubs.values():
                 self._node.destroy_publisher(pub)
             self._pubs.clear()

@@ -32,10 +32,13 @@ class Region:
     a: np.ndarray  # box: min corner; sphere: centre
     b: np.ndarray  # box: max corner; sphere: (radius, 0, 0)
 
-    def contains(self, p: np.ndarray) -> bool:
+    def overlaps(self, lo: np.ndarray, hi: np.ndarray) -> bool:
+        """Whether the box with corners `lo`, `hi` (an entity's bounds) meets this region."""
         if self.kind == 'box':
-            return bool(np.all(self.a <= p) and np.all(p <= self.b))
-        return math.dist(p, self.a) <= float(self.b[0])
+            a, b = np.minimum(self.a, self.b), np.maximum(self.a, self.b)  # either corner order
+            return bool(np.all(a <= hi) and np.all(lo <= b))
+        nearest = np.clip(self.a, lo, hi)  # the point of the box closest to the centre
+        return math.dist(nearest, self.a) <= float(self.b[0])
 
 
 def query(world: World, pattern: str = '', categories: Optional[set] = None,
@@ -45,7 +48,9 @@ def query(world: World, pattern: str = '', categories: Optional[set] = None,
 
     Whose name `pattern` (a regular expression, at most :data:`FILTER_TIMEOUT_SEC` of matching in
     all) finds, whose category is in `categories` (None: any), and whose root body origin lies in
-    `region` (None: anywhere). Entities carry no tags, so any tag matches nothing.
+    `region` (None: anywhere) overlaps: the region meets the entity's axis-aligned bounds
+    in the world frame (GetEntityBounds' box, seen from the world), as the standard says.
+    Entities carry no tags (ENTITY_TAGS is not listed): the node refuses tag filters.
     """
     recs = world.entities()
     if pattern:
@@ -64,5 +69,5 @@ def query(world: World, pattern: str = '', categories: Optional[set] = None,
     if tags:
         recs = []
     if region is not None:
-        recs = [r for r in recs if region.contains(world.get_entity_state(r.name).position)]
+        recs = [r for r in recs if region.overlaps(*world.entity_bounds(r.name))]
     return recs

@@ -112,6 +112,8 @@ class SimNode(SimServices, Node):
         self._syncing_thread: Optional[int] = None  # set while we mirror `paused` ourselves
         self._sim_lock = threading.RLock()
         self._stopped = False  # STATE_STOPPED until play or pause
+        self._loading = 0  # load_world requests being read and compiled (STATE_LOADING_WORLD)
+        self._loading_lock = threading.Lock()
         self._published_generation = None
         self._published_seq = -1
         self._tf_time: Optional[float] = None  # the stamp of the last /tf

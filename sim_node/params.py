@@ -31,7 +31,7 @@ def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
 #: set /sim real_time_factor 1``) is taken as that number, as users type them.
 DOUBLES = ('real_time_factor', 'timestep', 'max_sim_time', 'tf_rate_hz', 'joint_states_rate_hz',
            'kp', 'kd', 'camera_rate_hz', 'lidar_rate_hz', 'lidar_angle_min', 'lidar_angle_max',
-           'lidar_range_min', 'lidar_range_max')
+           'lidar_range_min', 'lidar_range_max', 'world_extent')
 
 
 def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
@@ -106,6 +106,10 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('divergence_policy', c.divergence_policy, d(
         "when the physics diverges while playing: 'pause', 'remove' the entity it happened in "
         "(if spawned) and play on, or 'reset' the state and play on", read_only=True))
+    node.declare_parameter('world_extent', c.world_extent, d(
+        'entities may be placed only within this many metres of the world origin on each axis: '
+        'a pose outside is invalid (spawn 109, set_entity_state 101)', read_only=True,
+        fmin=1.0, fmax=1e7))
     node.declare_parameter('max_bodies', c.max_bodies, d(
         'most bodies the world may hold; a spawn past it is refused', read_only=True,
         imin=2, imax=100_000))
@@ -121,6 +125,9 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('trajectory_feedback_hz', 20.0, d(
         'FollowJointTrajectory feedback and controller_state messages per wall second while '
         'a goal runs', fmin=0.1, fmax=1000))
+    node.declare_parameter('simulate_steps_feedback_every', 1, d(
+        'the simulate_steps action sends feedback after every this many steps (and the last); '
+        '1, as the standard says: after each step', imin=1, imax=2 ** 62))
     node.declare_parameter('mesh_cache_mb', c.mesh_cache_mb, d(
         "MuJoCo's cache of processed meshes (MiB): a second spawn of a robot, and edits of a "
         'world holding robots, reuse their meshes from it; 0 turns it off', read_only=True,
@@ -195,5 +202,5 @@ def world_config(node: Node) -> WorldConfig:
         # Twice the fastest publisher, so that every publishing tick finds a new snapshot.
         snapshot_rate_hz=2 * max(p('tf_rate_hz'), p('joint_states_rate_hz')),
         kp=p('kp'), kd=p('kd'), allow_interpenetration=p('allow_interpenetration'),
-        max_bodies=p('max_bodies'), divergence_policy=p('divergence_policy'),
-        mesh_cache_mb=p('mesh_cache_mb'))
+        max_bodies=p('max_bodies'), world_extent=p('world_extent'),
+        divergence_policy=p('divergence_policy'), mesh_cache_mb=p('mesh_cache_mb'))

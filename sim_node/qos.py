@@ -20,3 +20,10 @@ SERVICE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
 #: last message reaches a subscriber that comes later, as robot_state_publisher offers it.
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                          reliability=ReliabilityPolicy.RELIABLE)
+
+#: simulate_steps feedback: one message per step (the standard), sent in bursts after each chunk
+#: of steps. A reader at ROS's default depth of 10 (``ros2 action send_goal``) keeps only the
+#: newest of a burst; a client that wants every message subscribes with this depth
+#: (:class:`~sim_node.client.SimClient` does).
+FEEDBACK_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
+                          reliability=ReliabilityPolicy.RELIABLE)

@@ -12,19 +12,21 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from simulation_interfaces import srv as si_srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Result,
-                                       SimulationState, SimulatorFeatures, Spawnable, TagsFilter,
+                                       SimulationState, SimulatorFeatures, Spawnable,
                                        WorldResource)
 from tf2_msgs.msg import TFMessage
 
 from . import entity_query, resources
 from .core import sources
-from .core.errors import NotFoundError, SimError
+from .core.errors import FeatureUnsupportedError, NotFoundError, SimError
 from .core.loop import SimLoop
 from .core.records import RESET_ALL
 from .core.world import World
-from .qos import SERVICE_QOS
+from .qos import FEEDBACK_QOS, SERVICE_QOS
 
 MAX_RESOURCE_STRING_BYTES = 5_000_000
+#: Most steps simulate_steps runs between two looks for a cancel (a few ms of physics).
+SIMULATE_CHUNK_STEPS = 200
 QUIT_DELAY_SEC = 0.3  # after the QUITTING answer, before the process ends
 ERR_NO_WORLD = 'no world is loaded; call load_world first'
 ERR_TOO_MANY_STEPS = ('{n} steps is more than one step_simulation request may take '
@@ -78,7 +80,8 @@ class SimServices:
         self._action = ActionServer(
             self, SimulateSteps, 'simulate_steps', execute_callback=self._act_simulate,
             goal_callback=lambda goal: GoalResponse.ACCEPT,
-            cancel_callback=lambda handle: CancelResponse.ACCEPT, callback_group=g)
+            cancel_callback=lambda handle: CancelResponse.ACCEPT, callback_group=g,
+            feedback_pub_qos_profile=FEEDBACK_QOS)
 
     def _guard(self, srv_type, handler):
         """Every core error becomes a Result; nothing escapes to kill spin()."""
@@ -229,7 +232,9 @@ class SimServices:
             request.entity, position=pos, quat_wxyz=quat,
             linear_velocity=convert.vec_from_msg(st.twist.linear),
             angular_velocity=convert.vec_from_msg(st.twist.angular),
-            reference=self._reference_frame(st.header.frame_id))
+            reference=self._reference_frame(st.header.frame_id),
+            acceleration=[*convert.vec_from_msg(st.acceleration.linear),
+                          *convert.vec_from_msg(st.acceleration.angular)])
         self._after_change(sim)
         response.result = convert.ok()
         return response
@@ -286,6 +291,8 @@ class SimServices:
 
     def _sim_state(self) -> str:
         sim = self._sim
+        if self._loading:
+            return 'loading_world'
         if sim is None:
             return 'no_world'
         if self._stopped or sim.loop.failure:
@@ -312,6 +319,10 @@ class SimServices:
                 f'cannot set state {target}: use PLAYING ({s.STATE_PLAYING}), PAUSED '
                 f'({s.STATE_PAUSED}), STOPPED ({s.STATE_STOPPED}) or QUITTING '
                 f'({s.STATE_QUITTING})'))
+            return response
+        if self._loading:  # the standard: not until the world has loaded
+            response.result = Result(result=resp.INCORRECT_TRANSITION, error_message=(
+                'a world is loading (LOADING_WORLD): ask again when load_world has answered'))
             return response
         sim = self._require()
         sim.loop.cancel_steps()  # any state request ends a step request in progress
@@ -372,7 +383,12 @@ class SimServices:
                                    error_message=ERR_NO_WORLD if sim is None else
                                    'steps must be >= 1')
             return result
-        chunk = max(1, total // 100)
+        # The standard: feedback after each step. The physics runs in chunks (a hundredth of
+        # the goal, at most SIMULATE_CHUNK_STEPS) and a message goes out for every step of each
+        # chunk, or every
+        # `simulate_steps_feedback_every`-th and the last.
+        every = max(1, int(self.get_parameter('simulate_steps_feedback_every').value))
+        chunk = min(max(1, total // 100), SIMULATE_CHUNK_STEPS)
         done = 0
         try:
             while done < total:
@@ -381,10 +397,13 @@ class SimServices:
                     result.result = Result(result=Result.RESULT_OK,
                                            error_message=f'canceled after {done} steps')
                     return result
+                before = done
                 done += sim.loop.step(min(chunk, total - done))
                 self._stopped = False
-                fb = SimulateSteps.Feedback(completed_steps=done, remaining_steps=total - done)
-                goal_handle.publish_feedback(fb)
+                for n in range(before + 1, done + 1):
+                    if n % every == 0 or n == total:
+                        goal_handle.publish_feedback(SimulateSteps.Feedback(
+                            completed_steps=n, remaining_steps=total - n))
         except SimError as exc:
             goal_handle.abort()
             result.result = convert.result_for(exc)
@@ -399,29 +418,50 @@ class SimServices:
         for name, uri in resources.list_worlds(self._scenes_dir):
             response.worlds.append(WorldResource(name=name, description=f'scene {name}',
                                                  world_resource=_resource(uri)))
+        if len(request.filter.tags):
+            raise FeatureUnsupportedError('world tag filters are not supported (WORLD_TAGS is '
+                                          'not listed): worlds carry no tags')
+        failed = []
         for src in request.additional_sources:
-            folder = resources.check_folder(src, self._resource_paths)
+            try:
+                folder = resources.check_folder(src, self._resource_paths)
+            except SimError as exc:
+                if not request.continue_on_error:
+                    raise
+                failed.append(str(exc))  # the standard: go on, and succeed with the rest
+                continue
             for f in sorted(folder.glob('*.xml')):
                 response.worlds.append(WorldResource(name=f.stem, description=str(f),
                                                      world_resource=_resource(f.as_uri())))
-        if request.filter.tags and request.filter.filter_mode in (TagsFilter.FILTER_MODE_ANY,
-                                                                  TagsFilter.FILTER_MODE_ALL):
-            response.worlds = []  # worlds carry no tags
         response.result = convert.ok()
+        response.result.error_message = '; '.join(failed)
         return response
 
     def _srv_load_world(self, request, response):
+        """Read, check and compile the world (LOADING_WORLD meanwhile), then swap it in."""
+        with self._loading_lock:
+            self._loading += 1
+        try:
+            return self._load_world(request, response)
+        finally:
+            with self._loading_lock:
+                self._loading -= 1
+
+    def _load_world(self, request, response):
         cfg = self.world_config()
         # The same checks as a spawn: safe XML, budgets, and every file read here, from inside
         # the resource paths (MuJoCo opens nothing itself).
-        if request.resource_string:
-            spec = sources.world_spec(request.resource_string, None, self._resource_paths,
-                                      MAX_RESOURCE_STRING_BYTES)
+        modes = {'fail_on_unsupported_element': request.fail_on_unsupported_element,
+                 'ignore_missing_assets': request.ignore_missing_or_unsupported_assets}
+        if request.resource_string and not request.uri:  # the standard: a uri, when given, wins
+            spec, dropped = sources.world_spec(request.resource_string, None,
+                                               self._resource_paths, MAX_RESOURCE_STRING_BYTES,
+                                               **modes)
             name, uri = 'resource_string', ''
         else:
             path = resources.resolve_world(request.uri, self._resource_paths, self._scenes_dir)
-            spec = sources.world_spec(sources.read_model_text(path), str(path.parent),
-                                      self._resource_paths)
+            spec, dropped = sources.world_spec(sources.read_model_text(path), str(path.parent),
+                                               self._resource_paths, **modes)
             name, uri = path.stem, request.uri
         world = World(spec, cfg, source=name)
         # The standard: a loaded world is left STOPPED (at its initial state, not stepping).
@@ -430,6 +470,11 @@ class SimServices:
         self._sync_paused_parameter()
         response.world = WorldResource(name=name, world_resource=_resource(uri))
         response.result = convert.ok()
+        if dropped:
+            note = ('left out elements MuJoCo does not know: '
+                    + ', '.join(f'<{t[:50]}>' for t in dropped[:10]))
+            self.get_logger().warning(f'load_world {name}: {note}')
+            response.result.error_message = note
         return response
 
     def _srv_unload_world(self, request, response):

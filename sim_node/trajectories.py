@@ -17,7 +17,7 @@ from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTrajectoryControllerState
 from msg_adapters import convert
-from msg_adapters.perception import topic_token
+from msg_adapters.perception import interface_base
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.event_handler import PublisherEventCallbacks
@@ -113,30 +113,30 @@ class TrajectoryServers:
         self._group = callback_group
         self._current_sim = current_sim
         self._params = params
-        self._servers: dict = {}  # entity -> (action server, controller_state publisher)
+        self._servers: dict = {}  # entity -> (action server, controller_state pub, base)
         self._lock = threading.Lock()
 
     def sync(self, info: ModelInfo) -> None:
         """Make the servers of a model generation's entities with joints; drop the others."""
-        entities = sorted(set(info.joint_entity))
+        moving = set(info.joint_entity)
+        bases = {e.name: interface_base(e) for e in info.entities if e.name in moving}
         with self._lock:
-            for entity in [e for e in self._servers if e not in entities]:
-                server, pub = self._servers.pop(entity)
+            for entity in [e for e, v in self._servers.items() if bases.get(e) != v[2]]:
+                server, pub, _ = self._servers.pop(entity)
                 server.destroy()
                 self._node.destroy_publisher(pub)
-            for entity in entities:
+            for entity, base in bases.items():
                 if entity not in self._servers:
-                    self._servers[entity] = self._make(entity)
+                    self._servers[entity] = (*self._make(entity, base), base)
 
     def close(self) -> None:
         with self._lock:
-            for server, pub in self._servers.values():
+            for server, pub, _ in self._servers.values():
                 server.destroy()
                 self._node.destroy_publisher(pub)
             self._servers.clear()
 
-    def _make(self, entity: str) -> tuple:
-        base = topic_token(entity)
+    def _make(self, entity: str, base: str) -> tuple:
         server = _LeavableActionServer(
             self._node, FollowJointTrajectory, f'{base}/follow_joint_trajectory',
             execute_callback=lambda goal: self._execute(entity, goal),

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from sim_node.core import sources
 from sim_node.core.config import WorldConfig
-from sim_node.core.errors import (InvalidArgumentError, InvalidPoseError, NameNotUniqueError,
-                                  ResourceParseError)
+from sim_node.core.errors import (FeatureUnsupportedError, InvalidArgumentError,
+                                  InvalidPoseError, NameNotUniqueError, ResourceParseError)
 from sim_node.core.loop import SimLoop
 from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
 from sim_node.core.world import World
@@ -433,9 +433,10 @@ def test_a_time_reset_zeroes_time_and_step_count_and_keeps_the_state():
 
 @pytest.mark.parametrize('scope', [8, 16, 100, 256, -1])
 def test_reset_refuses_undefined_scope_bits(scope):
+    """No simulator defines them: FEATURE_UNSUPPORTED (0), as for a bit one does not support."""
     w = World.from_file(str(DEFAULT_SCENE))
     w.step(10)
-    with pytest.raises(InvalidArgumentError):
+    with pytest.raises(FeatureUnsupportedError):
         w.reset(scope)
     assert w.step_count == 10
 

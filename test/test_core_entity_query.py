@@ -30,10 +30,19 @@ def test_pattern_category_and_region(world):
     assert names(query(world, pattern='^box_')) == ['box_a', 'box_b']
     assert names(query(world, categories={'robot'})) == ['robot']
     assert names(query(world, categories={'dynamic'}, tags=('red',))) == []
-    near_table = Region('box', np.array([0.6, -0.2, 0.1]), np.array([0.8, 0.2, 1.0]))
-    assert names(query(world, region=near_table)) == ['box_a']  # table at z 0, box_b x 0.9
+    # A region selects what it overlaps, not only what has its origin inside (the standard):
+    # box_b spans x 0.85-0.95, y -0.05-0.05, z 0.65-0.75 (origin 0.9, 0, 0.7); the arm
+    # reaches x 0.747, the table's top is at z 0.42.
+    edge = Region('box', np.array([0.94, 0.04, 0.74]), np.array([1.0, 0.2, 0.8]))
+    assert names(query(world, region=edge)) == ['box_b']  # its corner only
+    reversed_corners = Region('box', edge.b, edge.a)
+    assert names(query(world, region=reversed_corners)) == ['box_b']
+    above = np.array([0.9, 0.0, 0.79])
+    assert names(query(world, region=Region('sphere', above, np.array([0.0401, 0, 0])))) == \
+        ['box_b']  # its top face is 0.04 below the centre
+    assert names(query(world, region=Region('sphere', above, np.array([0.0399, 0, 0])))) == []
     ball = Region('sphere', np.zeros(3), np.array([0.5, 0, 0]))
-    assert names(query(world, region=ball)) == ['robot']
+    assert names(query(world, region=ball)) == ['robot', 'table']  # the table from x 0.4
     with pytest.raises(InvalidArgumentError):
         query(world, pattern='(')
 

@@ -48,6 +48,8 @@ MAX_INCLUDES, MAX_INCLUDE_DEPTH = 100, 8
 MAX_IMAGE_PIXELS = 4096 * 4096
 _DIR_ATTRIBUTES = ('meshdir', 'texturedir', 'assetdir')
 _MESH_TAGS = ('mesh', 'skin', 'flexcomp')
+#: The mesh files MuJoCo decodes itself (a <mesh> may name another kind with content_type).
+MUJOCO_MESH_SUFFIXES = ('.stl', '.obj', '.msh')
 _IMAGE_TAGS = ('texture', 'hfield')
 #: Root elements an included file may have (MuJoCo accepts both).
 INCLUDE_ROOTS = ('mujoco', 'mujocoinclude')
@@ -66,6 +68,8 @@ ERR_TOO_LARGE = 'the file {value!r} has {size} bytes, over the limit of {limit}'
 ERR_TOTAL = "the model's files add up to more than {limit} bytes"
 ERR_FACES = 'the mesh {value!r} has {n} faces, over the limit of {limit}; simplify it'
 ERR_PIXELS = 'the image {value!r} has {n} pixels, over the limit of {limit}'
+ERR_MESH_KIND = ('the mesh {value!r} is of a kind MuJoCo cannot read ({kind!r}): give an STL, OBJ '
+                 'or MSH file (a lone mesh file of another kind spawns by uri)')
 ERR_INCLUDES = 'the model has more than {limit} <include> elements or nests them deeper than {d}'
 ERR_INCLUDE_ROOT = ('the included file {value!r} is not MJCF: its root is <{tag}> (expected '
                     '<mujoco> or <mujocoinclude>)')
@@ -224,7 +228,12 @@ def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[
         for attr in [a for a in elem.attrib if a.startswith('file')]:
             value = elem.attrib[attr]
             candidates = _candidates(value, elem.tag, dirs, base_dir, is_urdf, allowed_roots)
-            elem.set(attr, reader.read(value, candidates, elem.tag))
+            path = reader.read(value, candidates, elem.tag)
+            kind = Path(value).suffix.lower()
+            if elem.tag == 'mesh' and 'content_type' not in elem.attrib \
+                    and kind not in MUJOCO_MESH_SUFFIXES:
+                raise UnsupportedAssetsError(ERR_MESH_KIND.format(value=value, kind=kind))
+            elem.set(attr, path)
 
 
 def _candidates(value: str, tag: str, dirs: dict, base: Optional[Path], is_urdf: bool,

@@ -19,6 +19,8 @@ MAX_ABS_VALUE = 1e10
 
 ERR_NAME = ("invalid name {name!r}: use letters, digits, '_' or '-', starting with a letter "
             "or '_', at most 128 characters")
+ERR_EXTENT = ('position {pos} is outside the world: every coordinate must lie within '
+              '{extent:g} m of the origin (the world_extent parameter)')
 ERR_NAMESPACE = 'invalid namespace {ns!r}: use a ROS namespace such as /robot1'
 ERR_NOT_FINITE = '{what} must be finite numbers, got {value}'
 ERR_TOO_LARGE_VALUE = '{what} must be smaller than {limit:g} in magnitude, got {value}'
@@ -58,6 +60,13 @@ def check_pose(position: Sequence[float], quat_wxyz: Sequence[float]) -> tuple:
         return check_finite('position', position, 3), check_quat(quat_wxyz)
     except InvalidArgumentError as exc:
         raise InvalidPoseError(str(exc)) from None
+
+
+def check_extent(position: np.ndarray, extent: float) -> np.ndarray:
+    """Refuse (:class:`InvalidPoseError`) a world position outside the cube of half side extent."""
+    if float(np.max(np.abs(position))) > extent:
+        raise InvalidPoseError(ERR_EXTENT.format(pos=[float(v) for v in position], extent=extent))
+    return position
 
 
 def check_name(name: str) -> str:

@@ -45,6 +45,10 @@ class WorldConfig:
     #: is refused with a clear error. MuJoCo itself failed at about 5,000 ("Could not allocate
     #: memory"), and every body costs stepping time.
     max_bodies: int = 3000
+    #: Half the side of the cube, centred on the world origin, that entities may be placed in
+    #: (m): a pose outside it is an invalid pose (spawn 109, set_entity_state 101). A double
+    #: still resolves 2 nm at 10 km; far out, contacts and integration lose their precision.
+    world_extent: float = 10_000.0
     #: What the loop does when the physics diverges while playing (the state before the bad
     #: step is always restored first): 'pause'; 'remove' the entity it happened in (if it was
     #: spawned, else pause) and play on; or 'reset' the state to the home keyframe and play on.

@@ -51,6 +51,10 @@ class UnsupportedAssetsError(SimError):
     """An asset that exists but cannot be used (bad mesh, too large, not a regular file)."""
 
 
+class UnsupportedElementsError(SimError):
+    """A world using an element MuJoCo does not know, when the caller asked to fail on one."""
+
+
 class InvalidPoseError(SimError):
     """A pose that is non-finite, has a non-unit quaternion, or would interpenetrate."""
 

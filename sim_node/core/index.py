@@ -232,5 +232,5 @@ def _entity_records(m: mujoco.MjModel, names: tuple, root_of: np.ndarray,
             geom_ids=tuple(int(g) for g in np.nonzero(groot == root)[0]),
             spawned=meta is not None,
             description=meta['description'] if meta else 'from the scene',
-            has_free_joint=has_free))
+            has_free_joint=has_free, namespace=meta.get('namespace', '') if meta else ''))
     return tuple(recs)

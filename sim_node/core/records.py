@@ -38,6 +38,9 @@ class EntityRecord:
     spawned: bool
     description: str = ''
     has_free_joint: bool = False
+    #: The ROS namespace it was spawned with ('' for none): its interfaces (robot_description,
+    #: follow_joint_trajectory, controller_state) go there instead of under its name.
+    namespace: str = ''
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,11 @@ touches a live world.
 """
 
 from dataclasses import dataclass, field
+import functools
 import logging
 import math
 from pathlib import Path
+import re
 from typing import Optional, Sequence
 import xml.etree.ElementTree as ET
 
@@ -20,13 +22,21 @@ import numpy as np
 from . import assets
 from .assets import inside_roots  # noqa: F401 (part of this module's interface)
 from .config import WorldConfig
-from .errors import (InvalidArgumentError, MissingAssetsError, NoResourceError, ResourceParseError,
-                     UnsupportedAssetsError, UnsupportedFormatError)
+from .errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
+                     NoResourceError, ResourceParseError, UnsupportedAssetsError,
+                     UnsupportedElementsError, UnsupportedFormatError)
 
 MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
 MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf')
 PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
 
+#: Elements MuJoCo's XML reader expands before it checks its schema, which does not list them.
+_EXPANDED_FIRST = frozenset({'include', 'mujocoinclude', 'frame', 'replicate', 'composite'})
+ERR_UNKNOWN_ELEMENTS = ('the world uses elements MuJoCo does not know: {tags} (asked to fail on '
+                        'unsupported elements; without fail_on_unsupported_element they are '
+                        'left out)')
+ERR_IGNORE_ASSETS = ('loading a world without its missing or unsupported assets is not supported '
+                     '(ignore_missing_or_unsupported_assets): {err}')
 ERR_EMPTY = 'the resource is empty: give MJCF or URDF text, a file, a primitive or a mesh'
 ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
 ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
@@ -96,6 +106,9 @@ class SpawnSource:
     default_classes: tuple = ()
     #: The MJCF or URDF text it was parsed from ('' for primitives, meshes and specs).
     text: str = ''
+    #: The name the resource gives itself (MJCF ``model``, URDF ``robot name``; '' if none):
+    #: a spawn without a name takes it.
+    name: str = ''
 
     def __post_init__(self):
         if self.kind == 'mjcf':
@@ -183,15 +196,56 @@ def _spec_from(root: ET.Element) -> mujoco.MjSpec:
         raise _compile_error(exc) from None
 
 
+@functools.lru_cache(maxsize=1)
+def mjcf_elements() -> frozenset:
+    """Every element name MuJoCo's MJCF reader knows: its schema's, and those it expands first."""
+    names = re.findall(r'^\s*(?:\(world\))?(\w+) \(.\)', mujoco.mj_printSchema(False, False),
+                       re.M)
+    return frozenset(names) | {'worldbody'} | _EXPANDED_FIRST
+
+
+def drop_unknown_elements(root: ET.Element, fail: bool) -> list:
+    """
+    Remove the elements of an MJCF document MuJoCo knows nowhere; return their names.
+
+    With `fail`, refuse the document instead (:class:`UnsupportedElementsError`). A known
+    element in the wrong place is left for MuJoCo to refuse (RESOURCE_PARSE_ERROR).
+    """
+    known = mjcf_elements()
+    found = sorted({e.tag for e in root.iter() if e.tag not in known})
+    if found and fail:
+        raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(tags=', '.join(
+            f'<{t[:50]}>' for t in found[:10])))
+    for parent in list(root.iter()):
+        for child in [c for c in parent if c.tag not in known]:
+            parent.remove(child)
+    return found
+
+
 def world_spec(text: str, base_dir: Optional[str] = None,
                allowed_roots: Optional[Sequence[str]] = None,
                max_bytes: int = _LIMITS.max_resource_bytes,
-               max_faces: int = _LIMITS.max_mesh_faces) -> mujoco.MjSpec:
-    """Return the spec of a whole world (load_world) from untrusted text, files read here."""
+               max_faces: int = _LIMITS.max_mesh_faces,
+               fail_on_unsupported_element: bool = False,
+               ignore_missing_assets: bool = False) -> tuple:
+    """
+    Return (spec of a whole world (load_world), unknown elements dropped) from untrusted text.
+
+    Files are read here. Elements MuJoCo does not know are dropped, or with
+    `fail_on_unsupported_element` refused (LoadWorld's two modes). Missing or unusable assets
+    always fail: `ignore_missing_assets` (loading without them) is not supported and says so.
+    """
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
-    assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
-                   _budget(max_bytes, max_faces))
-    return _spec_from(root)
+    try:
+        assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                       _budget(max_bytes, max_faces))
+    except (MissingAssetsError, UnsupportedAssetsError) as exc:
+        if ignore_missing_assets:
+            raise FeatureUnsupportedError(ERR_IGNORE_ASSETS.format(err=exc)) from None
+        raise
+    dropped = drop_unknown_elements(root, fail_on_unsupported_element) \
+        if root.tag == 'mujoco' else []
+    return _spec_from(root), dropped
 
 
 def from_model_text(text: str, base_dir: Optional[str] = None,
@@ -220,7 +274,7 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
                      compile_alone=False)
     source.default_classes = tuple(d.attrib['class'] for d in root.iter('default')
                                    if 'class' in d.attrib)
-    source.text = text
+    source.text, source.name = text, name
     return source
 
 

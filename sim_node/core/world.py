@@ -24,8 +24,8 @@ from . import sources, state, trajectory, transfer
 from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
-from .errors import (DivergenceError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
-                     ResourceParseError)
+from .errors import (DivergenceError, FeatureUnsupportedError, IncorrectStateError,
+                     InvalidArgumentError, InvalidPoseError, ResourceParseError)
 from .guard import clean, DivergenceGuard
 from .index import ModelIndex, STATE_SPEC
 from .lock import WorldLock
@@ -41,8 +41,8 @@ log = logging.getLogger(__name__)
 ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the world is now at '
                         'generation {now} (an entity was spawned or deleted since)')
 ERR_COMPILE = 'the model does not compile: {err}'
-ERR_SCOPE = ('reset scope {scope} has undefined bits: use 0 (all), 255 (all) or a combination '
-             'of 1 (time), 2 (state) and 4 (spawned)')
+ERR_SCOPE = ('reset scope {scope} has bits no simulator defines: use 0 (all), 255 (all) or a '
+             'combination of 1 (time), 2 (state) and 4 (spawned)')
 ERR_STEPS = 'steps must be >= 1, got {n}'
 ERR_NO_DESCRIPTION = ('entity {name!r} has no hinge or slide joints: only robots have a robot '
                       'description')
@@ -556,7 +556,7 @@ class World(StateWrites, WorldEdits):
         and RESET_ALL do all three.
         """
         if scope != RESET_ALL and not 0 <= scope <= _SCOPE_BITS:
-            raise InvalidArgumentError(ERR_SCOPE.format(scope=scope))
+            raise FeatureUnsupportedError(ERR_SCOPE.format(scope=scope))
         scope = _SCOPE_BITS if scope in (0, RESET_ALL) else scope
         if scope & RESET_SPAWNED:
             with self._locked():

@@ -64,14 +64,17 @@ class WorldEdits:
         """
         Add an entity at a pose (world frame, or `reference` entity's frame) while running.
 
-        Its root body is named `name`; every other element ``name/<original>`` (unnamed ones
+        Its root body is named `name` (when empty, the name the resource gives itself: MJCF's
+        ``model``, URDF's ``robot name``); every other element ``name/<original>`` (unnamed ones
         get ``name/<kind>_<i>``). All or nothing: on any error the world is exactly as
-        before. The namespace is checked but not used: the node's topics are per world.
+        before. `namespace` (a ROS namespace) is kept in its record: the node puts the
+        entity's own interfaces there (:attr:`EntityRecord.namespace`).
 
         :returns: the entity's name (differs from `name` only when renaming was allowed).
         """
         pos, q = check_pose(position, quat_wxyz)
         checks.check_namespace(namespace)
+        name = name or source.name  # the standard: else the name the resource gives itself
         if not allow_renaming:
             checks.check_name(name)
         overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
@@ -81,14 +84,14 @@ class WorldEdits:
 
         def plan() -> tuple:
             p = self._plan_spawn_locked(name, source, pos, q, reference, allow_renaming,
-                                        overlap_ok)
+                                        overlap_ok, namespace)
             return p.edit, p.check, p.spawned, None, 0, p.name
 
         return self._change(plan)
 
     def _plan_spawn_locked(self, name: str, source: sources.SpawnSource, pos: np.ndarray,
                            q: np.ndarray, reference: str, allow_renaming: bool,
-                           overlap_ok: bool) -> SimpleNamespace:
+                           overlap_ok: bool, namespace: str = '') -> SimpleNamespace:
         """Return the checked name, the spec edit, the overlap check and the new table."""
         self._check_capacity_locked(len(source.spec.bodies) - 1)
         if not name or name in self._index.body_ids:
@@ -97,7 +100,9 @@ class WorldEdits:
             name = self._unique_name_locked(name or source.kind)
         if reference:
             pos, q = quat.from_frame(*self._pose_frame_locked(reference), pos, q)
-        meta = {'assets': tuple(source.assets), 'description': source.description}
+        checks.check_extent(pos, self.config.world_extent)
+        meta = {'assets': tuple(source.assets), 'description': source.description,
+                'namespace': namespace}
         contact = (self._contact_of({}) if self._default_friction is not None
                    or self._default_restitution is not None else None)
 

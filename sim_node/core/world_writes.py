@@ -9,11 +9,13 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import editor, quat, state
+from . import checks, editor, quat, state
 from .checks import check_finite, check_pose
 from .errors import OperationFailedError
 from .records import EntityRecord
 
+ERR_STATIC_ACCELERATION = ('{name!r} is a {category} entity welded to the world: it cannot '
+                           'have an acceleration (only its pose can be set)')
 ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it cannot have a '
                     'velocity (only its pose can be set)')
 
@@ -25,15 +27,23 @@ class StateWrites:
                          quat_wxyz: Optional[Sequence[float]] = None,
                          linear_velocity: Optional[Sequence[float]] = None,
                          angular_velocity: Optional[Sequence[float]] = None,
-                         reference: str = '') -> None:
+                         reference: str = '',
+                         acceleration: Optional[Sequence[float]] = None) -> None:
         """
         Set the pose and/or twist of an entity's root body (world frame or `reference`).
 
         A free body is moved through its free joint. A welded entity (static object or
         fixed-base robot) can be moved (its model is rebuilt, keeping all state) but its
-        twist must be zero.
+        twist, and its `acceleration` (linear then angular, 6 values), must be zero. An
+        acceleration is otherwise not applied (MuJoCo computes its own; the standard allows
+        ignoring it).
         """
+        acc = None if acceleration is None else check_finite('acceleration', acceleration, 6)
         with self._locked():
+            rec = self._index.entity(name)
+            if acc is not None and np.any(acc != 0) and not rec.has_free_joint:
+                raise OperationFailedError(ERR_STATIC_ACCELERATION.format(
+                    name=rec.name, category=rec.category))
             self._overwrite_locked({name: (position, quat_wxyz)},
                                    {name: (linear_velocity, angular_velocity)}, {}, {},
                                    reference)
@@ -109,6 +119,7 @@ class StateWrites:
                                 cur_q if quat_wxyz is None else quat_wxyz)
             if frame is not None:
                 pos, q = quat.from_frame(*frame, pos, q)
+            checks.check_extent(pos, self.config.world_extent)
         if linear is not None:
             lin = check_finite('linear velocity', linear, 3)
         if angular is not None:
