@@ -5,9 +5,11 @@ import sys
 import threading
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
 from .core.errors import SimError
+from .params import parameter_error
 
 
 def main(args=None) -> int:
@@ -25,6 +27,9 @@ def main(args=None) -> int:
         pass
     except SimError as exc:
         print(f'[sim] cannot start: {exc}', file=sys.stderr)
+        code = 2
+    except ParameterException as exc:  # a wrong type or range on the command line
+        print(f'[sim] cannot start: {parameter_error(exc)}', file=sys.stderr)
         code = 2
     except Exception:  # noqa: B902
         if rclpy.ok():

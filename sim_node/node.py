@@ -322,9 +322,21 @@ class SimNode(SimServices, Node):
                     self._publish_joint_states()
                     next_js = _next_deadline(next_js, self._js_period, now)
             except Exception as exc:  # never die silently: say why, keep publishing
-                self.get_logger().error(f'publishing failed: {exc!r}',
-                                        throttle_duration_sec=5.0)
+                self.report_failure('publishing', exc)
                 next_tf, next_js = now + self._tf_period, now + self._js_period
+
+    def report_failure(self, what: str, exc: Exception) -> None:
+        """
+        Log that a publishing thread's work failed (at most every 5 s); it goes on.
+
+        Once ROS is shutting down (Ctrl-C, SIGTERM: rclpy's signal handler ends the context
+        before the node's threads stop) every publication fails: that is the end, not an
+        error, so the threads stop quietly instead (a log line would fail too).
+        """
+        if not self.context.ok():
+            self._publishing.clear()
+            return
+        self.get_logger().error(f'{what} failed: {exc!r}', throttle_duration_sec=5.0)
 
     def _publish_state(self) -> None:
         sim = self._sim
@@ -406,8 +418,7 @@ class SimNode(SimServices, Node):
                 self.trajectories.sync(info)
                 self.descriptions.sync(info)
             except Exception as exc:  # never die silently: say why, keep publishing
-                self.get_logger().error(f'publishing the model failed: {exc!r}',
-                                        throttle_duration_sec=5.0)
+                self.report_failure('publishing the model', exc)
 
     def _publish_joint_states(self) -> None:
         sim = self._sim

@@ -6,6 +6,7 @@ read-only where a change needs a restart).
 """
 
 import dataclasses
+import re
 from typing import List
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -13,6 +14,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from .core.checks import closest_hint
 from .core.config import PerceptionConfig, WorldConfig
 
 
@@ -144,6 +146,34 @@ def declare(node: Node, scenes_dir: str) -> None:
         "through file:// URIs); '' = $XDG_CACHE_HOME/sim/meshes (~/.cache/sim/meshes)",
         read_only=True))
     _declare_perception(node)
+    unknown = sorted(n for n in overrides if not node.has_parameter(n))
+    if unknown:  # rclpy drops them silently: a typo would go unnoticed
+        names = [n for n in node._parameters]  # every declared name
+        node.get_logger().warning('; '.join(
+            f'unknown parameter {n!r} ignored{closest_hint(n, names)}' for n in unknown))
+
+
+def _with_article(word: str) -> str:
+    return f"{'an' if word[:1] in 'aeiou' else 'a'} {word}"
+
+
+def parameter_error(exc: Exception) -> str:
+    """Say in one line which parameter a start-up value was refused for, and what it takes."""
+    text = str(exc)
+    m = re.match(r"Trying to set parameter '(?P<name>[^']*)' to '(?P<value>.*)' of type "
+                 r"'(?P<got>\w+)', expecting type '(?:Type\.)?(?P<want>\w+)'", text, re.S)
+    if m:
+        got, want = (_with_article(m[k].lower().replace('_', ' ')) for k in ('got', 'want'))
+        return f"parameter {m['name']}: {m['value']!r} is {got}, but it takes {want}"
+    m = re.match(r'.*Reason: (?P<reason>.*): (?P<name>[^:]+)$', text, re.S)
+    if m:
+        r = re.match(r'.*out of range Min: (?P<lo>\S+), Max: (?P<hi>\S+), value: (?P<v>.+)$',
+                     m['reason'], re.S)
+        if r:
+            return (f"parameter {m['name']}: {r['v']} is out of its range, "
+                    f"{r['lo']} to {r['hi']}")
+        return f"parameter {m['name']}: {' '.join(m['reason'].split())}"
+    return ' '.join(text.split())
 
 
 def _declare_perception(node: Node) -> None:

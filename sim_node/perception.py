@@ -225,8 +225,9 @@ class Perception:
                 try:
                     self._iterate(state)
                 except Exception as exc:  # never die silently, never stop for good
-                    self._node.get_logger().error(f'cameras and lasers failed: {exc!r}',
-                                                  throttle_duration_sec=5.0)
+                    self._node.report_failure('cameras and lasers', exc)
+                    if not self._node.context.ok():
+                        break
                     self._running.wait(0.5)
         finally:
             if state.rig is not None:

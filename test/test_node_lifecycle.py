@@ -1,6 +1,7 @@
 """The installed executable starts, publishes /clock, and stops cleanly on SIGINT."""
 
 from conftest import wait_for
+import pytest
 
 
 def test_node_publishes_clock_and_exits_cleanly_on_sigint(start_node, watcher):
@@ -19,6 +20,44 @@ def test_bad_scene_parameter_exits_with_a_message(start_node):
     code = node.proc.wait(20)
     assert code != 0
     assert 'no scene' in node.output() and 'default' in node.output()
+
+
+@pytest.mark.parametrize('param, says', [
+    ('real_time_factor:=fast', "parameter real_time_factor: 'fast' is a string, but it takes a "
+                               'double'),
+    ('tf_rate_hz:=0', 'parameter tf_rate_hz: 0.0 is out of its range, 1.0 to 1000.0'),
+    ('max_bodies:=1.5', "parameter max_bodies: '1.5' is a double, but it takes an integer"),
+    ('divergence_policy:=explode', "divergence_policy must be one of ['pause', 'remove', "
+                                   "'reset'], got 'explode'"),
+])
+def test_a_wrong_parameter_ends_the_start_with_one_line_and_status_2(start_node, param, says):
+    node = start_node(param)
+    assert node.proc.wait(20) == 2
+    lines = node.output().strip().splitlines()
+    assert lines == [f'[sim] cannot start: {says}'], node.output()
+
+
+def test_an_unknown_parameter_is_named_with_the_closest_one(start_node, watcher):
+    node = start_node('real_time_facter:=2.0')
+    wait_for(watcher.latest_clock, timeout=20)
+    assert "unknown parameter 'real_time_facter' ignored; did you mean 'real_time_factor'?" \
+        in node.output()
+    assert node.interrupt()[0] == 0
+
+
+def test_a_clean_stop_prints_no_error(start_node, watcher):
+    """Ctrl-C or SIGTERM while publishing: no ERROR line, nothing about a dead context."""
+    import signal
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGINT, signal.SIGTERM):
+        node = start_node()
+        first = wait_for(watcher.latest_clock, timeout=20)
+        wait_for(lambda: (watcher.latest_clock() or 0) > first + 0.5, timeout=10)
+        node.proc.send_signal(sig)
+        assert node.proc.wait(10) == 0, node.output()
+        out = node.output()
+        for bad in ('ERROR', 'Failed to publish', 'context is invalid', 'Traceback'):
+            assert bad not in out, out
+        watcher.clock.clear()
 
 
 def test_sigterm_ends_a_busy_node_cleanly_within_two_seconds(start_node, watcher):
