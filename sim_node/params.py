@@ -148,7 +148,7 @@ def declare(node: Node, scenes_dir: str) -> None:
     _declare_perception(node)
     unknown = sorted(n for n in overrides if not node.has_parameter(n))
     if unknown:  # rclpy drops them silently: a typo would go unnoticed
-        names = [n for n in node._parameters]  # every declared name
+        names = list(node._parameters)  # every declared name
         node.get_logger().warning('; '.join(
             f'unknown parameter {n!r} ignored{closest_hint(n, names)}' for n in unknown))
 
