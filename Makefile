@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test bench bench-gym bench-scale bench-flood bench-cameras bench-models snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-models snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -16,6 +16,10 @@ run: setup
 
 test: setup
 	@. .build/env.sh && "$$SIM_PYTHON" -m pytest $(PYTEST_ARGS)
+
+# The core, the adapters, the Gym envs and the linters: under a minute, no node process
+test-fast: setup
+	@. .build/env.sh && "$$SIM_PYTHON" -m pytest -m "not slow" $(PYTEST_ARGS)
 
 bench: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/run_all.py

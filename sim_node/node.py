@@ -72,7 +72,7 @@ class _LogForwarder(logging.Handler):
     """
     Core log records go to a queue the node drains on its own thread.
 
-    (the loop thread never calls rclpy).
+    The loop thread never calls rclpy.
     """
 
     def __init__(self):
@@ -432,10 +432,9 @@ class SimNode(SimServices, Node):
 
     def _sync_paused_parameter(self) -> None:
         """
-        Mirror the loop's paused state.
+        Mirror the loop's paused state in the `paused` parameter, so `ros2 param get` is true.
 
-        (changed by services, limits or divergence too) in the `paused` parameter, so `ros2 param
-        get` tells the truth.
+        The state changes through services, limits and divergence too, not only the parameter.
         """
         sim = self._sim
         if sim is None:

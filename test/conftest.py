@@ -25,6 +25,18 @@ SCENES = ROOT / 'scenes'
 DEFAULT_SCENE = SCENES / 'default.xml'
 
 
+#: Test files whose tests start node processes or run long: marked `slow` (``make test-fast``
+#: leaves them out; ``make test`` runs everything).
+SLOW_FILES = ('test_node_', 'test_adversarial_node', 'test_readme_examples',
+              'test_examples_tutorials', 'test_conformance')
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.path.name.startswith(SLOW_FILES):
+            item.add_marker(pytest.mark.slow)
+
+
 #: A two-joint arm without actuators (PD drives it), 1 kg links of 0.3 m, for trajectory tests.
 TWO_JOINT_ARM = """<mujoco><worldbody><body name="base"><geom type="box" size="0.05 0.05 0.05"/>
   <body name="upper" pos="0 0 0.2"><joint name="j1" axis="0 1 0"/>

@@ -189,6 +189,7 @@ def _rss_mib() -> float:
     raise RuntimeError('no VmRSS')
 
 
+@pytest.mark.slow  # 25 s
 def test_a_spawn_and_delete_storm_gives_its_memory_back(world):
     """Deleted entities leave nothing behind: not in the model, not in the process."""
     def storm(n: int) -> None:

@@ -32,11 +32,10 @@ def _log_mujoco_warning(message: str) -> None:
 
 def route_mujoco_warnings() -> None:
     """
-    Send MuJoCo's warning text to logging.
+    Send MuJoCo's warning text to logging instead of stderr and a MUJOCO_LOG.TXT.
 
-    (the node forwards it to the ROS log) instead of stderr and a MUJOCO_LOG.TXT in the working
-    directory; unless the application has installed a handler of its own (the handler is
-    process-wide).
+    The node forwards it to the ROS log. Nothing changes if the application has installed a
+    MuJoCo warning handler of its own (the handler is process-wide).
     """
     if mujoco.get_mju_user_warning() is None:
         mujoco.set_mju_user_warning(_log_mujoco_warning)

@@ -324,12 +324,11 @@ WORLD_GEOMS_BODY = 'world_geoms'
 
 def _mjcf_gather_world_geoms(root: ET.Element) -> None:
     """
-    Gather a standalone model's static geometry into one body.
+    Gather a standalone model's static geometry into one welded body of the model.
 
-    (geoms and sites directly in <worldbody>, except ground planes, which the world drops when it
-    attaches the model) moves into one welded body, appended after the model's own top-level
-    bodies, so it becomes part of the entity. Returns `text` unchanged when there is nothing to
-    gather.
+    Geoms and sites directly in <worldbody> (not ground planes, which the world drops when it
+    attaches the model) move into one welded body, appended after the model's own top-level
+    bodies, so they become part of the entity. Nothing changes when there is nothing to gather.
     """
     wb = root.find('worldbody')
     loose = [] if wb is None else [e for e in wb if e.tag in ('geom', 'site')

@@ -529,7 +529,7 @@ class World(StateWrites, WorldEdits):
         """
         Bring accelerations up to date too, as :meth:`_kinematics_locked` does poses.
 
-        (mj_forward, then the body accelerations mj_objectAcceleration reads.) Changes no state
+        mj_forward, then the body accelerations mj_objectAcceleration reads. Changes no state
         either.
         """
         m, d = self._model, self._data
@@ -760,7 +760,7 @@ class World(StateWrites, WorldEdits):
         """
         Give a spec whose scene did not size MuJoCo's arena one proportional to its bodies.
 
-        (see ``WorldConfig.arena_bytes_per_body``).
+        See ``WorldConfig.arena_bytes_per_body``.
         """
         if self._auto_arena:
             spec.memory = (self.config.arena_base_bytes

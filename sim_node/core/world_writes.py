@@ -52,10 +52,10 @@ class StateWrites:
                   joint_positions: Optional[dict] = None,
                   joint_velocities: Optional[dict] = None) -> None:
         """
-        Overwrite any parts of the state at once, in the world frame: ``poses`` {entity.
+        Overwrite any parts of the state at once, in the world frame.
 
-        (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and {joint: value} for
-        hinge/slide joint positions and velocities.
+        ``poses`` {entity: (position, quat_wxyz)}, ``twists`` {entity: (linear, angular)}, and
+        {joint: value} for hinge/slide joint positions and velocities.
 
         Everything is checked before anything changes, so an error changes nothing. An
         entity without a free joint given its current pose stays put (no rebuild); given
