@@ -68,8 +68,7 @@ class SimEnv(gym.Env):
             raise ValueError('sim environments do not render; watch them in RViz instead')
         self.task = task
         self.world = World.from_file(_scene(task.scene))
-        with self.world.locked() as (m, d):
-            self._model, self._data = m, d
+        with self.world.locked() as (m, d):  # no MuJoCo object is kept past the block
             task.setup(m)
             lo, hi = m.actuator_ctrlrange[:, 0].copy(), m.actuator_ctrlrange[:, 1].copy()
             limited = m.actuator_ctrllimited.astype(bool)
@@ -103,9 +102,14 @@ class SimEnv(gym.Env):
                 np.abs(action) <= MAX_CONTROL).all():
             raise ValueError(f'action must be finite and within +-{MAX_CONTROL:g}, got {action}')
         self.world.step(self.task.frame_skip, ctrl=action)
-        m, d = self._model, self._data  # the env owns the world: no other thread steps it
-        obs = self.task.observation(m, d)
-        return obs, float(self.task.reward(m, d)), bool(self.task.terminated(m, d)), False, {}
+        # The world's current model and data, under its lock: a recompile (a spawn into
+        # env.world, say) replaces both, so none is kept from one call to the next.
+        return self.world.read(self._outcome)
+
+    def _outcome(self, m: mujoco.MjModel, d: mujoco.MjData) -> tuple:
+        task = self.task
+        return (task.observation(m, d), float(task.reward(m, d)), bool(task.terminated(m, d)),
+                False, {})
 
 
 class PushBoxTask(Task):

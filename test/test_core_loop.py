@@ -1,5 +1,8 @@
 """The stepping loop: pause costs nothing, step N while paused, limits, divergence, pacing."""
 
+import subprocess
+import sys
+import textwrap
 import threading
 import time
 
@@ -219,3 +222,84 @@ def test_an_endless_step_request_is_ended_by_a_state_request(make_loop):
     t.join(2)
     assert not t.is_alive() and 'ended by a state request' in outcome[0]
     assert loop.step(10) == 10  # no "another step request is still running"
+
+
+# ---- the lock order (docs/threading.md): world lock before the loop's, never the reverse
+#
+# A deadlock cannot be undone from inside the process (and the loop's atexit stop would wait
+# on it too), so these run in a subprocess that must end within 30 s.
+
+def _ends_in_a_subprocess(body: str) -> None:
+    code = textwrap.dedent(f"""
+        import threading, time
+        from sim_node.core.config import WorldConfig
+        from sim_node.core.loop import SimLoop
+        from sim_node.core.world import World
+        {textwrap.indent(textwrap.dedent(body), ' ' * 8).strip()}
+        print('done')
+    """)
+    try:
+        out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                             timeout=30, cwd=str(DEFAULT_SCENE.parent.parent))
+    except subprocess.TimeoutExpired:
+        pytest.fail('deadlock: the threads never finished')
+    assert out.returncode == 0 and out.stdout.strip() == 'done', out.stderr
+
+
+def test_loop_methods_called_inside_world_locked_do_not_deadlock():
+    _ends_in_a_subprocess(f"""
+        loop = SimLoop(World.from_file({str(DEFAULT_SCENE)!r}, WorldConfig(real_time_factor=1.0)))
+        loop.start()
+        w = loop.world
+        for _ in range(10):
+            with w.locked():
+                time.sleep(0.05)  # the loop comes for the lock meanwhile
+                loop.pause()
+                loop.status()
+                loop.set_real_time_factor(2.0)
+                loop.play()
+        assert w.clock().step_count > 0
+        loop.stop()
+    """)
+
+
+def test_step_feedback_runs_with_no_lock_of_the_loop_held():
+    """Feedback reading the world while another thread, inside locked(), asks the loop."""
+    _ends_in_a_subprocess(f"""
+        loop = SimLoop(World.from_file({str(DEFAULT_SCENE)!r}, WorldConfig(paused=True)))
+        loop.start()
+        w = loop.world
+        done = threading.Event()
+
+        def other():
+            while not done.is_set():
+                with w.locked():
+                    time.sleep(0.002)
+                    loop.status()
+        t = threading.Thread(target=other)
+        t.start()
+        seen = []
+        loop.step(3000, feedback=lambda d, r: seen.append(w.time))
+        done.set()
+        t.join()
+        assert seen and w.clock().step_count == 3000
+        loop.stop()
+    """)
+
+
+def test_step_inside_world_locked_is_refused_not_waited_for(make_loop):
+    loop = make_loop(paused=True)
+    with loop.world.locked():
+        with pytest.raises(IncorrectStateError, match='inside World.locked'):
+            loop.step(1, timeout=3)  # (a timeout, so that a wait fails this test, not hangs)
+
+
+def test_locked_marks_poses_stale_even_when_its_block_raises():
+    w = World.from_file(str(DEFAULT_SCENE))
+    z0 = w.get_entity_state('box_a').position[2]
+    with pytest.raises(RuntimeError):
+        with w.locked() as (m, d):
+            body = m.body('box_a').id
+            d.qpos[m.jnt_qposadr[m.body_jntadr[body]] + 2] += 0.5
+            raise RuntimeError('a caller error after a change')
+    assert w.get_entity_state('box_a').position[2] == pytest.approx(z0 + 0.5, abs=1e-12)

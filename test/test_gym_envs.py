@@ -81,7 +81,7 @@ def test_a_bad_action_is_refused_and_changes_nothing(bad):
 def test_pushing_toward_the_goal_improves_the_reward():
     env = gym.make('sim/PushBox-v0').unwrapped
     obs, _ = env.reset(seed=1)
-    r0 = env.task.reward(env._model, env._data)
+    r0 = env.world.read(env.task.reward)
     for _ in range(150):  # a scripted policy: get behind the box, push it to the goal
         tip, box, goal = obs[0:2], obs[4:6], obs[8:10]
         direction = (goal - box) / (np.linalg.norm(goal - box) + 1e-9)
@@ -102,3 +102,18 @@ def test_async_vector_env():
         assert rewards.shape == (2,)
     finally:
         envs.close()
+
+
+def test_observations_come_from_the_world_after_a_recompile():
+    """A spawn into env.world replaces its model and data: the env reads the new ones."""
+    from sim_node.core import sources
+    env = gym.make('sim/PushBox-v0').unwrapped
+    env.reset(seed=0)
+    env.step(env.action_space.low)  # the model and data of before the spawn are in use here
+    env.world.spawn('crate', sources.primitive('box', [0.05, 0.05, 0.05]), (3.0, 3.0, 0.5))
+    first = env.step(env.action_space.high)[0]
+    second = env.step(env.action_space.high)[0]
+    assert not np.array_equal(first[:2], second[:2])  # the pusher moves in the live world
+    qpos = env.world.read(lambda m, d: d.qpos[:2].copy())
+    assert np.array_equal(second[:2], qpos)
+    env.close()

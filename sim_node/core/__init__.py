@@ -11,13 +11,16 @@ trajectories in simulated time, driven per step by :mod:`.control` under the wor
 
 Threading contract
 ------------------
-* **One lock.** A :class:`~.world.World` owns one lock. Every public method of ``World``
-  takes it (properties too) and releases it before returning; helpers that assume it is held
-  end in ``_locked``. It is reentrant, so code inside ``World.locked()`` may call any public
-  method. Only ``Control.stage`` (joint commands) runs
-  outside it, under the control's own staging lock, which is never held while waiting for the
-  world lock. No other lock is taken while holding the world lock, so there is no order to get
-  wrong.
+* **One world lock, one order.** A :class:`~.world.World` owns one lock. Every public method
+  of ``World`` takes it (properties too) and releases it before returning; helpers that assume
+  it is held end in ``_locked``. It is reentrant, so code inside ``World.locked()`` may call any
+  public method. The order (``docs/threading.md``, with every thread of the node):
+  ``World._edit_lock``, then the world lock, then leaves that are never held while taking
+  another lock: the loop's ``_cv`` and ``_snapshot_cv``, the control's staging lock (commands
+  are staged outside the world lock and applied under it), the lock's own waiter count. The
+  loop reads what a batch needs (``World.clock``) before taking its ``_cv``; a step request's
+  feedback runs with no lock of the loop held; ``SimLoop.step`` inside ``World.locked()`` is
+  refused (the loop could never take its steps).
 * **Who may take it.** Any thread. MuJoCo releases the GIL while stepping and compiling, so the
   lock is what keeps readers from seeing torn state. A plain lock is not fair: the loop calls
   ``World.wait_for_callers`` before each batch, and callers waiting for the lock go first.

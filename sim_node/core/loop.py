@@ -24,7 +24,7 @@ import weakref
 from .config import WorldConfig
 from .errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
                      OperationFailedError, SimError)
-from .records import LoopStatus, RESET_STATE, Snapshot
+from .records import Clock, LoopStatus, RESET_STATE, Snapshot
 from .world import World
 
 log = logging.getLogger(__name__)
@@ -68,6 +68,8 @@ ERR_INTERRUPTED = ('the step request was ended by a state request after {done} o
                    'steps')
 ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
+ERR_STEP_UNDER_LOCK = ('step() called inside World.locked(): the loop steps under the world lock, '
+                       'so it would wait for ever; leave the block first')
 
 
 _RUNNING: 'weakref.WeakSet' = weakref.WeakSet()
@@ -232,6 +234,8 @@ class SimLoop:
         """
         if n < 1:
             raise InvalidArgumentError(f'steps must be >= 1, got {n}')
+        if self.world.holds_lock():  # the loop needs the world lock to step: it would never
+            raise IncorrectStateError(ERR_STEP_UNDER_LOCK)  # come, and the caller wait for ever
         deadline = None if timeout is None else time.monotonic() + timeout
         with self._cv:
             if self._failure:
@@ -254,7 +258,11 @@ class SimLoop:
                 self._steps_done_cv.wait(0.1 if left is None else min(left, 0.1))
                 if feedback is not None and self._pending_steps != last:
                     last = self._pending_steps
-                    feedback(n - last, last)
+                    self._cv.release()  # the caller's code runs with no lock of ours held
+                    try:
+                        feedback(n - last, last)
+                    finally:
+                        self._cv.acquire()
             remaining = self._pending_steps
             self._pending_steps = 0
             if self._cancelled_left is not None:
@@ -346,16 +354,14 @@ class SimLoop:
         else:
             self._lag_message = ''
 
-    def _limit_reason(self) -> str:
-        w = self.world
+    def _limit_reason(self, w: Clock) -> str:
         if self._max_steps and w.step_count >= self._max_steps:
             return f'max_steps reached ({self._max_steps} steps)'
         if self._max_sim_time and time_reached(w.time, self._max_sim_time, w.timestep):
             return f'max_sim_time reached ({self._max_sim_time} s)'
         return ''
 
-    def _steps_to_limit(self) -> int:
-        w = self.world
+    def _steps_to_limit(self, w: Clock) -> int:
         n = MAX_BATCH_STEPS
         if self._max_steps:
             n = min(n, self._max_steps - w.step_count)
@@ -376,12 +382,18 @@ class SimLoop:
                     self._steps_done_cv.notify_all()
 
     def _iterate(self) -> None:
-        """Wait until stepping is due, run one batch of steps, hand out a snapshot."""
+        """
+        Wait until stepping is due, run one batch of steps, hand out a snapshot.
+
+        The world lock is never taken while ``_cv`` is held (the lock order, docs/threading.md):
+        what the batch needs of the world is read before.
+        """
         with self._cv:
             idle = not self._stopping and self._paused and not self._pending_steps
         if idle:
             # Consumers see the state the loop stopped in, not one from before the pause.
             self.refresh_snapshot()
+        clock = self.world.clock()
         with self._cv:
             while not self._stopping and self._paused and not self._pending_steps:
                 self._cv.wait()
@@ -391,7 +403,7 @@ class SimLoop:
                 return
             stepping_request = self._paused
             rtf = self._rtf
-            reason = '' if stepping_request else self._limit_reason()
+            reason = '' if stepping_request else self._limit_reason(clock)
             if reason:
                 self._paused = True
                 self._stop_reason = reason
@@ -400,7 +412,7 @@ class SimLoop:
             if stepping_request:
                 n = min(self._pending_steps, self._batch)
             elif rtf > 0:
-                period = self.world.timestep / rtf
+                period = clock.timestep / rtf
                 lag = time.perf_counter() - self._deadline
                 if lag < 0:
                     # Sleep to the absolute deadline outside the world lock; a pause, stop
@@ -414,7 +426,7 @@ class SimLoop:
             else:
                 n = self._batch
             if not stepping_request:
-                n = min(n, self._steps_to_limit())
+                n = min(n, self._steps_to_limit(clock))
         self.world.wait_for_callers()
         t0 = time.perf_counter()
         try:
@@ -433,12 +445,14 @@ class SimLoop:
         now = time.perf_counter()
         if stepping_request:
             with self._cv:
+                last_batch = self._pending_steps <= n
+            if last_batch:  # the caller hears the steps are done after the snapshot shows them
+                self.refresh_snapshot()
+            with self._cv:
                 self._pending_steps = max(0, self._pending_steps - n)
-                if not self._pending_steps:
-                    self.refresh_snapshot()
                 self._steps_done_cv.notify_all()
         elif rtf > 0:
-            self._deadline += n * self.world.timestep / rtf
+            self._deadline += n * clock.timestep / rtf
         # Every batch holds the lock for about MAX_BATCH_WALL_SEC at most, whatever asked
         # for it (full speed, catching up with a high factor, a step request), so snapshots
         # and callers are never held off longer.

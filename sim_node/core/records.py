@@ -1,7 +1,7 @@
 """Immutable values the world hands out: entity records, model info, snapshots, states."""
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import numpy as np
 
@@ -20,6 +20,14 @@ RESET_TIME = 1
 RESET_STATE = 2
 RESET_SPAWNED = 4
 RESET_ALL = 255
+
+
+class Clock(NamedTuple):
+    """Where a world is in time, read at once (:meth:`~.world.World.clock`)."""
+
+    time: float  # simulated seconds
+    step_count: int  # steps since the last time reset
+    timestep: float  # seconds per step
 
 
 @dataclass(frozen=True)

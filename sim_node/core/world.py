@@ -29,8 +29,8 @@ from .errors import (DivergenceError, FeatureUnsupportedError, IncorrectStateErr
 from .guard import clean, DivergenceGuard
 from .index import ModelIndex, STATE_SPEC
 from .lock import WorldLock
-from .records import (EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL, RESET_SPAWNED,
-                      RESET_STATE, RESET_TIME, Snapshot)
+from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
+                      RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
 from .world_edits import WorldEdits
 from .world_writes import StateWrites
 
@@ -142,6 +142,10 @@ class World(StateWrites, WorldEdits):
         """Return the world lock, counting waiters so the loop can step aside for them."""
         return self._lock_cm
 
+    def holds_lock(self) -> bool:
+        """Whether the calling thread holds the world lock (is inside :meth:`locked`)."""
+        return self._lock._is_owned()
+
     def wait_for_callers(self, timeout: float = 0.05) -> None:
         """Use by the loop: let callers waiting for the lock go first."""
         self._lock_cm.wait_for_callers(timeout)
@@ -155,8 +159,20 @@ class World(StateWrites, WorldEdits):
         """
         with self._locked():
             self._cached = None  # the caller may change anything
-            yield self._model, self._data
-            self._stale_kinematics = self._stale_dynamics = True
+            try:
+                yield self._model, self._data
+            finally:  # even when the caller's block raised, after changing something
+                self._stale_kinematics = self._stale_dynamics = True
+
+    def read(self, read: Callable[[mujoco.MjModel, mujoco.MjData], T]) -> T:
+        """
+        Return what `read` returns, called with (model, data) under the world lock.
+
+        The current model and data as they are (after a step, body poses are a step behind:
+        see :meth:`_kinematics_locked`); `read` must change nothing and keep neither.
+        """
+        with self._locked():
+            return read(self._model, self._data)
 
     def observe(self, read: Callable[[mujoco.MjModel, mujoco.MjData, int], T]) -> T:
         """
@@ -192,6 +208,12 @@ class World(StateWrites, WorldEdits):
     def time(self) -> float:
         with self._locked():
             return float(self._data.time)
+
+    def clock(self) -> Clock:
+        """Return the time, step count and timestep, read together."""
+        with self._locked():
+            return Clock(float(self._data.time), self._step_count,
+                         float(self._model.opt.timestep))
 
     @property
     def step_count(self) -> int:
@@ -627,7 +649,7 @@ class World(StateWrites, WorldEdits):
 
         :returns: the plan's ``result``.
         """
-        if self._lock._is_owned():  # called inside locked(): waiting for _edit_lock could
+        if self.holds_lock():  # called inside locked(): waiting for _edit_lock could
             with self._locked():  # deadlock with an edit waiting for the world lock
                 edit, check, spawned, overrides, removed, result = plan_locked()
                 self._edit_locked(edit, check, spawned, overrides, removed)
