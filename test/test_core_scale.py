@@ -184,3 +184,18 @@ def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
                                          f'during a {label}')
     finally:
         loop.stop()
+
+
+@pytest.mark.slow  # about 7 s
+def test_a_model_of_5000_bodies_spawns_when_max_bodies_allows_it():
+    """MuJoCo's arena is sized for the world after the spawn, not before (allocation failed)."""
+    from sim_node.core import sources
+    bodies = ''.join(f'<body pos="{i % 70 * 0.3} {i // 70 * 0.3} 0.2"><freejoint/>'
+                     '<geom type="box" size=".1 .1 .1"/></body>' for i in range(5000))
+    source = sources.from_model_text(f'<mujoco model="many"><worldbody>{bodies}</worldbody>'
+                                     '</mujoco>')
+    w = World.from_file(str(DEFAULT_SCENE), WorldConfig(max_bodies=6000))
+    assert w.spawn('many', source, (20.0, 20.0, 0.0)) == 'many'
+    w.step(200)  # 0.4 s: every box has landed on the floor, 20,000 contacts
+    assert w.model_info.body_names.count('many') == 1
+    assert abs(w.get_entity_state('many').position[2] - 0.1) < 0.01
