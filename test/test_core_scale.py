@@ -188,7 +188,7 @@ def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
 
 @pytest.mark.slow  # about 7 s
 def test_a_model_of_5000_bodies_spawns_when_max_bodies_allows_it():
-    """MuJoCo's arena is sized for the world after the spawn, not before (allocation failed)."""
+    """The arena (MuJoCo's) is sized for the world after the spawn, not before (it failed)."""
     from sim_node.core import sources
     bodies = ''.join(f'<body pos="{i % 70 * 0.3} {i // 70 * 0.3} 0.2"><freejoint/>'
                      '<geom type="box" size=".1 .1 .1"/></body>' for i in range(5000))
