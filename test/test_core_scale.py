@@ -125,6 +125,35 @@ def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping
         loop.stop()
 
 
+@pytest.mark.parametrize('edit', ['add_body', 'set_default_contact', 'delete'])
+def test_other_edits_compile_outside_the_world_lock_too(slow_source, edit):
+    """With MuJoCo's mesh cache off, every compile of this world takes seconds: no stall."""
+    from sim_node.core import assets, sources
+    loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
+    w = loop.world
+    w.spawn('big', slow_source, position=[0, 2, 1])
+    w.spawn('crate', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
+    assets.set_mesh_cache(0)  # every compile processes the big mesh again
+    loop.start()
+    try:
+        time.sleep(0.3)
+        with StallWatch(loop) as watch:
+            t0 = time.monotonic()
+            if edit == 'add_body':
+                w.add_body('lid', 'crate', 'box', [0.05, 0.05, 0.01], position=(0, 0, 0.06))
+            elif edit == 'set_default_contact':
+                w.set_default_contact(friction=[0.8, 0.01, 0.001])
+            else:
+                w.delete('crate')
+            took = time.monotonic() - t0
+        assert took > 0.5  # slow enough to mean something
+        assert watch.longest < 0.3, (f'the loop stood still {watch.longest:.2f} s of a '
+                                     f'{took:.2f} s {edit}')
+    finally:
+        loop.stop()
+        assets.set_mesh_cache(WorldConfig().mesh_cache_mb)
+
+
 def test_an_edit_during_a_slow_spawn_is_kept_and_the_spawn_lands_on_the_new_world(slow_source):
     """A delete while the spawn compiles: the spawn starts over; nothing deleted comes back."""
     import threading

@@ -148,7 +148,7 @@ class WorldEdits:
         full_size = sources.primitive_size(shape, size)
         colour = sources.check_rgba(rgba)
         sources.check_mass(mass)
-        with self._locked():
+        def plan() -> tuple:  # compiled outside the world lock (World._change)
             root = self._index.entity_of_body(parent)
             if root not in self._spawned:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
@@ -156,9 +156,11 @@ class WorldEdits:
             full = f'{root}/{name}'
             if full in self._index.body_ids:
                 raise NameNotUniqueError(ERR_DUPLICATE.format(name=full))
-            self._edit_locked(lambda spec: editor.add_child(
-                spec, parent, full, shape, full_size, pos, q, mass, joint, ax, colour))
-            return full
+            return (lambda spec: editor.add_child(
+                spec, parent, full, shape, full_size, pos, q, mass, joint, ax, colour),
+                None, None, None, 0, full)
+
+        return self._change(plan)
 
     def delete(self, name: str) -> None:
         """
@@ -247,19 +249,23 @@ class WorldEdits:
         e = None if restitution is None else self._check_restitution(restitution)
         with self._locked():
             old = self._default_friction, self._default_restitution
-            self._default_friction = old[0] if f is None else f
-            self._default_restitution = old[1] if e is None else e
+
+        def plan() -> tuple:  # compiled outside the world lock (World._change); edits take
+            self._default_friction = old[0] if f is None else f  # turns, so no other edit
+            self._default_restitution = old[1] if e is None else e  # plans meanwhile
             idx = self._index
-            groups = [([idx.geom_names[g] for g in r.geom_ids], self._overrides.get(r.name, {}))
-                      for r in idx.entities]
+            groups = [([idx.geom_names[g] for g in r.geom_ids],
+                       self._contact_of(self._overrides.get(r.name, {}))) for r in idx.entities]
             groups.append(([n for g, n in enumerate(idx.geom_names)
-                            if self._model.geom_bodyid[g] == 0], {}))
-            try:
-                self._edit_locked(lambda spec: [editor.apply_contact(
-                    spec, geoms, *self._contact_of(own)) for geoms, own in groups])
-            except Exception:
+                            if self._model.geom_bodyid[g] == 0], self._contact_of({})))
+            return (lambda spec: [editor.apply_contact(spec, geoms, *contact)
+                                  for geoms, contact in groups], None, None, None, 0, None)
+        try:
+            self._change(plan)
+        except Exception:
+            with self._locked():
                 self._default_friction, self._default_restitution = old
-                raise
+            raise
 
     @staticmethod
     def _check_restitution(restitution: float) -> float:
