@@ -108,19 +108,25 @@ class StallWatch:
         self._thread.join()
 
 
+def assert_the_loop_keeps_stepping(loop: SimLoop, edit, what: str) -> None:
+    """Run `edit` (a slow compile) on a running loop: simulated time never stands still 0.3 s."""
+    time.sleep(0.3)
+    with StallWatch(loop) as watch:
+        t0 = time.monotonic()
+        edit()
+        took = time.monotonic() - t0
+    assert took > 0.5  # slow enough to mean something
+    assert watch.longest < 0.3, (f'the loop stood still {watch.longest:.2f} s of a '
+                                 f'{took:.2f} s {what}')
+
+
 def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping(slow_source):
     """A 150k-face mesh takes seconds to compile; the loop must not stall for it."""
     loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
     loop.start()
     try:
-        time.sleep(0.3)
-        with StallWatch(loop) as watch:
-            t0 = time.monotonic()
-            loop.world.spawn('big', slow_source, position=[0, 2, 1])
-            took = time.monotonic() - t0
-        assert took > 0.5  # slow enough to mean something
-        assert watch.longest < 0.3, (f'the loop stood still {watch.longest:.2f} s of a '
-                                     f'{took:.2f} s spawn')
+        assert_the_loop_keeps_stepping(
+            loop, lambda: loop.world.spawn('big', slow_source, position=[0, 2, 1]), 'spawn')
     finally:
         loop.stop()
 
@@ -134,21 +140,13 @@ def test_other_edits_compile_outside_the_world_lock_too(slow_source, edit):
     w.spawn('big', slow_source, position=[0, 2, 1])
     w.spawn('crate', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
     assets.set_mesh_cache(0)  # every compile processes the big mesh again
+    edits = {'add_body': lambda: w.add_body('lid', 'crate', 'box', [0.05, 0.05, 0.01],
+                                            position=(0, 0, 0.06)),
+             'set_default_contact': lambda: w.set_default_contact(friction=[0.8, 0.01, 0.001]),
+             'delete': lambda: w.delete('crate')}
     loop.start()
     try:
-        time.sleep(0.3)
-        with StallWatch(loop) as watch:
-            t0 = time.monotonic()
-            if edit == 'add_body':
-                w.add_body('lid', 'crate', 'box', [0.05, 0.05, 0.01], position=(0, 0, 0.06))
-            elif edit == 'set_default_contact':
-                w.set_default_contact(friction=[0.8, 0.01, 0.001])
-            else:
-                w.delete('crate')
-            took = time.monotonic() - t0
-        assert took > 0.5  # slow enough to mean something
-        assert watch.longest < 0.3, (f'the loop stood still {watch.longest:.2f} s of a '
-                                     f'{took:.2f} s {edit}')
+        assert_the_loop_keeps_stepping(loop, edits[edit], edit)
     finally:
         loop.stop()
         assets.set_mesh_cache(WorldConfig().mesh_cache_mb)

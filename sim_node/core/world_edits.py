@@ -148,6 +148,7 @@ class WorldEdits:
         full_size = sources.primitive_size(shape, size)
         colour = sources.check_rgba(rgba)
         sources.check_mass(mass)
+
         def plan() -> tuple:  # compiled outside the world lock (World._change)
             root = self._index.entity_of_body(parent)
             if root not in self._spawned:
