@@ -139,3 +139,36 @@ def test_a_second_simulator_in_the_same_namespace_refuses_to_start(start_node, c
     import time
     time.sleep(3.0)
     assert third.proc.poll() is None, third.output()  # allowed: it runs
+
+
+def test_a_killed_test_run_leaves_no_node_running(tmp_path):
+    """The nodes a test process started end with it, even when it is killed (SIGKILL)."""
+    import os
+    import subprocess
+    import sys
+    import time
+    pid_file = tmp_path / 'node.pid'
+    script = ('import sys, time; sys.path.insert(0, %r); from conftest import NodeProcess; '
+              'p = NodeProcess(); open(%r, "w").write(str(p.proc.pid)); time.sleep(60)'
+              % (os.path.dirname(__file__), str(pid_file)))
+    runner = subprocess.Popen([sys.executable, '-c', script])
+    try:
+        wait_for(lambda: pid_file.exists() and pid_file.read_text(), timeout=20)
+        node_pid = int(pid_file.read_text())
+        time.sleep(1.0)  # the node is up
+        runner.kill()
+        runner.wait()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and _alive(node_pid):
+            time.sleep(0.1)
+        assert not _alive(node_pid), 'the node outlived the process that started it'
+    finally:
+        runner.kill()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().split()[2] != 'Z'  # a zombie has ended
+    except FileNotFoundError:
+        return False
