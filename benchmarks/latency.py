@@ -31,7 +31,7 @@ RATE_HZ, WINDOW_SEC, TARGET_P99_MS = 100.0, 10.0, 20.0
 
 
 def trivial_server() -> None:
-    """The same two services in a bare rclpy node that answers at once: rclpy's own cost."""
+    """Serve the same two services from a bare rclpy node that answers at once (rclpy's cost)."""
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
