@@ -29,6 +29,27 @@ from simulation_interfaces.msg import EntityState, Result, SimulationState
 from .qos import FEEDBACK_QOS, SERVICE_QOS
 
 
+#: The simulation_interfaces services of a `sim` node, by name (as simulators name them).
+STANDARD_SERVICES = {name: getattr(srv, kind) for name, kind in (
+    ('get_simulator_features', 'GetSimulatorFeatures'), ('spawn_entity', 'SpawnEntity'),
+    ('spawn_entities', 'SpawnEntities'), ('delete_entity', 'DeleteEntity'),
+    ('get_entities', 'GetEntities'), ('get_entity_state', 'GetEntityState'),
+    ('get_entities_states', 'GetEntitiesStates'), ('set_entity_state', 'SetEntityState'),
+    ('get_entity_info', 'GetEntityInfo'), ('get_entity_bounds', 'GetEntityBounds'),
+    ('get_spawnables', 'GetSpawnables'), ('reset_simulation', 'ResetSimulation'),
+    ('step_simulation', 'StepSimulation'), ('get_simulation_state', 'GetSimulationState'),
+    ('set_simulation_state', 'SetSimulationState'),
+    ('get_available_worlds', 'GetAvailableWorlds'), ('load_world', 'LoadWorld'),
+    ('unload_world', 'UnloadWorld'), ('get_current_world', 'GetCurrentWorld'))
+    if hasattr(srv, kind)}
+
+#: How old a service client must be before its first request (s). wait_for_service sees the
+#: server's request reader; the server may not have matched the client's reply reader yet, and
+#: rmw_fastrtps then drops the reply ("failed to send response (timeout)": a first reset in a
+#: CI run never came back). The clients of every standard service are made with the SimClient,
+#: so only a call right after construction waits, once.
+FIRST_CALL_SETTLE_SEC = 0.5
+
 #: After a simulate_steps goal succeeds, how long a client waits for feedback in flight (s).
 FEEDBACK_DRAIN_SEC = 2.0
 
@@ -58,7 +79,9 @@ class SimClient:
         self._executor.add_node(self.node)
         self._ns = namespace.rstrip('/')
         self._timeout = timeout_sec
-        self._clients: dict = {}
+        self._clients: dict = {}  # service -> (rclpy client, when it was made)
+        for service, srv_type in STANDARD_SERVICES.items():  # discovered while the caller
+            self._client(service, srv_type)  # goes on: see FIRST_CALL_SETTLE_SEC
 
     def close(self) -> None:
         self._executor.remove_node(self.node)
@@ -66,21 +89,29 @@ class SimClient:
         if self._own:
             self.node.destroy_node()
 
+    def _client(self, service: str, srv_type) -> tuple:
+        """Return (the rclpy client of `service`, when it was made), made on first use."""
+        made = self._clients.get(service)
+        if made is None:
+            # A deep reply history: replies to other clients cannot push ours out (see qos).
+            made = self._clients[service] = (self.node.create_client(
+                srv_type, self._name(service), qos_profile=SERVICE_QOS), time.monotonic())
+        return made
+
     def _name(self, service: str) -> str:
         return f'{self._ns}/{service}' if self._ns else service
 
     def call(self, service: str, srv_type, request, check: bool = True):
         """Call a service and wait for the answer; raise on a non-OK Result if `check`."""
-        client = self._clients.get(service)
-        if client is None:
-            # A deep reply history: replies to other clients cannot push ours out (see qos).
-            client = self._clients[service] = self.node.create_client(
-                srv_type, self._name(service), qos_profile=SERVICE_QOS)
+        client, born = self._client(service, srv_type)
         deadline = time.monotonic() + self._timeout
         while not client.wait_for_service(timeout_sec=0.2):
             if time.monotonic() > deadline:
                 raise TimeoutError(f'service {self._name(service)} is not available; is the '
                                    'sim node running (same ROS_DOMAIN_ID)?')
+        settle = born + FIRST_CALL_SETTLE_SEC - time.monotonic()
+        if settle > 0:  # a client this young: let the server match its reply reader
+            self._spin_until(lambda: False, settle)
         future = client.call_async(request)
         self._executor.spin_until_future_complete(future, max(0.1, deadline - time.monotonic()))
         if not future.done():
