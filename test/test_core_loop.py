@@ -61,6 +61,17 @@ def test_max_steps_stops_the_loop_and_says_why(make_loop):
     assert loop.world.step_count == 3000
 
 
+def test_after_a_reset_max_steps_counts_again_from_zero(make_loop):
+    """The loop reads the world afresh after a pause: not the step count it paused at."""
+    loop = make_loop(real_time_factor=0, max_steps=3000)
+    assert _wait(lambda: loop.paused)
+    loop.world.reset()
+    time.sleep(0.1)  # the loop waits, paused, with the world back at step 0
+    loop.play()
+    assert _wait(lambda: loop.paused and loop.world.step_count > 0)
+    assert loop.world.step_count == 3000, loop.status().stop_reason
+
+
 def test_max_sim_time_stops_the_loop(make_loop):
     loop = make_loop(real_time_factor=0, max_sim_time=1.5)
     deadline = time.monotonic() + 20

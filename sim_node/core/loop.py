@@ -395,10 +395,12 @@ class SimLoop:
             self.refresh_snapshot()
         clock = self.world.clock()
         with self._cv:
-            while not self._stopping and self._paused and not self._pending_steps:
-                self._cv.wait()
+            if not self._stopping and self._paused and not self._pending_steps:
+                while not self._stopping and self._paused and not self._pending_steps:
+                    self._cv.wait()
                 self._deadline = time.perf_counter()
                 self._window_start = None  # a pause is not lag
+                return  # the world may have changed meanwhile (a reset): read it again
             if self._stopping:
                 return
             stepping_request = self._paused
