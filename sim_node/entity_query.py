@@ -47,9 +47,9 @@ def query(world: World, pattern: str = '', categories: Optional[set] = None,
     Entity records, in model order.
 
     Whose name `pattern` (a regular expression, at most :data:`FILTER_TIMEOUT_SEC` of matching in
-    all) finds, whose category is in `categories` (None: any), and whose root body origin lies in
-    `region` (None: anywhere) overlaps: the region meets the entity's axis-aligned bounds
-    in the world frame (GetEntityBounds' box, seen from the world), as the standard says.
+    all) finds, whose category is in `categories` (None: any), and whose axis-aligned bounds in
+    the world frame meet `region` (None: anywhere): overlap, as the standard says, not the
+    origin inside.
     Entities carry no tags (ENTITY_TAGS is not listed): the node refuses tag filters.
     """
     recs = world.entities()

@@ -385,9 +385,8 @@ class SimServices:
             return result
         # The standard: feedback after each step. The physics runs in chunks (a hundredth of
         # the goal, at most SIMULATE_CHUNK_STEPS) and a message goes out for every step of each
-        # chunk, or every
-        # `simulate_steps_feedback_every`-th and the last.
-        every = max(1, int(self.get_parameter('simulate_steps_feedback_every').value))
+        # chunk, or every `simulate_steps_feedback_every`-th and the last.
+        every = self._param('simulate_steps_feedback_every')
         chunk = min(max(1, total // 100), SIMULATE_CHUNK_STEPS)
         done = 0
         try:
@@ -415,12 +414,12 @@ class SimServices:
     # ---- worlds
 
     def _srv_worlds(self, request, response):
-        for name, uri in resources.list_worlds(self._scenes_dir):
-            response.worlds.append(WorldResource(name=name, description=f'scene {name}',
-                                                 world_resource=_resource(uri)))
         if len(request.filter.tags):
             raise FeatureUnsupportedError('world tag filters are not supported (WORLD_TAGS is '
                                           'not listed): worlds carry no tags')
+        for name, uri in resources.list_worlds(self._scenes_dir):
+            response.worlds.append(WorldResource(name=name, description=f'scene {name}',
+                                                 world_resource=_resource(uri)))
         failed = []
         for src in request.additional_sources:
             try:
@@ -471,8 +470,7 @@ class SimServices:
         response.world = WorldResource(name=name, world_resource=_resource(uri))
         response.result = convert.ok()
         if dropped:
-            note = ('left out elements MuJoCo does not know: '
-                    + ', '.join(f'<{t[:50]}>' for t in dropped[:10]))
+            note = f'left out elements MuJoCo does not know: {sources.element_list(dropped)}'
             self.get_logger().warning(f'load_world {name}: {note}')
             response.result.error_message = note
         return response

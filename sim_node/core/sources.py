@@ -204,6 +204,11 @@ def mjcf_elements() -> frozenset:
     return frozenset(names) | {'worldbody'} | _EXPANDED_FIRST
 
 
+def element_list(tags: Sequence[str]) -> str:
+    """Name up to ten element tags as ``<a>, <b>``, each cut to 50 characters."""
+    return ', '.join(f'<{t[:50]}>' for t in tags[:10])
+
+
 def drop_unknown_elements(root: ET.Element, fail: bool) -> list:
     """
     Remove the elements of an MJCF document MuJoCo knows nowhere; return their names.
@@ -214,8 +219,7 @@ def drop_unknown_elements(root: ET.Element, fail: bool) -> list:
     known = mjcf_elements()
     found = sorted({e.tag for e in root.iter() if e.tag not in known})
     if found and fail:
-        raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(tags=', '.join(
-            f'<{t[:50]}>' for t in found[:10])))
+        raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(tags=element_list(found)))
     for parent in list(root.iter()):
         for child in [c for c in parent if c.tag not in known]:
             parent.remove(child)
