@@ -29,71 +29,11 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from sim_node.gym_env import ReachTask, SimEnv, Task  # noqa: E402
+from sim_node.gym_env import PusherTask, ReacherTask, ReachTask, SimEnv  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from verdict import verdict  # noqa: E402, I100
 
 SCENE = str(Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml')
-GYM_ASSETS = Path(gym.__file__).parent / 'envs' / 'mujoco' / 'assets'
-
-
-class PusherTask(Task):
-    """Gymnasium's Pusher-v5, written as a Task: ids looked up once, the same numbers."""
-
-    scene = str(GYM_ASSETS / 'pusher_v5.xml')
-    frame_skip = 5
-
-    def setup(self, model):
-        self.tips, self.obj, self.goal = (model.body(n).id for n in ('tips_arm', 'object', 'goal'))
-
-    def randomize(self, model, data, rng):
-        while True:
-            cylinder = np.concatenate([rng.uniform(-0.3, 0, 1), rng.uniform(-0.2, 0.2, 1)])
-            if np.linalg.norm(cylinder) > 0.17:
-                break
-        data.qpos[-4:-2], data.qpos[-2:] = cylinder, 0
-        data.qvel[:] = rng.uniform(-0.005, 0.005, size=model.nv)
-        data.qvel[-4:] = 0
-
-    def observation(self, model, data):
-        x = data.xpos
-        return np.concatenate([data.qpos[:7], data.qvel[:7], x[self.tips], x[self.obj],
-                               x[self.goal]])
-
-    def reward(self, model, data):
-        x = data.xpos
-        near = -np.linalg.norm(x[self.obj] - x[self.tips]) * 0.5
-        dist = -np.linalg.norm(x[self.obj] - x[self.goal])
-        return dist - np.square(data.ctrl).sum() * 0.1 + near
-
-
-class ReacherTask(Task):
-    """Gymnasium's Reacher-v5, written as a Task."""
-
-    scene = str(GYM_ASSETS / 'reacher.xml')
-    frame_skip = 2
-
-    def setup(self, model):
-        self.tip, self.target = model.body('fingertip').id, model.body('target').id
-
-    def randomize(self, model, data, rng):
-        data.qpos[:] += rng.uniform(-0.1, 0.1, size=model.nq)
-        while True:
-            goal = rng.uniform(-0.2, 0.2, size=2)
-            if np.linalg.norm(goal) < 0.2:
-                break
-        data.qpos[-2:] = goal
-        data.qvel[:] = rng.uniform(-0.005, 0.005, size=model.nv)
-        data.qvel[-2:] = 0
-
-    def observation(self, model, data):
-        theta = data.qpos[:2]
-        return np.concatenate([np.cos(theta), np.sin(theta), data.qpos[2:], data.qvel[:2],
-                               (data.xpos[self.tip] - data.xpos[self.target])[:2]])
-
-    def reward(self, model, data):
-        return (-np.linalg.norm(data.xpos[self.tip] - data.xpos[self.target])
-                - np.square(data.ctrl).sum())
 
 
 class GymnasiumReach(MujocoEnv):

@@ -13,14 +13,20 @@ import importlib.abc
 import sys
 
 _TARGET = 'gymnasium.envs.registration'
-IDS = (('sim/PushBox-v0', 'sim_node.gym_env:make_push_box', 200),
-       ('sim/Reach-v0', 'sim_node.gym_env:make_reach', 200))
+#: (id, name, episode length): ``make_<name>`` in sim_node.gym_env (one env) and in
+#: sim_node.gym_vector (``gymnasium.make_vec``).
+IDS = (('sim/PushBox-v0', 'push_box', 200),
+       ('sim/Reach-v0', 'reach', 200),
+       ('sim/Pusher-v0', 'pusher', 100),    # Gymnasium's Pusher-v5 lengths
+       ('sim/Reacher-v0', 'reacher', 50))   # and Reacher-v5's
 
 
 def register_ids(registration) -> None:
-    for env_id, entry, steps in IDS:
+    for env_id, name, steps in IDS:
         if env_id not in registration.registry:
-            registration.register(id=env_id, entry_point=entry, max_episode_steps=steps)
+            registration.register(id=env_id, entry_point=f'sim_node.gym_env:make_{name}',
+                                  vector_entry_point=f'sim_node.gym_vector:make_{name}',
+                                  max_episode_steps=steps)
 
 
 class _Finder(importlib.abc.MetaPathFinder):

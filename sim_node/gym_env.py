@@ -1,17 +1,24 @@
 """
 Gymnasium environments over the same core world (composed, not Gymnasium's MujocoEnv).
 
-    import gymnasium, sim_node.gym_env   # the import registers sim/PushBox-v0, sim/Reach-v0
-    env = gymnasium.make('sim/PushBox-v0')
+    import gymnasium, sim_node.gym_env   # the import registers the sim/ ids below
+    env = gymnasium.make('sim/PushBox-v0', render_mode='rgb_array')
+    envs = gymnasium.make_vec('sim/PushBox-v0', num_envs=8)   # a SimVectorEnv (gym_vector)
 
-(``gymnasium.make('sim_node.gym_env:sim/PushBox-v0')`` works without the import.)
+(``gymnasium.make('sim_node.gym_env:sim/PushBox-v0')`` works without the import.) The ids:
+sim/PushBox-v0 and sim/Reach-v0 on this project's scenes, sim/Pusher-v0 and sim/Reacher-v0 on
+Gymnasium's own Pusher-v5 and Reacher-v5 model files with their observations and rewards.
 
-A :class:`SimEnv` is a scene plus a :class:`Task` (observation, reward, termination, and an
-optional hook that randomizes the initial state from the seed). ``reset(seed)`` restores a
-snapshot of the initial state instead of rebuilding; actions are actuator controls within the
-actuators' control ranges.
+A :class:`SimEnv` is a scene plus a :class:`Task` (observation, reward, termination, the
+``info`` a training loop logs, and an optional hook that randomizes the initial state from the
+seed). ``reset(seed)`` restores a snapshot of the initial state instead of rebuilding; actions
+are actuator controls within the actuators' control ranges. Rendering is headless, as
+Gymnasium's MuJoCo envs do it: ``rgb_array`` and ``depth_array`` (metres), from a camera of the
+scene (``camera_name``/``camera_id``) or a free camera that shows the whole scene.
 """
 
+import math
+from pathlib import Path
 from typing import Optional
 
 import gymnasium as gym
@@ -19,9 +26,32 @@ from gymnasium import spaces
 import mujoco
 import numpy as np
 
-from . import resources
+from . import gym_autoload, resources
+from .core.cameras import View
 from .core.checks import MAX_ABS_VALUE as MAX_CONTROL
 from .core.world import World
+
+#: The render modes, as Gymnasium's MuJoCo envs name them ('human' needs a window: refused).
+RENDER_MODES = ('rgb_array', 'depth_array')
+ERR_HUMAN = ("render_mode 'human' opens a window, and sim environments render headless: use "
+             "render_mode='rgb_array' (gymnasium.wrappers.RecordVideo writes videos of it) or "
+             "'depth_array', or watch the node in RViz")
+ERR_RENDER_MODE = 'render_mode must be None, {modes}; got {mode!r}'
+#: Gymnasium's own MuJoCo model files (Pusher-v5, Reacher-v5), shipped in its package.
+GYM_ASSETS = Path(gym.__file__).parent / 'envs' / 'mujoco' / 'assets'
+
+
+def dist(a: np.ndarray, b: np.ndarray) -> float:
+    """
+    Return the distance between two points, summing the squares in order.
+
+    Bit for bit what :func:`dists` gives for a row (NumPy's dot product may fuse and reorder
+    its sums), so one env and a vector env of it report the same numbers.
+    """
+    total = 0.0
+    for x in (a - b).tolist():
+        total += x * x
+    return math.sqrt(total)
 
 
 def _scene(name: str) -> str:
@@ -57,16 +87,97 @@ class Task:
     def terminated(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
         return False
 
+    def info(self, model: mujoco.MjModel, data: mujoco.MjData) -> dict:
+        """Return what a training loop logs: ``is_success`` and the distances the reward uses."""
+        return {}
+
+    def outcome(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple:
+        """
+        Return (observation, reward, terminated, info) after a step.
+
+        What the four methods give; a task may compute what they share once.
+        """
+        return (self.observation(model, data), float(self.reward(model, data)),
+                bool(self.terminated(model, data)), self.info(model, data))
+
+    #: Whether :meth:`batch_outcome` is written (the vector env then computes N envs at once).
+    batched = False
+
+    def batch_outcome(self, tasks: list, batch: 'Batch') -> tuple:
+        """
+        Compute the outcome of N envs at once (optional; for the vector env).
+
+        The same numbers as :meth:`observation`, :meth:`reward`, :meth:`terminated` and
+        :meth:`info` give env by env, computed over arrays whose first axis is the env.
+        `tasks` are the N envs' tasks (for per-episode state such as a goal); `batch` holds their
+        data. Set ``batched = True`` when writing it.
+
+        :returns: (observations (N, ...), rewards (N,), terminated (N,) bool, info: a dict of
+            (N,) arrays, with the keys :meth:`info` gives).
+        """
+        raise NotImplementedError
+
+
+class Batch:
+    """
+    The data of N worlds of one model, stacked: the fields tasks read, first axis the env.
+
+    ``qpos`` (N, nq), ``qvel`` (N, nv), ``ctrl`` (N, nu), ``xpos`` (N, nbody, 3) and
+    ``site_xpos`` (N, nsite, 3), as MjData holds them after a step.
+    """
+
+    FIELDS = ('qpos', 'qvel', 'ctrl', 'xpos', 'site_xpos')
+
+    def __init__(self, model: mujoco.MjModel, n: int):
+        self.qpos = np.zeros((n, model.nq))
+        self.qvel = np.zeros((n, model.nv))
+        self.ctrl = np.zeros((n, model.nu))
+        self.xpos = np.zeros((n, model.nbody, 3))
+        self.site_xpos = np.zeros((n, model.nsite, 3))
+
+    def gather(self, i: int, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Copy one world's fields into row `i` (``partial(batch.gather, i)`` for World.read)."""
+        self.qpos[i] = data.qpos
+        self.qvel[i] = data.qvel
+        self.ctrl[i] = data.ctrl
+        self.xpos[i] = data.xpos
+        self.site_xpos[i] = data.site_xpos
+
+
+def dists(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return the row-wise distances of two (N, k) arrays of points (see :func:`dist`)."""
+    d = a - b
+    total = d[:, 0] * d[:, 0]
+    for k in range(1, d.shape[1]):
+        total = total + d[:, k] * d[:, k]
+    return np.sqrt(total)
+
 
 class SimEnv(gym.Env):
-    """A Gymnasium environment: a :class:`World` built from the task's scene."""
+    """
+    A Gymnasium environment: a :class:`World` built from the task's scene.
 
-    metadata = {'render_modes': []}
+    :param render_mode: None, 'rgb_array' ((height, width, 3) uint8) or 'depth_array'
+        ((height, width) float32 metres along the camera's axis, +inf where nothing is hit).
+        The OpenGL backend starts here, so a machine that cannot render says so now.
+    :param camera_name: a camera of the scene; `camera_id` its index; neither: a free camera
+        that shows the whole scene.
+    """
 
-    def __init__(self, task: Task, render_mode: Optional[str] = None):
-        if render_mode is not None:
-            raise ValueError('sim environments do not render; watch them in RViz instead')
+    metadata = {'render_modes': list(RENDER_MODES), 'render_fps': 30}
+
+    def __init__(self, task: Task, render_mode: Optional[str] = None, width: int = 480,
+                 height: int = 480, camera_name: Optional[str] = None,
+                 camera_id: Optional[int] = None):
+        if render_mode == 'human':
+            raise ValueError(ERR_HUMAN)
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(ERR_RENDER_MODE.format(modes=', '.join(map(repr, RENDER_MODES)),
+                                                    mode=render_mode))
+        if camera_name is not None and camera_id is not None:
+            raise ValueError('give camera_name or camera_id, not both')
         self.task = task
+        self.render_mode = render_mode
         self.world = World.from_file(_scene(task.scene))
         with self.world.locked() as (m, d):  # no MuJoCo object is kept past the block
             task.setup(m)
@@ -79,6 +190,13 @@ class SimEnv(gym.Env):
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=obs.shape, dtype=np.float64)
         self._action_shape = self.action_space.shape
         self._initial = self.world.get_state()
+        timestep = self.world.timestep
+        self.metadata = dict(self.metadata,
+                             render_fps=max(1, round(1.0 / (timestep * task.frame_skip))))
+        self._view: Optional[View] = None
+        if render_mode is not None:
+            self._view = View(self.world, _camera(self.world, camera_name, camera_id),
+                              width, height)
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
         super().reset(seed=seed)
@@ -86,8 +204,20 @@ class SimEnv(gym.Env):
         with self.world.locked() as (m, d):
             self.task.randomize(m, d, self.np_random)
             mujoco.mj_forward(m, d)
-            obs = self.task.observation(m, d)
-        return obs, {}
+            obs, info = self.task.observation(m, d), self.task.info(m, d)
+        return obs, info
+
+    def render(self):
+        """Return the current frame (see `render_mode`); None without a render mode."""
+        if self._view is None:
+            return None
+        return self._view.render(depth=self.render_mode == 'depth_array')
+
+    def close(self):
+        if self._view is not None:
+            self._view.close()
+            self._view = None
+        super().close()
 
     def step(self, action):
         # MuJoCo clamps ctrl to the control ranges itself (ctrllimited actuators), but zeroes
@@ -107,9 +237,26 @@ class SimEnv(gym.Env):
         return self.world.read(self._outcome)
 
     def _outcome(self, m: mujoco.MjModel, d: mujoco.MjData) -> tuple:
-        task = self.task
-        return (task.observation(m, d), float(task.reward(m, d)), bool(task.terminated(m, d)),
-                False, {})
+        obs, reward, terminated, info = self._outcome_row(m, d)
+        return obs, reward, terminated, False, info
+
+    def _outcome_row(self, m: mujoco.MjModel, d: mujoco.MjData) -> tuple:
+        """Return (observation, reward, terminated, info): a step's outcome before time limits."""
+        return self.task.outcome(m, d)
+
+
+def _camera(world: World, name: Optional[str], index: Optional[int]) -> str:
+    """Return the camera to render from: a name, the name of camera `index`, or '' (free)."""
+    if index is None:
+        return name or ''
+    with world.locked() as (m, _):
+        if not 0 <= index < m.ncam:
+            raise ValueError(f'camera_id {index} is not a camera of the scene '
+                             f'(it has {m.ncam})')
+        found = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_CAMERA, index)
+    if not found:
+        raise ValueError(f'camera {index} has no name; give the camera a name in the scene')
+    return found
 
 
 class PushBoxTask(Task):
@@ -122,6 +269,7 @@ class PushBoxTask(Task):
 
     scene = 'push_box.xml'
     frame_skip = 10
+    SUCCESS = 0.03  # metres, box to goal
 
     def setup(self, model):
         self.box = model.body('box').id
@@ -144,10 +292,28 @@ class PushBoxTask(Task):
     def reward(self, model, data):
         box = data.xpos[self.box][:2]
         tip = data.xpos[self.pusher][:2]
-        return -np.linalg.norm(box - self.goal_xy) - 0.1 * np.linalg.norm(tip - box)
+        return -dist(box, self.goal_xy) - 0.1 * dist(tip, box)
 
     def terminated(self, model, data):
-        return bool(np.linalg.norm(data.xpos[self.box][:2] - self.goal_xy) < 0.03)
+        return dist(data.xpos[self.box][:2], self.goal_xy) < self.SUCCESS
+
+    def info(self, model, data):
+        box = data.xpos[self.box][:2]
+        to_goal = dist(box, self.goal_xy)
+        return {'is_success': to_goal < self.SUCCESS, 'box_to_goal': to_goal,
+                'tip_to_box': dist(data.xpos[self.pusher][:2], box)}
+
+    batched = True
+
+    def batch_outcome(self, tasks, batch):
+        goals = np.array([t.goal_xy for t in tasks])
+        box, tip = batch.xpos[:, self.box, :2], batch.xpos[:, self.pusher, :2]
+        obs = np.concatenate([batch.qpos[:, 0:2], batch.qvel[:, 0:2], box, batch.qvel[:, 2:4],
+                              goals], axis=1)
+        to_goal, to_box = dists(box, goals), dists(tip, box)
+        success = to_goal < self.SUCCESS
+        return obs, -to_goal - 0.1 * to_box, success, {
+            'is_success': success, 'box_to_goal': to_goal, 'tip_to_box': to_box}
 
 
 class ReachTask(Task):
@@ -155,6 +321,7 @@ class ReachTask(Task):
 
     scene = 'default.xml'
     frame_skip = 5
+    SUCCESS = 0.02  # metres, tip to target
     SHOULDER = np.array([0.19, 0.2, 0.55])
 
     def setup(self, model):
@@ -173,10 +340,144 @@ class ReachTask(Task):
                                self.target])
 
     def reward(self, model, data):
-        return -float(np.linalg.norm(data.site_xpos[self.tip] - self.target))
+        return -dist(data.site_xpos[self.tip], self.target)
 
-    def terminated(self, model, data):
-        return False
+    def info(self, model, data):
+        to_target = dist(data.site_xpos[self.tip], self.target)
+        return {'is_success': to_target < self.SUCCESS, 'tip_to_target': to_target}
+
+    batched = True
+
+    def batch_outcome(self, tasks, batch):
+        targets = np.array([t.target for t in tasks])
+        tip = batch.site_xpos[:, self.tip]
+        obs = np.concatenate([batch.qpos[:, :4], batch.qvel[:, :4], tip, targets], axis=1)
+        to_target = dists(tip, targets)
+        return obs, -to_target, np.zeros(len(tasks), dtype=bool), {
+            'is_success': to_target < self.SUCCESS, 'tip_to_target': to_target}
+
+
+class PusherTask(Task):
+    """
+    Gymnasium's Pusher-v5 as a Task: its model file, frame skip, observation and reward.
+
+    A 7-joint arm pushes a cylinder to a goal. Success: the cylinder within 5 cm of the goal in
+    the plane (Pusher-v5 itself never ends an episode; nor does this). ``object_to_goal`` and
+    ``tips_to_object`` are the 3-D distances its reward is made of.
+    """
+
+    scene = str(GYM_ASSETS / 'pusher_v5.xml')
+    frame_skip = 5
+    SUCCESS = 0.05  # metres, object to goal
+
+    def setup(self, model):
+        self.tips, self.obj, self.goal = (model.body(n).id for n in ('tips_arm', 'object', 'goal'))
+
+    def randomize(self, model, data, rng):
+        while True:
+            cylinder = np.concatenate([rng.uniform(-0.3, 0, 1), rng.uniform(-0.2, 0.2, 1)])
+            if np.linalg.norm(cylinder) > 0.17:
+                break
+        data.qpos[-4:-2], data.qpos[-2:] = cylinder, 0
+        data.qvel[:] = rng.uniform(-0.005, 0.005, size=model.nv)
+        data.qvel[-4:] = 0
+
+    def observation(self, model, data):
+        x = data.xpos
+        return np.concatenate([data.qpos[:7], data.qvel[:7], x[self.tips], x[self.obj],
+                               x[self.goal]])
+
+    def reward(self, model, data):
+        x = data.xpos
+        near = -dist(x[self.obj], x[self.tips]) * 0.5
+        far = -dist(x[self.obj], x[self.goal])
+        return far - np.square(data.ctrl).sum() * 0.1 + near
+
+    def info(self, model, data):
+        x = data.xpos
+        to_goal = dist(x[self.obj], x[self.goal])
+        return {'is_success': dist(x[self.obj][:2], x[self.goal][:2]) < self.SUCCESS,
+                'object_to_goal': to_goal,
+                'tips_to_object': dist(x[self.obj], x[self.tips])}
+
+    def outcome(self, model, data):
+        info = self.info(model, data)
+        near, far = -info['tips_to_object'] * 0.5, -info['object_to_goal']
+        reward = far - np.square(data.ctrl).sum() * 0.1 + near
+        return self.observation(model, data), float(reward), False, info
+
+    batched = True
+
+    def batch_outcome(self, tasks, batch):
+        x = batch.xpos
+        tips, obj, goal = x[:, self.tips], x[:, self.obj], x[:, self.goal]
+        obs = np.concatenate([batch.qpos[:, :7], batch.qvel[:, :7], tips, obj, goal], axis=1)
+        near, far = dists(obj, tips), dists(obj, goal)
+        reward = -far - np.square(batch.ctrl).sum(axis=1) * 0.1 + -near * 0.5
+        return obs, reward, np.zeros(len(tasks), dtype=bool), {
+            'is_success': dists(obj[:, :2], goal[:, :2]) < self.SUCCESS, 'object_to_goal': far,
+            'tips_to_object': near}
+
+
+class ReacherTask(Task):
+    """
+    Gymnasium's Reacher-v5 as a Task: its model file, frame skip, observation and reward.
+
+    A two-joint arm brings its fingertip to a target. Success: within 1 cm.
+    """
+
+    scene = str(GYM_ASSETS / 'reacher.xml')
+    frame_skip = 2
+    SUCCESS = 0.01  # metres, fingertip to target
+
+    def setup(self, model):
+        self.tip, self.target = model.body('fingertip').id, model.body('target').id
+
+    def randomize(self, model, data, rng):
+        data.qpos[:] += rng.uniform(-0.1, 0.1, size=model.nq)
+        while True:
+            goal = rng.uniform(-0.2, 0.2, size=2)
+            if np.linalg.norm(goal) < 0.2:
+                break
+        data.qpos[-2:] = goal
+        data.qvel[:] = rng.uniform(-0.005, 0.005, size=model.nv)
+        data.qvel[-2:] = 0
+
+    def observation(self, model, data):
+        theta = data.qpos[:2]
+        return np.concatenate([np.cos(theta), np.sin(theta), data.qpos[2:], data.qvel[:2],
+                               (data.xpos[self.tip] - data.xpos[self.target])[:2]])
+
+    def reward(self, model, data):
+        return (-dist(data.xpos[self.tip], data.xpos[self.target])
+                - np.square(data.ctrl).sum())
+
+    def info(self, model, data):
+        to_target = dist(data.xpos[self.tip], data.xpos[self.target])
+        return {'is_success': to_target < self.SUCCESS, 'tip_to_target': to_target}
+
+    def outcome(self, model, data):
+        info = self.info(model, data)
+        reward = -info['tip_to_target'] - np.square(data.ctrl).sum()
+        return self.observation(model, data), float(reward), False, info
+
+    batched = True
+
+    def batch_outcome(self, tasks, batch):
+        theta = batch.qpos[:, :2]
+        tip, target = batch.xpos[:, self.tip], batch.xpos[:, self.target]
+        offset = tip - target
+        obs = np.concatenate([np.cos(theta), np.sin(theta), batch.qpos[:, 2:],
+                              batch.qvel[:, :2], offset[:, :2]], axis=1)
+        to_target = dists(tip, target)
+        reward = -to_target - np.square(batch.ctrl).sum(axis=1)
+        return obs, reward, np.zeros(len(tasks), dtype=bool), {
+            'is_success': to_target < self.SUCCESS, 'tip_to_target': to_target}
+
+
+#: id -> Task class, the envs this module registers (names and lengths: :mod:`.gym_autoload`).
+TASKS = {'sim/PushBox-v0': PushBoxTask, 'sim/Reach-v0': ReachTask,
+         'sim/Pusher-v0': PusherTask, 'sim/Reacher-v0': ReacherTask}
 
 
 def make_push_box(**kwargs) -> SimEnv:
@@ -187,12 +488,17 @@ def make_reach(**kwargs) -> SimEnv:
     return SimEnv(ReachTask(), **kwargs)
 
 
+def make_pusher(**kwargs) -> SimEnv:
+    return SimEnv(PusherTask(), **kwargs)
+
+
+def make_reacher(**kwargs) -> SimEnv:
+    return SimEnv(ReacherTask(), **kwargs)
+
+
 def register_envs() -> None:
-    """Register sim/PushBox-v0 and sim/Reach-v0 (idempotent)."""
-    for env_id, entry, steps in (('sim/PushBox-v0', 'sim_node.gym_env:make_push_box', 200),
-                                 ('sim/Reach-v0', 'sim_node.gym_env:make_reach', 200)):
-        if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=entry, max_episode_steps=steps)
+    """Register the sim/ ids (idempotent), each with a vector entry point (:mod:`.gym_vector`)."""
+    gym_autoload.register_ids(gym.envs.registration)
 
 
 register_envs()

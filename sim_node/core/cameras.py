@@ -202,6 +202,68 @@ FREE_DISTANCE_EXTENTS = 1.1
 ERR_NO_CAMERA = 'no camera named {name!r}; cameras: {names}'
 
 
+class View:
+    """
+    Pictures of one world from one camera, again and again (a Gym env's ``render``).
+
+    The renderer starts here, so a missing OpenGL backend is reported when the view is made,
+    not at the first frame; the model is uploaded again after each recompile. Use a view from
+    the thread that made it.
+
+    :param camera: a camera of the model, or '' for a free camera that looks at the whole
+        model from the front left, above.
+    :raises NotFoundError: no camera of that name.
+    :raises RenderingUnavailableError: no OpenGL backend (the message says what to install).
+    """
+
+    def __init__(self, world: World, camera: str = '', width: int = 640, height: int = 480):
+        self.world, self.camera = world, camera
+        self._option = _view_option()
+        self._generation: Optional[int] = None
+        self._scene: Optional[mujoco.MjvScene] = None
+        self._view = mujoco.MjvCamera()
+        self._model: Optional[mujoco.MjModel] = None
+        world.observe(self._fill)  # an unknown camera is refused before the renderer starts
+        self._renderer = Renderer(width, height)
+
+    def _fill(self, m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> None:
+        from .errors import NotFoundError
+        if generation != self._generation:
+            view = mujoco.MjvCamera()
+            if self.camera:
+                cid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, self.camera)
+                if cid < 0:
+                    raise NotFoundError(ERR_NO_CAMERA.format(
+                        name=self.camera, names=[c.name for c in devices.cameras(m)]))
+                view.type, view.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cid
+            else:
+                mujoco.mjv_defaultFreeCamera(m, view)
+                view.azimuth, view.elevation = FREE_AZIMUTH_DEG, FREE_ELEVATION_DEG
+                view.distance = FREE_DISTANCE_EXTENTS * m.stat.extent
+            self._generation, self._view = generation, view
+            self._scene, self._model = _new_scene(m), copy.copy(m)
+        mujoco.mjv_updateScene(m, d, self._option, None, self._view,
+                               mujoco.mjtCatBit.mjCAT_ALL, self._scene)
+
+    def render(self, depth: bool = False) -> np.ndarray:
+        """
+        Return the current state seen from the camera.
+
+        (height, width, 3) uint8 colour, or with `depth` (height, width) float32 metres along
+        the optical axis (+inf where nothing was hit).
+        """
+        self.world.observe(self._fill)
+        if self._model is not None:
+            self._renderer.use_model(self._model)
+            self._model = None
+        rgb, metres = self._renderer.render(self._scene, depth)
+        return metres if depth else rgb
+
+    def close(self) -> None:
+        """Free the renderer (from the thread that made the view)."""
+        self._renderer.close()
+
+
 def picture(world: World, camera: str = '', width: int = 640, height: int = 480) -> np.ndarray:
     """
     Render one picture of the world's current state; returns (height, width, 3) uint8.
@@ -210,30 +272,8 @@ def picture(world: World, camera: str = '', width: int = 640, height: int = 480)
         model from the front left, above.
     :raises NotFoundError: no camera of that name.
     """
-    from .errors import NotFoundError
-    view = mujoco.MjvCamera()
-    option = _view_option()
-
-    def fill(m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> tuple:
-        if camera:
-            cid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, camera)
-            if cid < 0:
-                raise NotFoundError(ERR_NO_CAMERA.format(
-                    name=camera, names=[c.name for c in devices.cameras(m)]))
-            view.type, view.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cid
-        else:
-            mujoco.mjv_defaultFreeCamera(m, view)
-            view.azimuth, view.elevation = FREE_AZIMUTH_DEG, FREE_ELEVATION_DEG
-            view.distance = FREE_DISTANCE_EXTENTS * m.stat.extent
-        scene = _new_scene(m)
-        mujoco.mjv_updateScene(m, d, option, None, view, mujoco.mjtCatBit.mjCAT_ALL, scene)
-        return copy.copy(m), scene
-
-    model, scene = world.observe(fill)
-    renderer = Renderer(width, height)
+    view = View(world, camera, width, height)
     try:
-        renderer.use_model(model)
-        rgb, _ = renderer.render(scene, depth=False)
+        return view.render()
     finally:
-        renderer.close()
-    return rgb
+        view.close()

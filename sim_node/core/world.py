@@ -416,12 +416,15 @@ class World(StateWrites, WorldEdits):
 
     # ---------------------------------------------------------------- stepping
 
-    def step(self, n: int = 1, ctrl: Optional[np.ndarray] = None) -> int:
+    def step(self, n: int = 1, ctrl: Optional[np.ndarray] = None,
+             then: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]] = None) -> int:
         """
         Advance `n` steps (applying staged commands first); returns the step count.
 
         :param ctrl: (nu,) actuator controls to set first, for callers that own the world
             (the Gym environment); the caller checks them (finite, within +-1e10).
+        :param then: called as ``then(model, data)`` after the steps, under the same hold of
+            the world lock (a vector env copies what its task reads); it must change nothing.
         :raises DivergenceError: the physics diverged; the world is back at the state before
             the bad step and ``error.step`` names it.
         """
@@ -432,11 +435,17 @@ class World(StateWrites, WorldEdits):
         # Reacher-v5 step); a contended lock goes through WorldLock as usual.
         if self._lock.acquire(blocking=False):
             try:
-                return self._step_locked(int(n), ctrl)
+                count = self._step_locked(int(n), ctrl)
+                if then is not None:
+                    then(self._model, self._data)
+                return count
             finally:
                 self._lock.release()
         with self._lock_cm:
-            return self._step_locked(int(n), ctrl)
+            count = self._step_locked(int(n), ctrl)
+            if then is not None:
+                then(self._model, self._data)
+            return count
 
     def _step_locked(self, n: int, ctrl: Optional[np.ndarray]) -> int:
         # The state after the last clean batch, if untouched since: it holds the previous
