@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-vec snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -36,6 +36,10 @@ bench-flood: setup
 # Service latency with the world stepping at 1 kHz, against the same world paused (40 s)
 bench-latency: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/latency.py
+
+# N worlds at once: our vector env, Gymnasium's, EnvPool's (installed once into .build), ~4 min
+bench-vec: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/vector.py
 
 bench-cameras: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/cameras.py

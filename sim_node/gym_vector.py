@@ -41,16 +41,21 @@ class _Workers:
     """
     A fixed set of threads that run one job over all of them and wait for each other.
 
-    The calling thread is worker 0, so N threads cost N - 1 extra ones. Errors raised by a job
-    are raised again by :meth:`run` (the first one, after every worker has finished).
+    The calling thread is worker 0, so N threads cost N - 1 extra ones. Each other worker waits
+    on a lock of its own (the cheapest wake-up Python has: a Barrier costs several times more
+    per step). Errors raised by a job are raised again by :meth:`run` (the first one, after
+    every worker has finished).
     """
 
     def __init__(self, count: int):
         self.count = count
-        self._start = threading.Barrier(count)
-        self._end = threading.Barrier(count)
+        self._go = [threading.Lock() for _ in range(count)]
+        self._done = [threading.Lock() for _ in range(count)]
+        for lock in self._go + self._done:
+            lock.acquire()
         self._job: Optional[Callable[[int], None]] = None
         self._errors: list = []
+        self._closing = False
         self._threads = [threading.Thread(target=self._serve, args=(k,), daemon=True,
                                           name=f'sim-vector-{k}') for k in range(1, count)]
         for t in self._threads:
@@ -64,15 +69,11 @@ class _Workers:
 
     def _serve(self, k: int) -> None:
         while True:
-            try:
-                self._start.wait()
-            except threading.BrokenBarrierError:
-                return  # closed
-            self._do(k)
-            try:
-                self._end.wait()
-            except threading.BrokenBarrierError:
+            self._go[k].acquire()
+            if self._closing:
                 return
+            self._do(k)
+            self._done[k].release()
 
     def run(self, job: Callable[[int], None]) -> None:
         """Call ``job(k)`` for k = 0 .. count - 1, each on its own thread; wait for all."""
@@ -80,16 +81,19 @@ class _Workers:
             job(0)
             return
         self._job, self._errors = job, []
-        self._start.wait()
+        for k in range(1, self.count):
+            self._go[k].release()
         self._do(0)
-        self._end.wait()
+        for k in range(1, self.count):
+            self._done[k].acquire()
         self._job = None
         if self._errors:
             raise self._errors[0]
 
     def close(self) -> None:
-        self._start.abort()
-        self._end.abort()
+        self._closing = True
+        for k in range(1, self.count):
+            self._go[k].release()
         for t in self._threads:
             t.join(1.0)
 

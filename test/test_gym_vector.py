@@ -190,3 +190,22 @@ def test_the_ray_example_rolls_out_on_two_workers():
     assert summary['env_steps'] == 2 * 2 * 3 * 120
     # Pusher-v0 episodes are 100 steps: each of the 6 worlds ended at least two.
     assert summary['episodes'] >= 12 and np.isfinite(summary['mean_return'])
+
+
+def test_the_worlds_are_stepped_on_as_many_threads_as_asked():
+    import threading
+    envs = gym.make_vec('sim/Reacher-v0', num_envs=4, num_threads=2)
+    seen = set()
+    try:
+        envs.reset(seed=0)
+        for env in envs.unwrapped.envs:
+            world_step = env.world.step
+
+            def step(*args, _step=world_step, **kwargs):
+                seen.add(threading.get_ident())
+                return _step(*args, **kwargs)
+            env.world.step = step
+        envs.step(np.zeros((4, 2)))
+        assert len(seen) == 2 and threading.get_ident() in seen
+    finally:
+        envs.close()
