@@ -50,6 +50,14 @@ STANDARD_SERVICES = {name: getattr(srv, kind) for name, kind in (
 #: so only a call right after construction waits, once.
 FIRST_CALL_SETTLE_SEC = 0.5
 
+#: Services that only read: a call with no answer after READ_RETRY_SEC is sent again (a write is
+#: never repeated: it waits its whole timeout).
+READ_ONLY_SERVICES = frozenset((
+    'get_entities', 'get_entity_state', 'get_entities_states', 'get_entity_info',
+    'get_entity_bounds', 'get_simulation_state', 'get_spawnables', 'get_simulator_features',
+    'get_available_worlds', 'get_current_world'))
+READ_RETRY_SEC = 3.0
+
 #: After a simulate_steps goal succeeds, how long a client waits for feedback in flight (s).
 FEEDBACK_DRAIN_SEC = 2.0
 
@@ -105,15 +113,27 @@ class SimClient:
         """Call a service and wait for the answer; raise on a non-OK Result if `check`."""
         client, born = self._client(service, srv_type)
         deadline = time.monotonic() + self._timeout
+        appeared = None
         while not client.wait_for_service(timeout_sec=0.2):
-            if time.monotonic() > deadline:
+            appeared = time.monotonic()  # the server is new: it shows up during this call
+            if appeared > deadline:
                 raise TimeoutError(f'service {self._name(service)} is not available; is the '
                                    'sim node running (same ROS_DOMAIN_ID)?')
-        settle = born + FIRST_CALL_SETTLE_SEC - time.monotonic()
-        if settle > 0:  # a client this young: let the server match its reply reader
+        # A client this young, or a server that just appeared: let the server match the
+        # client's reply reader first (FIRST_CALL_SETTLE_SEC).
+        settle = max(born, appeared or 0.0) + FIRST_CALL_SETTLE_SEC - time.monotonic()
+        if settle > 0:
             self._spin_until(lambda: False, settle)
         future = client.call_async(request)
-        self._executor.spin_until_future_complete(future, max(0.1, deadline - time.monotonic()))
+        while True:
+            left = deadline - time.monotonic()
+            wait = min(left, READ_RETRY_SEC) if service in READ_ONLY_SERVICES else left
+            self._executor.spin_until_future_complete(future, max(0.1, wait))
+            if future.done() or time.monotonic() >= deadline:
+                break
+            # A read changes nothing, so asking again is safe: its reply may have been dropped
+            # (a server that had not matched us yet, or the ghost of a node just stopped).
+            future = client.call_async(request)
         if not future.done():
             raise TimeoutError(f'{service} did not answer within {self._timeout} s')
         response = future.result()

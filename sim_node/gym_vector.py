@@ -17,7 +17,10 @@ Autoreset follows Gymnasium's modes: NEXT_STEP (its default: the step after an e
 resets that env and returns its first observation with reward 0) or SAME_STEP (the env resets
 in the step that ended it; ``info['final_obs']`` and ``info['final_info']`` hold what ended).
 Episodes are cut at ``max_episode_steps`` (``truncated``), as ``gymnasium.make`` does with its
-TimeLimit wrapper.
+TimeLimit wrapper. If a world's physics diverges, ``step`` raises the
+:class:`~sim_node.core.errors.DivergenceError` once every world has stepped (``env_index`` names
+the world, left at the state before its bad step, as a single env leaves it); ``reset()`` to go
+on.
 """
 
 from functools import partial
@@ -32,6 +35,7 @@ import numpy as np
 
 from . import gym_env
 from .core.checks import MAX_ABS_VALUE as MAX_CONTROL
+from .core.errors import DivergenceError
 from .gym_env import Batch, SimEnv, Task
 
 ERR_AUTORESET = 'autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}'
@@ -257,11 +261,16 @@ class SimVectorEnv(gym.vector.VectorEnv):
                 else:
                     self._results[i] = (first, 0.0, False, info)
                 continue
-            if batch is not None:  # the task computes all envs at once afterwards
-                env.world.step(skip, ctrl=actions[i], then=partial(batch.gather, i))
-            else:
-                env.world.step(skip, ctrl=actions[i])
-                self._results[i] = env.world.read(env._outcome_row)
+            try:
+                if batch is not None:  # the task computes all envs at once afterwards
+                    env.world.step(skip, ctrl=actions[i], then=partial(batch.gather, i))
+                else:
+                    env.world.step(skip, ctrl=actions[i])
+                    self._results[i] = env.world.read(env._outcome_row)
+            except DivergenceError as exc:
+                exc.env_index = i
+                exc.add_note(f'in world {i} of the vector env; reset() to go on')
+                raise
 
     def _vector_info(self, infos: list) -> dict:
         """Gymnasium's vector form: each key an array over the envs, ``_key`` its mask."""

@@ -209,3 +209,23 @@ def test_the_worlds_are_stepped_on_as_many_threads_as_asked():
         assert len(seen) == 2 and threading.get_ident() in seen
     finally:
         envs.close()
+
+
+def test_a_world_that_diverges_is_named_and_the_others_step_on():
+    from sim_node.core.errors import DivergenceError
+    envs = gym.make_vec('sim/Reacher-v0', num_envs=3, num_threads=2)
+    try:
+        envs.reset(seed=0)
+        worlds = [e.world for e in envs.unwrapped.envs]
+        times = [w.clock().time for w in worlds]
+        with worlds[2].locked() as (m, d):
+            d.qvel[:] = 1e12  # beyond what MuJoCo calls a sane state
+        with pytest.raises(DivergenceError) as caught:
+            envs.step(np.zeros((3, 2)))
+        assert caught.value.env_index == 2
+        assert 'in world 2 of the vector env' in ''.join(caught.value.__notes__)
+        assert [w.clock().time > t for w, t in zip(worlds, times)] == [True, True, False]
+        obs, _ = envs.reset(seed=0)
+        assert np.isfinite(envs.step(np.zeros((3, 2)))[0]).all()
+    finally:
+        envs.close()
