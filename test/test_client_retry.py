@@ -8,7 +8,7 @@ import pytest
 
 @pytest.fixture
 def slow_server(rclpy_context):
-    """A bare server of get_entities and spawn_entity whose first answer comes late."""
+    """Serve get_entities and spawn_entity on a bare node; the first answer comes late."""
     import rclpy
     from rclpy.callback_groups import ReentrantCallbackGroup
     from rclpy.executors import MultiThreadedExecutor
