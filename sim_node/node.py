@@ -45,7 +45,7 @@ from .core.config import WorldConfig
 from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
 from .core.records import EFFORT, POSITION, VELOCITY
-from .core.world import World
+from .core.world import release_free_memory, World
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
 from .qos import LATCHED_QOS
@@ -85,6 +85,9 @@ class _LogForwarder(logging.Handler):
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
 REFUSAL_SHOWN_SEC = 10.0
+#: How often freed heap goes back to the system (glibc's malloc_trim; under a millisecond): a
+#: reset, a delete or a big request leaves free memory that glibc would otherwise keep.
+TRIM_PERIOD_SEC = 2.0
 
 
 class SimNode(SimServices, Node):
@@ -150,6 +153,7 @@ class SimNode(SimServices, Node):
         self._model_cv = threading.Condition()
         self._model_due: Optional[tuple] = None
         self._model_thread: Optional[threading.Thread] = None
+        self._trimmed = time.monotonic()
         self._housekeeping_timer = self.create_timer(0.2, self._housekeeping,
                                                      callback_group=self._pub_group)
         self.perception = Perception(self, params.perception_config(self), self._world_frame,
@@ -451,6 +455,10 @@ class SimNode(SimServices, Node):
         self._sync_paused_parameter()
         self._drain_logs()
         self._publish_diagnostics()
+        now = time.monotonic()
+        if now - self._trimmed >= TRIM_PERIOD_SEC:
+            self._trimmed = now
+            release_free_memory()
 
     def _publish_diagnostics(self, force: bool = False) -> None:
         """

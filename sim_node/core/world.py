@@ -68,7 +68,7 @@ def _load_malloc_trim() -> Callable[[], None]:
 
 #: Give memory freed by dropped models back to the system: glibc keeps it otherwise (a
 #: 400-box spawn-and-delete storm left 300 MiB of free heap in the process, measured).
-_release_free_memory = _load_malloc_trim()
+release_free_memory = _load_malloc_trim()
 
 
 class World(StateWrites, WorldEdits):
@@ -785,7 +785,7 @@ class World(StateWrites, WorldEdits):
             self._removals = 0
             self._commit_locked(keep, model, None, None, None, 0)
         del old
-        _release_free_memory()
+        release_free_memory()
 
     def _size_arena(self, spec: mujoco.MjSpec) -> None:
         """

@@ -1,0 +1,79 @@
+"""The node gives memory back: its RSS after reset cycles and after a spawn/delete storm."""
+
+from pathlib import Path
+import threading
+import time
+
+import pytest
+
+#: How long after the last request the node has had to give freed memory back (the node
+#: trims every TRIM_PERIOD_SEC).
+SETTLE_SEC = 3.0
+
+
+def rss_mib(pid: int) -> float:
+    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS'):
+            return int(line.split()[1]) / 1024
+    raise RuntimeError('no VmRSS')
+
+
+@pytest.fixture
+def warm(start_node, rclpy_context):
+    """Return (node, client, RSS in MiB) once every path below has run once."""
+    from sim_node.client import SimClient
+    node = start_node()
+    client = SimClient(timeout_sec=60)
+    try:
+        client.entities()
+        for _ in range(3):
+            client.spawn('warm', uri='box', position=(1, 1, 1))
+            client.delete('warm')
+            client.reset()
+        time.sleep(SETTLE_SEC)
+        yield node, client, rss_mib(node.proc.pid)
+    finally:
+        client.close()
+
+
+def grown(node, before: float) -> float:
+    time.sleep(SETTLE_SEC)
+    return rss_mib(node.proc.pid) - before
+
+
+def test_reset_cycles_leave_at_most_20_mib(warm):
+    node, client, before = warm
+    for _ in range(200):
+        client.reset()
+    for k in range(20):
+        client.spawn(f'cycle{k}', uri='box', position=(1, 1, 1))
+        client.delete(f'cycle{k}')
+        client.reset()
+    assert grown(node, before) <= 20.0
+
+
+def test_a_storm_of_eight_spawning_and_deleting_clients_leaves_at_most_50_mib(warm):
+    from sim_node.client import SimClient
+    node, client, before = warm
+    failures = []
+
+    def storm(k: int) -> None:
+        c = SimClient(timeout_sec=60)
+        try:
+            for j in range(50):
+                c.spawn(f's{k}_{j}', uri='box', position=(4 + 0.3 * k, -4 + 0.2 * j, 0.3))
+            for j in range(50):
+                c.delete(f's{k}_{j}')
+        except Exception as exc:  # noqa: B902 (reported below)
+            failures.append(repr(exc))
+        finally:
+            c.close()
+    threads = [threading.Thread(target=storm, args=(k,)) for k in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(180)
+    assert not failures, failures[:3]
+    client.reset()
+    assert not [n for n in client.entities() if n[0] == 's' and n[1].isdigit()]
+    assert grown(node, before) <= 50.0
