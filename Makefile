@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-vec snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-vec bench-edits bench-storm snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -40,6 +40,14 @@ bench-latency: setup
 # N worlds at once: our vector env, Gymnasium's, EnvPool's (installed once into .build), ~4 min
 bench-vec: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/vector.py
+
+# How long each kind of edit holds the world lock (100 boxes stepping), ~1 min
+bench-edits: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/edits.py
+
+# The longest /clock gap while 8 clients spawn and delete 50 boxes each, ~1 min
+bench-storm: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/storm.py
 
 bench-cameras: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/cameras.py

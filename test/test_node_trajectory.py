@@ -201,9 +201,11 @@ def test_the_controller_state_is_published_while_a_goal_runs(arm, watch):
     sub = watch.node.create_subscription(JointTrajectoryControllerState, 'arm/controller_state',
                                          states.append, 10)
     try:
-        h = send(client, goal([(1.0, (0.3, 0.3))]))
+        # Long enough for the new subscription to be matched under a loaded CI machine (a 1 s
+        # goal once ended before the subscription saw three states).
+        h = send(client, goal([(3.0, (0.3, 0.3))]))
+        wait_for(lambda: len(states) >= 3, timeout=10)
         result_of(h)
-        wait_for(lambda: len(states) >= 3, timeout=5)
         s = states[-1]
         assert list(s.joint_names) == JOINTS and len(s.reference.positions) == 2
         assert len(s.feedback.positions) == 2 and s.speed_scaling_factor == 1.0

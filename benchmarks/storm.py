@@ -1,0 +1,126 @@
+"""
+Does time stall while clients edit the world? The longest /clock gap under a spawn/delete storm.
+
+``make bench-storm`` (about a minute). The installed node runs the default scene in real time.
+A subscriber here records when each /clock message arrives; first for 5 s idle, then while 8
+client processes each spawn 50 boxes and delete them (issue 21's storm). Printed: the longest
+wall-clock gap between /clock messages, idle and under the storm, and the longest stretch of
+wall time in which simulated time did not advance. Target (issue 21): the longest gap under the
+storm <= 50 ms at real_time_factor 1.
+"""
+
+import os
+from pathlib import Path
+import random
+import subprocess
+import sys
+import threading
+import time
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from verdict import summary, verdict  # noqa: E402, I100
+
+CLIENTS = 8
+BOXES = 50
+IDLE_SEC = 5.0
+TARGET_MS = 50.0
+
+
+def client(k: int) -> None:
+    """Spawn BOXES boxes, then delete them (one client process of the storm)."""
+    import rclpy
+    from sim_node.client import SimClient, SimServiceError
+    rclpy.init()
+    c = SimClient(timeout_sec=60)
+    names = []
+    for j in range(BOXES):
+        try:
+            names.append(c.spawn(f'storm_{k}_{j}', uri='box',
+                                 position=(4 + 0.3 * k, -4 + 0.2 * j, 0.3)))
+        except SimServiceError:
+            pass
+    for name in names:
+        c.delete(name)
+    c.close()
+    rclpy.shutdown()
+
+
+class ClockWatch:
+    """Record (wall time, sim time) of every /clock message, on a thread of its own."""
+
+    def __init__(self):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rosgraph_msgs.msg import Clock
+        rclpy.init()
+        self.node = rclpy.create_node('storm_watch')
+        self.samples: list = []
+        self.node.create_subscription(Clock, '/clock', self._on_clock, 100)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _on_clock(self, msg) -> None:
+        self.samples.append((time.perf_counter(), msg.clock.sec + msg.clock.nanosec * 1e-9))
+
+    def window(self, t0: float, t1: float) -> tuple:
+        """Return (longest gap between messages, longest wall time without sim progress) in ms."""
+        s = [x for x in self.samples if t0 <= x[0] <= t1]
+        gap = max((b[0] - a[0] for a, b in zip(s, s[1:])), default=float('inf'))
+        still, start = 0.0, None
+        for (w0, c0), (w1, c1) in zip(s, s[1:]):
+            if c1 <= c0:
+                start = w0 if start is None else start
+                still = max(still, w1 - start)
+            else:
+                start = None
+        return 1e3 * gap, 1e3 * still
+
+    def close(self) -> None:
+        import rclpy
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown()
+
+
+def main() -> None:
+    os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(120, 200)))
+    node = subprocess.Popen([os.path.join(os.environ['SIM_PREFIX'], 'lib', 'sim', 'node')],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    watch = None
+    try:
+        time.sleep(3.0)
+        watch = ClockWatch()
+        time.sleep(1.0)
+        t0 = time.perf_counter()
+        time.sleep(IDLE_SEC)
+        t1 = time.perf_counter()
+        clients = [subprocess.Popen([sys.executable, __file__, '--client', str(k)])
+                   for k in range(CLIENTS)]
+        for c in clients:
+            c.wait(300)
+        t2 = time.perf_counter()
+        idle, storm = watch.window(t0, t1), watch.window(t1, t2)
+    finally:
+        if watch is not None:
+            watch.close()
+        node.terminate()
+        node.wait(10)
+    print(f'[storm] default scene at real_time_factor 1; {CLIENTS} clients each spawn {BOXES} '
+          f'boxes and delete them ({t2 - t1:.1f} s)')
+    print(f'  longest gap between /clock messages: idle {idle[0]:7.1f} ms   '
+          f'storm {storm[0]:7.1f} ms')
+    print(f'  longest wall time with sim time still: idle {idle[1]:7.1f} ms   '
+          f'storm {storm[1]:7.1f} ms')
+    verdict(storm[0] <= TARGET_MS, f'longest /clock gap under the storm {storm[0]:.1f} ms '
+            f'(target <= {TARGET_MS:g} ms; idle {idle[0]:.1f} ms)')
+    summary()
+
+
+if __name__ == '__main__':
+    if sys.argv[1:2] == ['--client']:
+        client(int(sys.argv[2]))
+    else:
+        main()
