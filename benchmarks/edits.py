@@ -1,12 +1,12 @@
 """
 How long each kind of edit holds the world lock while the world runs.
 
-The stepping loop waits that long, so time stalls that long. ``make bench-edits`` (about a minute). A world of 100 free boxes steps in real time on its own
-loop (as in the node) while one thread makes each kind of edit 30 times. Every hold of the
-world lock by the editing thread is timed (outermost acquisitions; an edit may take the lock
-more than once, and its longest hold is what the loop feels). Printed per kind: median, p99 and
-maximum of that longest hold, and the same for the loop's own batches for comparison. Target
-(issue 21): p99 <= 5 ms for every kind at 100 bodies.
+The stepping loop waits that long, so time stalls that long. ``make bench-edits`` (about
+30 s): a world of 100 free boxes steps in real time on its own loop (as in the node) while one
+thread makes each kind of edit 30 times. Every hold of the world lock by the editing thread is
+timed (outermost acquisitions; an edit may take the lock more than once, and its longest hold
+is what the loop feels). Printed per kind: median, p99 and maximum of that longest hold.
+Target (issue 21): p99 <= 5 ms for every kind at 100 bodies.
 """
 
 from pathlib import Path
