@@ -252,6 +252,30 @@ def test_mass_zero_welds_where_it_is_and_mass_frees_it_there():
     assert drop == pytest.approx(0.5 * 9.81 * 0.1 ** 2, rel=0.05)
 
 
+def test_a_weld_while_running_holds_where_the_object_is_and_a_later_edit_keeps_it_there():
+    """The weld compiles with the lock released; the commit welds at the pose of that instant."""
+    sys.path.insert(0, str(DEFAULT_SCENE.parent.parent / 'benchmarks'))
+    from box_scene import box_scene
+    world = World.from_string(box_scene(100))  # compiling takes milliseconds: the box falls
+    world.spawn('faller', sources.primitive('box', [0.05] * 3), (5.0, 5.0, 20.0))
+    loop = SimLoop(world)
+    loop.set_real_time_factor(1.0)
+    loop.start()
+    loop.play()
+    try:
+        time.sleep(0.6)  # about 6 m/s by now: a few centimetres per compile
+        world.set_mass('faller', 0)
+        assert world.entity('faller').category == 'static'
+        welded = world.get_entity_state('faller')
+        assert np.allclose(welded.linear_velocity, 0.0)
+        world.set_friction('box_3', 0.5)  # a recompile from the kept spec
+        time.sleep(0.1)
+        after = world.get_entity_state('faller').position
+        np.testing.assert_allclose(after, welded.position, atol=1e-9)
+    finally:
+        loop.stop()
+
+
 # ------------------------------------------------------------------ 6. time limits
 
 @pytest.mark.parametrize('limit, steps', [(0.777, 389), (0.776, 388), (0.0021, 2)])

@@ -688,14 +688,17 @@ class World(StateWrites, WorldEdits):
         return result
 
     def _commit_locked(self, keep: mujoco.MjSpec, model: mujoco.MjModel,
-                       check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]],
+                       check: Optional[Callable[..., None]],
                        spawned: Optional[dict], overrides: Optional[dict],
                        removed: int, prepared: Optional[tuple] = None) -> None:
         """
         Make a compiled edit the world, carrying the live state over by names.
 
         The world must be the one the edit was built from (same generation): the caller checks.
-        A failed check leaves the world exactly as it was.
+        ``check(model, data, keep)`` runs last, under the lock, with the new model and data
+        ready and the live world still the old one: it may refuse (raise), or settle what
+        depends on the live state at this instant (a weld where the object is now) in the new
+        model, data and spec. A failed check leaves the world exactly as it was.
 
         :param prepared: (index, state mapping, fresh data) made beforehand for this
             generation, or None to make them here.
@@ -707,20 +710,19 @@ class World(StateWrites, WorldEdits):
             transfer.carry(matching, self._data, data)
         mujoco.mj_forward(model, data)
         if check is not None:
-            check(model, data)
+            check(model, data, keep)
         self._switch_locked(keep, model, data, spawned, overrides, removed, index)
 
     def _edit_locked(self, edit: Callable[[mujoco.MjSpec], object],
-                     check: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]] = None,
+                     check: Optional[Callable[..., None]] = None,
                      spawned: Optional[dict] = None, overrides: Optional[dict] = None,
                      removed: int = 0) -> None:
         """
         Apply `edit` to a copy of the spec, compile it and commit it, all under the lock.
 
-        For edits that read the live state as they are made (welding a body where it is now,
-        moving a welded entity within a state write) and the rare ones not moved yet (adding
-        a body to an entity, the default contact); spawn, delete, reset of the spawned,
-        contact, mass, gravity and timestep go through :meth:`_change`. Only if the copy
+        For edits that read the live state as they are made (moving a welded entity within a
+        state write) and edits made inside :meth:`locked`; spawn, delete, reset of the spawned,
+        contact, mass, welds, gravity and timestep go through :meth:`_change`. Only if the copy
         compiles (and `check` passes) does it become the world. A failed compile or check
         leaves the world, its spec and its generation exactly as they were.
 

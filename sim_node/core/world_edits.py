@@ -117,7 +117,7 @@ class WorldEdits:
                          for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
                 editor.apply_contact(spec, geoms, *contact)
 
-        def check(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name, self.config.interpenetration_tolerance)
             if hit is not None:
                 raise InvalidPoseError(ERR_INTERPENETRATION.format(
@@ -276,6 +276,42 @@ class WorldEdits:
                 f'restitution must be in [0, {editor.MAX_RESTITUTION}], got {restitution}')
         return float(e)
 
+    def _weld(self, name: str) -> None:
+        """
+        Weld a free entity to the world where it is at the commit (a static one: nothing).
+
+        Compiled with the lock released, as every structural edit: the object moves meanwhile,
+        so the commit puts the welded body where the object is at that instant, in the new model
+        and in the kept spec alike.
+        """
+        def plan() -> tuple:
+            rec = self._index.entity(name)
+            if rec.category == ROBOT:
+                raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
+            if not rec.has_free_joint:  # welded by another edit meanwhile: nothing to do
+                return (lambda spec: None), None, None, None, 0, None
+            frame = self._frame_of(name)
+            self._kinematics_locked()
+            pos, q = state.body_pose(self._data, rec.root_body)
+
+            def here_now(model: mujoco.MjModel, data: mujoco.MjData,
+                         keep: mujoco.MjSpec) -> None:
+                self._kinematics_locked()  # the live (old) world, as it is at the commit
+                now_pos, now_q = state.body_pose(self._data, rec.root_body)
+                body = model.body(name).id
+                model.body_pos[body], model.body_quat[body] = now_pos, now_q
+                editor.weld_in_place(keep, frame, rec, now_pos, now_q)  # the spec agrees
+                mujoco.mj_forward(model, data)
+            return (lambda spec: editor.weld_in_place(spec, frame, rec, pos, q), here_now,
+                    None, None, 0, None)
+        with self._locked():  # a static entity is already welded: no compile at all
+            rec = self._index.entity(name)
+            if rec.category == ROBOT:
+                raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
+            if not rec.has_free_joint:
+                return
+        self._change(plan)
+
     def set_mass(self, name: str, mass: float) -> None:
         """
         Total mass of an entity (kg); each body's mass and inertia scale by one factor.
@@ -287,17 +323,9 @@ class WorldEdits:
         (m_new,) = check_finite('mass', [mass], 1)
         if m_new < 0:
             raise InvalidArgumentError(f'mass must be >= 0, got {mass}')
-        with self._locked():
-            rec = self._index.entity(name)
-            if m_new == 0:
-                if rec.category == ROBOT:
-                    raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
-                if rec.has_free_joint:  # welded where it is now: under the lock, as it moves
-                    self._kinematics_locked()
-                    pos, q = state.body_pose(self._data, rec.root_body)
-                    self._edit_locked(lambda spec: editor.weld_in_place(
-                        spec, self._frame_of(name), rec, pos, q))
-                return
+        if m_new == 0:
+            self._weld(name)
+            return
 
         def plan() -> tuple:
             rec = self._index.entity(name)
