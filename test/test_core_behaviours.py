@@ -252,6 +252,16 @@ def test_mass_zero_welds_where_it_is_and_mass_frees_it_there():
     assert drop == pytest.approx(0.5 * 9.81 * 0.1 ** 2, rel=0.05)
 
 
+def test_mass_zero_on_a_static_entity_changes_nothing():
+    sim = Simulation.empty()
+    sim.add_object('box', 'box', [0.05] * 3, position=[0.2, 0.1, 1.0], mass=1.0)
+    sim.set_mass('box', 0)
+    generation = sim.world.generation
+    sim.set_mass('box', 0)  # welded already: no edit, no recompile
+    assert sim.world.generation == generation
+    assert sim.world.entity('box').category == 'static'
+
+
 def test_a_weld_while_running_holds_where_the_object_is_and_a_later_edit_keeps_it_there():
     """The weld compiles with the lock released; the commit welds at the pose of that instant."""
     sys.path.insert(0, str(DEFAULT_SCENE.parent.parent / 'benchmarks'))

@@ -435,19 +435,14 @@ class World(StateWrites, WorldEdits):
         # Reacher-v5 step); a contended lock goes through WorldLock as usual.
         if self._lock.acquire(blocking=False):
             try:
-                count = self._step_locked(int(n), ctrl)
-                if then is not None:
-                    then(self._model, self._data)
-                return count
+                return self._step_locked(int(n), ctrl, then)
             finally:
                 self._lock.release()
         with self._lock_cm:
-            count = self._step_locked(int(n), ctrl)
-            if then is not None:
-                then(self._model, self._data)
-            return count
+            return self._step_locked(int(n), ctrl, then)
 
-    def _step_locked(self, n: int, ctrl: Optional[np.ndarray]) -> int:
+    def _step_locked(self, n: int, ctrl: Optional[np.ndarray],
+                     then: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]]) -> int:
         # The state after the last clean batch, if untouched since: it holds the previous
         # controls, so a replay writes `ctrl` again.
         before = self._cached
@@ -476,6 +471,8 @@ class World(StateWrites, WorldEdits):
         mujoco.mj_getState(m, d, self._good_buf, STATE_SPEC)
         self._last_good = self._cached = self._good_buf
         self._stale_kinematics = self._stale_dynamics = True
+        if then is not None:
+            then(m, d)
         return self._step_count
 
     def _diverged_locked(self, before: np.ndarray, n: int, ctrl: Optional[np.ndarray]) -> None:
@@ -651,7 +648,8 @@ class World(StateWrites, WorldEdits):
         Apply a structural edit with the world lock held only to plan and to commit.
 
         ``plan_locked()`` runs under the lock, validates, and returns ``(edit, check, spawned,
-        overrides, removed, result)`` (see :meth:`_edit_locked`). The spec is built and compiled
+        overrides, removed, result)`` (see :meth:`_edit_locked`; an `edit` of None: nothing to
+        change, no compile). The spec is built and compiled
         with the lock released, so the loop steps and readers read meanwhile; edits take turns
         (``_edit_lock``), and if the world changed in between (a reset of the spawned, a
         contact change), the edit is planned again on the new world.
@@ -669,6 +667,8 @@ class World(StateWrites, WorldEdits):
                     generation, base, old = self._generation, self._spec, self._model
                     edit, check, spawned, overrides, removed, result = plan_locked()
                     table = self._spawned if spawned is None else spawned
+                if edit is None:
+                    break
                 keep, model = self._build(base, edit)
                 # What can be prepared without the live state is prepared here, for the
                 # generation the commit will make: the index (names, visuals, meshes for
@@ -713,7 +713,7 @@ class World(StateWrites, WorldEdits):
             check(model, data, keep)
         self._switch_locked(keep, model, data, spawned, overrides, removed, index)
 
-    def _edit_locked(self, edit: Callable[[mujoco.MjSpec], object],
+    def _edit_locked(self, edit: Optional[Callable[[mujoco.MjSpec], object]],
                      check: Optional[Callable[..., None]] = None,
                      spawned: Optional[dict] = None, overrides: Optional[dict] = None,
                      removed: int = 0) -> None:
@@ -730,6 +730,8 @@ class World(StateWrites, WorldEdits):
         :param overrides: likewise, per-entity contact settings.
         :param removed: how many spawned entities the edit removes (see :meth:`_compact_if_due`).
         """
+        if edit is None:  # nothing to change (see _change)
+            return
         keep, model = self._build(self._spec, edit)
         self._commit_locked(keep, model, check, spawned, overrides, removed)
 

@@ -288,8 +288,8 @@ class WorldEdits:
             rec = self._index.entity(name)
             if rec.category == ROBOT:
                 raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
-            if not rec.has_free_joint:  # welded by another edit meanwhile: nothing to do
-                return (lambda spec: None), None, None, None, 0, None
+            if not rec.has_free_joint:  # static already: nothing to compile
+                return None, None, None, None, 0, None
             frame = self._frame_of(name)
             self._kinematics_locked()
             pos, q = state.body_pose(self._data, rec.root_body)
@@ -304,12 +304,6 @@ class WorldEdits:
                 mujoco.mj_forward(model, data)
             return (lambda spec: editor.weld_in_place(spec, frame, rec, pos, q), here_now,
                     None, None, 0, None)
-        with self._locked():  # a static entity is already welded: no compile at all
-            rec = self._index.entity(name)
-            if rec.category == ROBOT:
-                raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
-            if not rec.has_free_joint:
-                return
         self._change(plan)
 
     def set_mass(self, name: str, mass: float) -> None:
