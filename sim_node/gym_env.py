@@ -290,10 +290,15 @@ class PushBoxTask(Task):
         return np.concatenate([data.qpos[0:2], data.qvel[0:2], data.xpos[self.box][:2],
                                data.qvel[2:4], self.goal_xy])
 
+    @staticmethod
+    def _reward(to_goal, tip_to_box):
+        """Return the reward of one env or of N (arrays) from its two distances."""
+        return -to_goal - 0.1 * tip_to_box
+
     def reward(self, model, data):
         box = data.xpos[self.box][:2]
         tip = data.xpos[self.pusher][:2]
-        return -dist(box, self.goal_xy) - 0.1 * dist(tip, box)
+        return self._reward(dist(box, self.goal_xy), dist(tip, box))
 
     def terminated(self, model, data):
         return dist(data.xpos[self.box][:2], self.goal_xy) < self.SUCCESS
@@ -313,7 +318,7 @@ class PushBoxTask(Task):
                               goals], axis=1)
         to_goal, to_box = dists(box, goals), dists(tip, box)
         success = to_goal < self.SUCCESS
-        return obs, -to_goal - 0.1 * to_box, success, {
+        return obs, self._reward(to_goal, to_box), success, {
             'is_success': success, 'box_to_goal': to_goal, 'tip_to_box': to_box}
 
 
@@ -388,11 +393,15 @@ class PusherTask(Task):
         return np.concatenate([data.qpos[:7], data.qvel[:7], x[self.tips], x[self.obj],
                                x[self.goal]])
 
+    @staticmethod
+    def _reward(object_to_goal, tips_to_object, ctrl):
+        """Return Pusher-v5's reward of one env or of N (arrays, one row of `ctrl` each)."""
+        return -object_to_goal - np.square(ctrl).sum(axis=-1) * 0.1 + -tips_to_object * 0.5
+
     def reward(self, model, data):
         x = data.xpos
-        near = -dist(x[self.obj], x[self.tips]) * 0.5
-        far = -dist(x[self.obj], x[self.goal])
-        return far - np.square(data.ctrl).sum() * 0.1 + near
+        return self._reward(dist(x[self.obj], x[self.goal]), dist(x[self.obj], x[self.tips]),
+                            data.ctrl)
 
     def info(self, model, data):
         x = data.xpos
@@ -403,8 +412,7 @@ class PusherTask(Task):
 
     def outcome(self, model, data):
         info = self.info(model, data)
-        near, far = -info['tips_to_object'] * 0.5, -info['object_to_goal']
-        reward = far - np.square(data.ctrl).sum() * 0.1 + near
+        reward = self._reward(info['object_to_goal'], info['tips_to_object'], data.ctrl)
         return self.observation(model, data), float(reward), False, info
 
     batched = True
@@ -414,8 +422,7 @@ class PusherTask(Task):
         tips, obj, goal = x[:, self.tips], x[:, self.obj], x[:, self.goal]
         obs = np.concatenate([batch.qpos[:, :7], batch.qvel[:, :7], tips, obj, goal], axis=1)
         near, far = dists(obj, tips), dists(obj, goal)
-        reward = -far - np.square(batch.ctrl).sum(axis=1) * 0.1 + -near * 0.5
-        return obs, reward, np.zeros(len(tasks), dtype=bool), {
+        return obs, self._reward(far, near, batch.ctrl), np.zeros(len(tasks), dtype=bool), {
             'is_success': dists(obj[:, :2], goal[:, :2]) < self.SUCCESS, 'object_to_goal': far,
             'tips_to_object': near}
 
@@ -449,9 +456,13 @@ class ReacherTask(Task):
         return np.concatenate([np.cos(theta), np.sin(theta), data.qpos[2:], data.qvel[:2],
                                (data.xpos[self.tip] - data.xpos[self.target])[:2]])
 
+    @staticmethod
+    def _reward(tip_to_target, ctrl):
+        """Return Reacher-v5's reward of one env or of N (arrays, one row of `ctrl` each)."""
+        return -tip_to_target - np.square(ctrl).sum(axis=-1)
+
     def reward(self, model, data):
-        return (-dist(data.xpos[self.tip], data.xpos[self.target])
-                - np.square(data.ctrl).sum())
+        return self._reward(dist(data.xpos[self.tip], data.xpos[self.target]), data.ctrl)
 
     def info(self, model, data):
         to_target = dist(data.xpos[self.tip], data.xpos[self.target])
@@ -459,7 +470,7 @@ class ReacherTask(Task):
 
     def outcome(self, model, data):
         info = self.info(model, data)
-        reward = -info['tip_to_target'] - np.square(data.ctrl).sum()
+        reward = self._reward(info['tip_to_target'], data.ctrl)
         return self.observation(model, data), float(reward), False, info
 
     batched = True
@@ -471,8 +482,7 @@ class ReacherTask(Task):
         obs = np.concatenate([np.cos(theta), np.sin(theta), batch.qpos[:, 2:],
                               batch.qvel[:, :2], offset[:, :2]], axis=1)
         to_target = dists(tip, target)
-        reward = -to_target - np.square(batch.ctrl).sum(axis=1)
-        return obs, reward, np.zeros(len(tasks), dtype=bool), {
+        return obs, self._reward(to_target, batch.ctrl), np.zeros(len(tasks), dtype=bool), {
             'is_success': to_target < self.SUCCESS, 'tip_to_target': to_target}
 
 

@@ -274,20 +274,17 @@ class SimVectorEnv(gym.vector.VectorEnv):
 
     def _vector_info(self, infos: list) -> dict:
         """Gymnasium's vector form: each key an array over the envs, ``_key`` its mask."""
-        out: dict = {}
         keys = infos[0].keys() if infos else ()
         if all(info.keys() == keys for info in infos):  # the usual case: one array per key
-            for key in keys:
-                out[key] = np.array([info[key] for info in infos])
-                out['_' + key] = np.ones(len(infos), dtype=bool)
-            return out
+            return _masked({key: [info[key] for info in infos] for key in keys}, len(infos))
+        out: dict = {}
         for i, info in enumerate(infos):
             out = self._add_info(out, info, i)
         return out
 
 
 def _masked(infos: dict, n: int) -> dict:
-    """Give a dict of (N,) arrays the masks of Gymnasium's vector form (``_key``: all True)."""
+    """Give a dict of N values per key (arrays or lists) the masks of the vector form."""
     out = {}
     for key, value in infos.items():
         out[key] = np.array(value)  # a copy: a task may hand out one array twice
