@@ -6,6 +6,7 @@ of :class:`~sim_node.node.SimNode`, which owns the publishers, timers, parameter
 """
 
 import threading
+import traceback
 
 from msg_adapters import convert, markers
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -100,7 +101,9 @@ class SimServices:
         """Return the Result for an exception: its code, or an internal error (logged)."""
         if isinstance(exc, SimError):
             return convert.result_for(exc, response_type)
-        self.get_logger().error(f'{where} failed: {exc!r}')
+        trace = ''.join(traceback.format_exception(exc)).rstrip()
+        self.get_logger().error(f'{where} failed: {exc!r}; please report this with the '
+                                f'traceback:\n{trace}')
         return Result(result=Result.RESULT_OPERATION_FAILED,
                       error_message=f'internal error: {exc!r}')
 

@@ -240,3 +240,38 @@ def test_a_reset_ends_the_trajectory(world):
     world.step(10)
     world.reset(RESET_STATE)
     assert h.done and h.status.code == trajectory.INVALID_GOAL
+
+
+#: TWO_JOINT_ARM with a stiff, damped position servo on each joint.
+SERVO_ARM = TWO_JOINT_ARM.replace(
+    '</mujoco>', '<actuator><position joint="j1" kp="500" kv="20"/>'
+    '<position joint="j2" kp="500" kv="20"/></actuator></mujoco>')
+
+
+def test_a_reset_that_removes_the_driven_entity_ends_its_trajectory(world):
+    """The arm and its joints leave with the spawned entities; the reset still succeeds."""
+    world.spawn('arm', sources.from_model_text(SERVO_ARM), (2.0, 2.0, 1.0))
+    world.command(PD_JOINTS, [0.2, 0.2], 'position')
+    world.step(1)
+    h = world.follow_trajectory('arm', PD_JOINTS, [2.0], [[1.0, 1.0]])
+    world.step(10)
+    world.reset()
+    assert h.done and h.status.code == trajectory.INVALID_GOAL, h.status.message
+    assert 'arm' not in world.get_joint_states() and 'arm/j1' not in world.get_joint_states()
+    world.step(10)
+
+
+def test_deleting_a_driven_entity_leaves_the_other_entities_servos_alone(world):
+    """The ended trajectory's actuators were numbered before the delete: not written after it."""
+    for name, y in (('x', 2.0), ('y', -2.0)):
+        world.spawn(name, sources.from_model_text(SERVO_ARM), (2.0, y, 1.0))
+    world.command(['y/j1', 'y/j2'], [-0.5, 0.4], 'position')
+    world.step(1)
+    h = world.follow_trajectory('x', ['x/j1', 'x/j2'], [2.0], [[1.0, 1.0]])
+    world.step(2)  # y has barely started towards its targets
+    world.delete('x')
+    assert h.done and h.status.code == trajectory.INVALID_GOAL
+    world.step(1000)
+    js = world.get_joint_states()
+    assert js['y/j1'][0] == pytest.approx(-0.5, abs=0.05)
+    assert js['y/j2'][0] == pytest.approx(0.4, abs=0.05)

@@ -41,16 +41,29 @@ def arm(sim, watch):
     from sensor_msgs.msg import JointState
     sim.spawn('arm', resource_string=ARM, position=(2.0, 2.0, 1.0))
     # Held level and still before each test: the arm has no actuators and would swing down.
+    # The hold must be in force before a goal is sent, or arriving later it would claim the
+    # goal's joints: sent once the node listens, and seen holding for half a simulated second
+    # (unheld, the arm would have swung far down by then).
     pub = watch.node.create_publisher(JointState, 'joint_commands', 10)
+    wait_for(lambda: pub.get_subscription_count() > 0, timeout=10)
+    t0 = wait_for(lambda: arm_stamp(watch), timeout=10)  # the arm is in the world
     pub.publish(JointState(name=JOINTS, position=[0.0, 0.0]))
     client = ActionClient(watch.node, FollowJointTrajectory, 'arm/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=15)
-    wait_for(lambda: 'arm/j1' in watch.joint_states.name and abs(joint(watch, 'arm/j1')) < 0.01
+    wait_for(lambda: arm_stamp(watch) > t0 + 0.5 and abs(joint(watch, 'arm/j1')) < 0.01
              and abs(watch.joint_states.velocity[list(watch.joint_states.name).index(
                  'arm/j1')]) < 0.01, timeout=10)
     yield sim, client
     client.destroy()
     watch.node.destroy_publisher(pub)
+
+
+def arm_stamp(watch) -> float:
+    """Return the stamp of the latest joint_states if the arm is in it, else 0."""
+    js = watch.joint_states
+    if js is None or 'arm/j1' not in js.name:
+        return 0.0
+    return js.header.stamp.sec + js.header.stamp.nanosec * 1e-9
 
 
 def goal(points, joints=JOINTS, stamp_sec: float = 0.0, goal_tol: float = 0.0,

@@ -170,6 +170,9 @@ class Control:
         self._pd_bias = ~is_eff
         for run in list(self._runs.values()):
             if not run.bind(index, model):
+                # Its addresses were the old model's: in `data` they are other joints' and
+                # actuators' now (or out of range). Its joints are gone; nothing to hold.
+                run.qadr = None
                 self._end_run(run, INVALID_GOAL, ERR_GONE, data, hold=False, rebind=False)
         self.per_step = bool(len(self._pd_dof) or len(self._servo_act) or self._runs)
 
