@@ -91,6 +91,24 @@ def test_spawn_and_delete_keep_every_other_state_bit_for_bit(world):
     assert_same_state(before, after, [k for k in before if k != 'crate/free'])
 
 
+def test_compacting_the_spec_keeps_the_state_bit_for_bit(world):
+    """Every 32nd removal rewrites the spec (an extra generation); the state stays as it was."""
+    from sim_node.core.world import COMPACT_AFTER_REMOVALS
+    world.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
+    names = [f'b{i}' for i in range(COMPACT_AFTER_REMOVALS)]
+    for i, name in enumerate(names):
+        world.spawn(name, box(), position=[2 + 0.2 * (i % 8), 0.2 * (i // 8), 0.5])
+    world.step(50)  # moving, in contact, warm-started
+    for name in names[:-1]:
+        world.delete(name)
+    before, gen = named_state(world), world.generation
+    world.delete(names[-1])
+    assert world.generation == gen + 2  # the delete, then the compaction
+    after = named_state(world)
+    assert_same_state(before, after, [k for k in before if k != f'{names[-1]}/free'])
+    world.step(10)  # and it steps on
+
+
 def test_spawned_model_brings_its_actuators_sensors_and_excludes_and_delete_removes_them(world):
     world.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
     with world.locked() as (m, _):

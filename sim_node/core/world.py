@@ -46,10 +46,14 @@ ERR_SCOPE = ('reset scope {scope} has bits no simulator defines: use 0 (all), 25
 ERR_STEPS = 'steps must be >= 1, got {n}'
 ERR_NO_DESCRIPTION = ('entity {name!r} has no hinge or slide joints: only robots have a robot '
                       'description')
-#: Compact the spec (see World._compacted) after this many spawned entities were removed.
+#: Compact the spec (see World._compact_if_due) after this many spawned entities were removed.
 COMPACT_AFTER_REMOVALS = 32
 #: Times an edit is built outside the lock before it is done under it (see World._change).
 EDIT_ATTEMPTS = 3
+#: How long the loop lets callers waiting for the world lock go first, at most, per batch. It
+#: is time the world does not step: under a storm of edits there are always callers waiting,
+#: and 50 ms here stalled /clock by 50-77 ms at a time (make bench-storm).
+CALLERS_FIRST_SEC = 0.01
 ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the world frame '
              "('' or 'world') or the name of an entity")
 
@@ -146,7 +150,7 @@ class World(StateWrites, WorldEdits):
         """Whether the calling thread holds the world lock (is inside :meth:`locked`)."""
         return self._lock._is_owned()
 
-    def wait_for_callers(self, timeout: float = 0.05) -> None:
+    def wait_for_callers(self, timeout: float = CALLERS_FIRST_SEC) -> None:
         """Use by the loop: let callers waiting for the lock go first."""
         self._lock_cm.wait_for_callers(timeout)
 
@@ -670,11 +674,7 @@ class World(StateWrites, WorldEdits):
                 if edit is None:
                     break
                 keep, model = self._build(base, edit)
-                # What can be prepared without the live state is prepared here, for the
-                # generation the commit will make: the index (names, visuals, meshes for
-                # markers), the name matching of the state, the new data's allocation.
-                prepared = (model_index.build(model, generation + 1, table),
-                            transfer.mapping(old, model), mujoco.MjData(model))
+                prepared = _prepare(old, model, generation, table)
                 with self._locked():
                     if self._generation == generation:
                         self._commit_locked(keep, model, check, spawned, overrides, removed,
@@ -708,8 +708,8 @@ class World(StateWrites, WorldEdits):
         else:
             index, matching, data = prepared
             transfer.carry(matching, self._data, data)
-        mujoco.mj_forward(model, data)
         if check is not None:
+            mujoco.mj_forward(model, data)  # the check sees the new world's poses
             check(model, data, keep)
         self._switch_locked(keep, model, data, spawned, overrides, removed, index)
 
@@ -771,24 +771,26 @@ class World(StateWrites, WorldEdits):
         with self._locked():
             if self._removals < COMPACT_AFTER_REMOVALS:
                 return
-            generation, base = self._generation, self._spec
+            generation, base, old, table = (self._generation, self._spec, self._model,
+                                            self._spawned)
         try:
             clean = mujoco.MjSpec.from_string(base.to_xml())
             keep, model = self._build(clean, lambda spec: None)
         except (ValueError, ResourceParseError) as exc:  # keep the spec; try again later
             log.debug('could not compact the model spec: %s', exc)
             return
+        sizes = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq',
+                 'nuserdata')
+        if any(getattr(model, k) != getattr(old, k) for k in sizes):
+            log.debug('compacting the model spec changed its layout; kept the spec as it is')
+            return
+        prepared = _prepare(old, model, generation, table)
         with self._locked():
-            old = self._model
-            sizes = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq',
-                     'nuserdata')
-            if self._generation != generation or any(
-                    getattr(model, k) != getattr(old, k) for k in sizes):
-                log.debug('compacting the model spec changed its layout; kept the spec as it is')
-                return
+            if self._generation != generation:
+                return  # changed meanwhile (an edit inside locked()): compact another time
             self._removals = 0
-            self._commit_locked(keep, model, None, None, None, 0)
-        del old
+            self._commit_locked(keep, model, None, None, None, 0, prepared)
+        del old, prepared
         release_free_memory()
 
     def _size_arena(self, spec: mujoco.MjSpec) -> None:
@@ -820,6 +822,18 @@ class World(StateWrites, WorldEdits):
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         self._guard.bind(data)
         self._forward_locked()
+
+
+def _prepare(old: mujoco.MjModel, model: mujoco.MjModel, generation: int,
+             table: dict) -> tuple:
+    """
+    Prepare a commit of `model` outside the world lock: what needs no live state.
+
+    For the generation after `generation`, with the spawned table `table`: the index (names,
+    visuals, meshes for markers), the name matching of `old`'s state, the new data.
+    """
+    return (model_index.build(model, generation + 1, table), transfer.mapping(old, model),
+            mujoco.MjData(model))
 
 
 def _tolerance(names: tuple, given: Optional[dict]) -> trajectory.Tolerance:
