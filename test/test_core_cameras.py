@@ -212,6 +212,50 @@ def test_a_spawned_camera_appears_and_disappears_with_its_entity():
     assert [f.camera.name for f in rig.capture()] == ['side']
 
 
+#: A textured tetrahedron: a mesh, a texture and a material the scene's context lacks.
+TETRA = """<mujoco><asset><mesh name="tet" vertex="0 0 0  .3 0 0  0 .3 0  0 0 .3"/>
+  <texture name="chk" type="2d" builtin="checker" rgb1="0 1 0" rgb2="0 0 1" width="8"
+           height="8"/><material name="chk" texture="chk"/></asset>
+  <worldbody><body name="t"><geom type="mesh" mesh="tet" material="chk"/></body></worldbody>
+</mujoco>"""
+
+
+@pytest.mark.parametrize('floor', ['2 2 0.1', '0 0 1'], ids=['finite', 'infinite'])
+def test_frames_after_edits_are_those_of_a_camera_started_afresh(floor):
+    """
+    Each frame after spawns and deletes is, pixel for pixel, what a new renderer draws.
+
+    A spawn of primitives keeps the OpenGL context (making one holds every thread for ~75 ms);
+    one that brings a mesh and a texture gets a new one. Compared: the floor's grid (an
+    infinite plane's follows the world's extent) and the ball's shadow on it (clipped by the
+    extent).
+    """
+    world = World.from_string(SCENE.replace('LENS', FOVY).replace(
+        '<worldbody>', f'<worldbody><geom type="plane" size="{floor}" rgba=".6 .6 .6 1"/>'))
+    rig = CameraRig(world, 96, 72)
+    rig.capture()
+    context = rig._renderer._con
+
+    def same_as_fresh():
+        fresh = CameraRig(world, 96, 72).capture()[0]
+        frame = rig.capture()[0]
+        return np.array_equal(frame.rgb, fresh.rgb) and np.array_equal(frame.depth, fresh.depth)
+
+    world.spawn('crate', sources.primitive('box', [0.05] * 3), position=[-0.1, -0.1, 0.05])
+    assert same_as_fresh()
+    if floor != '0 0 1':
+        assert rig._renderer._con is context  # kept: nothing it holds changed
+    world.spawn('far', sources.primitive('sphere', [0.1]), position=[40.0, 0.0, 0.1])
+    assert same_as_fresh()  # a larger world
+    if floor == '0 0 1':
+        assert rig._renderer._con is not context  # an infinite floor's grid: made again
+    world.spawn('tetra', sources.from_model_text(TETRA), position=[0.0, -0.3, 0.0])
+    assert same_as_fresh()
+    assert rig._renderer._con is not context  # a new mesh and texture: made again
+    world.delete('crate')
+    assert same_as_fresh()
+
+
 def test_camera_selection_by_pattern_and_depth_off():
     world = World.from_string(SCENE.replace('LENS', FOVY))
     world.spawn('bot', sources.from_model_text(CAMERA_BOT), position=[0.0, 0.0, 1.0])

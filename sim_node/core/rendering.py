@@ -106,6 +106,66 @@ def depth_from_buffer(buffer: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
     return depth.astype(np.float32)
 
 
+#: Model arrays an OpenGL context is made from (mjr_makeContext: meshes and their convex
+#: hulls, height fields, textures and which material uses which, skins), compared whole.
+_GL_ASSET_PREFIXES = ('mesh_', 'hfield_', 'tex_', 'skin_')
+_GL_MATERIAL_FIELDS = ('mat_texid', 'mat_texrepeat', 'mat_texuniform')
+_GL_QUALITY = ('shadowsize', 'offsamples', 'numslices', 'numstacks', 'numquads')
+
+
+def same_gl_assets(old: Optional[mujoco.MjModel], new: mujoco.MjModel) -> bool:
+    """
+    Return True if an OpenGL context made for `old` draws `new` as one made for it would.
+
+    Spawning and deleting bodies made of primitives changes nothing a context holds: its
+    meshes, height fields, textures, skins, the grids of plane geoms (one per plane, sized by
+    the plane, its material's texture repeat and, for infinite planes, the model's extent),
+    built-in shapes and buffers (the visual quality settings, the offscreen size).
+    """
+    if old is None:
+        return False
+    q0, q1 = old.vis.quality, new.vis.quality
+    g0, g1 = old.vis.global_, new.vis.global_
+    if any(getattr(q0, k) != getattr(q1, k) for k in _GL_QUALITY) or (
+            (g0.offwidth, g0.offheight) != (g1.offwidth, g1.offheight)):
+        return False
+    for name in _gl_array_names(new):
+        if not np.array_equal(getattr(old, name), getattr(new, name)):
+            return False
+    planes0 = np.flatnonzero(old.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+    planes1 = np.flatnonzero(new.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+    if not (np.array_equal(planes0, planes1)
+            and np.array_equal(old.geom_size[planes0], new.geom_size[planes1])
+            and np.array_equal(old.geom_matid[planes0], new.geom_matid[planes1])):
+        return False
+    infinite = np.any(new.geom_size[planes1, :2] <= 0)
+    return not infinite or (old.stat.extent * old.vis.map.zfar
+                            == new.stat.extent * new.vis.map.zfar)
+
+
+def _gl_array_names(model: mujoco.MjModel) -> list:
+    names = _GL_ARRAY_NAMES.get(type(model))
+    if names is None:
+        names = _GL_ARRAY_NAMES[type(model)] = [
+            k for k in dir(model) if k.startswith(_GL_ASSET_PREFIXES)
+            or k in _GL_MATERIAL_FIELDS] + ['nmat']
+    return names
+
+
+_GL_ARRAY_NAMES: dict = {}
+
+
+def _copy_visual_settings(model: mujoco.MjModel, con: mujoco.MjrContext) -> None:
+    """Set what mjr_makeContext copies from the model's numbers (fog, shadows, lines)."""
+    vis, extent = model.vis, model.stat.extent
+    con.lineWidth = vis.global_.linewidth
+    con.shadowClip = extent * vis.map.shadowclip
+    con.shadowScale = vis.map.shadowscale
+    con.fogStart = extent * vis.map.fogstart
+    con.fogEnd = extent * vis.map.fogend
+    con.fogRGBA[:] = vis.rgba.fog
+
+
 class Renderer:
     """
     Renders prepared scenes of one model into colour and depth images.
@@ -135,6 +195,13 @@ class Renderer:
             model.vis.quality.shadowsize = shadow_size
         model.vis.global_.offwidth = max(self.width, model.vis.global_.offwidth)
         model.vis.global_.offheight = max(self.height, model.vis.global_.offheight)
+        if self._con is not None and same_gl_assets(self._model, model):
+            # Making a context holds the GIL for 75 ms (the default scene, Mesa), and with
+            # it every other thread (the stepping loop: a stalled /clock at every spawn).
+            # What it uploads did not change; only the numbers it copies from the model may.
+            _copy_visual_settings(model, self._con)
+            self._model = model
+            return
         if self._con is not None:
             self._con.free()
         self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
