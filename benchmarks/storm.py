@@ -9,11 +9,13 @@ wall time in which simulated time did not advance. Target (issue 21): the longes
 storm <= 50 ms at real_time_factor 1.
 """
 
+import json
 import os
 from pathlib import Path
 import random
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 
@@ -27,21 +29,40 @@ IDLE_SEC = 5.0
 TARGET_MS = 50.0
 
 
-def client(k: int) -> None:
-    """Spawn BOXES boxes, then delete them (one client process of the storm)."""
+def client(k: int, go: str) -> None:
+    """
+    Spawn BOXES boxes, then delete them (one client process of the storm).
+
+    It starts, finds the node's services, and waits for the file `go` to exist, so that
+    starting eight Python processes is not part of the measured window. Prints each call's
+    latency as one line of JSON.
+    """
     import rclpy
     from sim_node.client import SimClient, SimServiceError
+    from simulation_interfaces import srv
     rclpy.init()
     c = SimClient(timeout_sec=60)
-    names = []
+    c.entities()  # the services are there and answer
+    for service, srv_type in (('spawn_entity', srv.SpawnEntity),
+                              ('delete_entity', srv.DeleteEntity)):
+        c.call(service, srv_type, srv_type.Request(), check=False)  # refused: no name
+    print('ready', flush=True)
+    while not os.path.exists(go):
+        time.sleep(0.005)
+    names, lat = [], []
     for j in range(BOXES):
+        t = time.perf_counter()
         try:
             names.append(c.spawn(f'storm_{k}_{j}', uri='box',
                                  position=(4 + 0.3 * k, -4 + 0.2 * j, 0.3)))
         except SimServiceError:
             pass
+        lat.append(time.perf_counter() - t)
     for name in names:
+        t = time.perf_counter()
         c.delete(name)
+        lat.append(time.perf_counter() - t)
+    print(json.dumps(lat), flush=True)
     c.close()
     rclpy.shutdown()
 
@@ -96,13 +117,22 @@ def main() -> None:
         time.sleep(1.0)
         t0 = time.perf_counter()
         time.sleep(IDLE_SEC)
-        t1 = time.perf_counter()
-        clients = [subprocess.Popen([sys.executable, __file__, '--client', str(k)])
+        t_idle = time.perf_counter()
+        go = os.path.join(tempfile.mkdtemp(prefix='storm'), 'go')
+        clients = [subprocess.Popen([sys.executable, __file__, '--client', str(k), go],
+                                    stdout=subprocess.PIPE, text=True)
                    for k in range(CLIENTS)]
         for c in clients:
-            c.wait(300)
+            assert c.stdout.readline().strip() == 'ready', 'a storm client did not start'
+        time.sleep(1.0)
+        t1 = time.perf_counter()
+        open(go, 'w').close()
+        lat = []
+        for c in clients:
+            out, _ = c.communicate(timeout=300)
+            lat += json.loads(out.strip().splitlines()[-1])
         t2 = time.perf_counter()
-        idle, storm = watch.window(t0, t1), watch.window(t1, t2)
+        idle, storm = watch.window(t0, t_idle), watch.window(t1, t2)
     finally:
         if watch is not None:
             watch.close()
@@ -114,6 +144,10 @@ def main() -> None:
           f'storm {storm[0]:7.1f} ms')
     print(f'  longest wall time with sim time still: idle {idle[1]:7.1f} ms   '
           f'storm {storm[1]:7.1f} ms')
+    lat = sorted(lat)
+    print(f'  request latency over {len(lat)} spawns and deletes: median '
+          f'{1e3 * lat[len(lat) // 2]:.0f} ms, p99 {1e3 * lat[int(0.99 * len(lat))]:.0f} ms, '
+          f'max {1e3 * lat[-1]:.0f} ms')
     verdict(storm[0] <= TARGET_MS, f'longest /clock gap under the storm {storm[0]:.1f} ms '
             f'(target <= {TARGET_MS:g} ms; idle {idle[0]:.1f} ms)')
     summary()
@@ -121,6 +155,6 @@ def main() -> None:
 
 if __name__ == '__main__':
     if sys.argv[1:2] == ['--client']:
-        client(int(sys.argv[2]))
+        client(int(sys.argv[2]), sys.argv[3])
     else:
         main()
