@@ -58,6 +58,9 @@ READ_ONLY_SERVICES = frozenset((
     'get_available_worlds', 'get_current_world'))
 READ_RETRY_SEC = 3.0
 
+#: The longest single wait of the client's executor (s): a deadline is checked at least as often.
+SPIN_SLICE_SEC = 0.1
+
 #: After a simulate_steps goal succeeds, how long a client waits for feedback in flight (s).
 FEEDBACK_DRAIN_SEC = 2.0
 
@@ -128,7 +131,7 @@ class SimClient:
         while True:
             left = deadline - time.monotonic()
             wait = min(left, READ_RETRY_SEC) if service in READ_ONLY_SERVICES else left
-            self._executor.spin_until_future_complete(future, max(0.1, wait))
+            self._spin_until(future.done, max(0.1, wait))
             if future.done() or time.monotonic() >= deadline:
                 break
             # A read changes nothing, so asking again is safe: its reply may have been dropped
@@ -302,7 +305,7 @@ class SimClient:
                 raise TimeoutError('simulate_steps action server not available')
             goal = client.send_goal_async(SimulateSteps.Goal(steps=steps),
                                           feedback_callback=on_feedback)
-            self._executor.spin_until_future_complete(goal, self._timeout)
+            self._spin_until(goal.done, self._timeout)
             handle = goal.result()
             if feedback is not None or cancel_when is not None:
                 # rclpy drops a goal's feedback once its result is in, and the two travel
@@ -312,7 +315,7 @@ class SimClient:
                 if remaining[0] and handle.status == GoalStatus.STATUS_SUCCEEDED:
                     self._spin_until(lambda: not remaining[0], FEEDBACK_DRAIN_SEC)
             res = handle.get_result_async()
-            self._executor.spin_until_future_complete(res, self._timeout)
+            self._spin_until(res.done, self._timeout)
             if not res.done():
                 raise TimeoutError(f'simulate_steps did not finish within {self._timeout} s')
             result = res.result().result.result
@@ -323,9 +326,19 @@ class SimClient:
             client.destroy()
 
     def _spin_until(self, done, timeout: float) -> None:
+        """
+        Spin until ``done()`` or `timeout` seconds.
+
+        Not rclpy's ``spin_until_future_complete``: on Jazzy a call's round trip through it took
+        5 ms back to back and 22 ms paced at 100 Hz (p50, a bare rclpy server on this machine),
+        through plain ``spin_once`` 0.7 and 1.2 ms.
+        """
         deadline = time.monotonic() + timeout
-        while not done() and time.monotonic() < deadline:
-            self._executor.spin_once(timeout_sec=0.01)
+        while not done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return
+            self._executor.spin_once(timeout_sec=min(left, SPIN_SLICE_SEC))
 
     def load_world(self, uri: str = '', resource_string: str = '') -> str:
         return self.call('load_world', srv.LoadWorld, srv.LoadWorld.Request(
