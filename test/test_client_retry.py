@@ -5,6 +5,9 @@ import time
 
 import pytest
 
+#: DDS round trips and an 8 s wait for the retry: with the node tests, not in make test-fast.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture
 def slow_server(rclpy_context):

@@ -513,6 +513,7 @@ def test_pd_position_control_is_critically_damped_at_the_default_gains():
     assert hinge_angle(w, 'arm/hinge') == pytest.approx(target, abs=1e-3)
 
 
+@pytest.mark.slow  # 3 s of real time
 def test_real_time_pacing_is_within_one_percent_over_three_seconds():
     w = World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0))
     loop = SimLoop(w)

@@ -44,6 +44,7 @@ def test_a_scene_that_sizes_its_arena_keeps_its_size():
     assert arena_mb(World.from_string(xml)) == pytest.approx(3.0)
 
 
+@pytest.mark.slow  # about 5 s of real time
 def test_the_loop_says_once_when_the_physics_cannot_keep_the_factor(caplog):
     w = World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1000.0))
     loop = SimLoop(w)
@@ -60,6 +61,7 @@ def test_the_loop_says_once_when_the_physics_cannot_keep_the_factor(caplog):
     assert len(lag_logs) == 1
 
 
+@pytest.mark.slow  # about 3 s of real time
 def test_no_lag_is_reported_when_the_factor_is_kept():
     w = World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0))
     loop = SimLoop(w)
