@@ -45,7 +45,8 @@ from .core.config import WorldConfig
 from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
 from .core.records import EFFORT, POSITION, VELOCITY
-from .core.world import release_free_memory, World
+from .core.world import World
+from .core.world_edits import release_free_memory
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
 from .qos import LATCHED_QOS

@@ -8,6 +8,7 @@ gymnasium-robotics model of the corpus, and a spawned URDF robot (whose own text
 Links are matched to bodies by the frame names ``/tf`` uses (``frame_prefix: <entity>/``).
 """
 
+from dataclasses import replace
 from pathlib import Path
 import sys
 
@@ -156,8 +157,8 @@ def test_the_urdf_generated_for_a_spawned_urdf_robot_also_matches():
     world = World.from_file(str(DEFAULT_SCENE))
     world.spawn('arm', sources.from_model_text(ARM_URDF.replace('robot name', 'robot x')),
                 position=(2, 0, 0))
-    meta = world._spawned['arm']
-    meta['urdf'] = ''  # describe it from the compiled model instead
+    design = world._design  # forget its URDF text: describe it from the compiled model instead
+    world._design = replace(design, spawned={'arm': replace(design.spawned['arm'], urdf='')})
     assert check_description_matches_mujoco(world, 'arm', np.random.default_rng(2)) == 5
 
 

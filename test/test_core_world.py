@@ -93,7 +93,7 @@ def test_spawn_and_delete_keep_every_other_state_bit_for_bit(world):
 
 def test_compacting_the_spec_keeps_the_state_bit_for_bit(world):
     """Every 32nd removal rewrites the spec (an extra generation); the state stays as it was."""
-    from sim_node.core.world import COMPACT_AFTER_REMOVALS
+    from sim_node.core.design import COMPACT_AFTER_REMOVALS
     world.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
     names = [f'b{i}' for i in range(COMPACT_AFTER_REMOVALS)]
     for i, name in enumerate(names):
@@ -107,6 +107,71 @@ def test_compacting_the_spec_keeps_the_state_bit_for_bit(world):
     after = named_state(world)
     assert_same_state(before, after, [k for k in before if k != f'{names[-1]}/free'])
     world.step(10)  # and it steps on
+
+
+def geom_friction(w: World, geom: str) -> float:
+    with w.locked() as (m, _):
+        return float(m.geom_friction[m.geom(geom).id][0])
+
+
+def test_contact_settings_stay_with_their_entity_through_deletes_and_compaction(world):
+    """
+    An entity's own friction lasts as long as it does.
+
+    A new entity of a deleted one's name starts with the world's; a scene entity keeps its own
+    through 32 removals (a compaction) and later changes of the world's default.
+    """
+    from sim_node.core.design import COMPACT_AFTER_REMOVALS
+    world.set_default_contact(friction=[0.6, 0.005, 0.0001])
+    world.set_friction('box_a', 0.2)
+    world.spawn('crate', box(), position=[2, 0, 0.5])
+    world.set_friction('crate', 1.5)
+    assert geom_friction(world, 'crate/geom') == pytest.approx(1.5)
+    world.delete('crate')
+    world.spawn('crate', box(), position=[2, 0, 0.5])
+    assert geom_friction(world, 'crate/geom') == pytest.approx(0.6)
+    for i in range(COMPACT_AFTER_REMOVALS):
+        world.spawn(f'b{i}', box(), position=[3, 0.2 * i, 0.5])
+        world.delete(f'b{i}')
+    world.set_default_contact(friction=[0.9, 0.005, 0.0001])
+    assert geom_friction(world, 'crate/geom') == pytest.approx(0.9)  # nothing of its own
+    assert geom_friction(world, 'box_a_geom') == pytest.approx(0.2)  # its own, kept
+    assert geom_friction(world, 'box_b_geom') == pytest.approx(0.9)
+
+
+@pytest.mark.parametrize('edit', ['set_default_contact', 'set_friction', 'spawn', 'delete'])
+def test_an_edit_that_fails_at_its_commit_leaves_every_table_as_it_was(
+        world, edit, monkeypatch):
+    """
+    A fault after the compile (in the switch to the new model) keeps what the world knows.
+
+    Entities, spawned ones (deletable), their contact settings, the world's defaults.
+    """
+    world.set_default_contact(friction=[0.6, 0.005, 0.0001])
+    world.spawn('crate', box(), position=[2, 0, 0.5])
+    world.set_friction('crate', 1.5)
+    before = (world.entities(), world.spawned_names(), world.generation)
+    guard, calls = world._guard, []  # bound to the new data in the switch
+    real = guard.bind
+
+    def faulty(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1:  # the switch fails; the way back to the old model does not
+            raise RuntimeError('injected fault')
+        return real(*args, **kwargs)
+    monkeypatch.setattr(guard, 'bind', faulty)
+    with pytest.raises(RuntimeError, match='injected'):
+        {'set_default_contact': lambda: world.set_default_contact(friction=[0.1, 0, 0]),
+         'set_friction': lambda: world.set_friction('crate', 0.1),
+         'spawn': lambda: world.spawn('other', box(), position=[3, 0, 0.5]),
+         'delete': lambda: world.delete('crate')}[edit]()
+    monkeypatch.undo()
+    assert (world.entities(), world.spawned_names(), world.generation) == before
+    world.set_default_contact(restitution=0.5)  # re-applies every table: none may have moved
+    assert geom_friction(world, 'crate/geom') == pytest.approx(1.5)
+    assert geom_friction(world, 'box_b_geom') == pytest.approx(0.6)
+    world.delete('crate')  # still known as spawned
+    assert 'crate' not in world.spawned_names()
 
 
 def test_spawned_model_brings_its_actuators_sensors_and_excludes_and_delete_removes_them(world):

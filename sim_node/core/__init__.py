@@ -1,13 +1,16 @@
 """
 The ROS-free MuJoCo world: no rclpy or message imports here.
 
-Modules, one job each: :mod:`.world` (the lock, the generation, the recompile, and the public
-methods that lock, validate and delegate), :mod:`.index` (names and addresses of one model),
-:mod:`.control` (joint commands), :mod:`.guard` (divergence), :mod:`.editor` (MjSpec edits),
-:mod:`.state` (reading and writing state), :mod:`.sources` (what can be spawned),
-:mod:`.assets` (model files resolved, checked and copied once), :mod:`.trajectory` (joint
-trajectories in simulated time, driven per step by :mod:`.control` under the world lock),
-:mod:`.loop` (the stepping thread), :mod:`.checks` and :mod:`.quat` (shared helpers).
+Modules, one job each: :mod:`.world` (the run phase: the lock, the current model and data,
+stepping, reads, reset; public methods lock, validate and delegate), :mod:`.world_edits` (the
+edit phase: every structural edit and its one commit path), :mod:`.design` (what the edit
+phase owns: the spec and its tables, one immutable value), :mod:`.index` (names and
+addresses of one model), :mod:`.control` (joint commands), :mod:`.guard` (divergence),
+:mod:`.editor` (MjSpec edits), :mod:`.state` (reading and writing state), :mod:`.sources`
+(what can be spawned), :mod:`.assets` (model files resolved, checked and copied once),
+:mod:`.trajectory` (joint trajectories in simulated time, driven per step by :mod:`.control`
+under the world lock), :mod:`.loop` (the stepping thread), :mod:`.checks` and :mod:`.quat`
+(shared helpers).
 
 Threading contract
 ------------------
@@ -28,7 +31,8 @@ Threading contract
   ``World.step`` in the node; a script or the Gym environment that owns its world steps it
   from its own thread instead. Nobody calls ``mj_step`` outside ``World``.
 * **Changes.** Spawn, delete, reset, set-state and physics parameters are validated, then
-  applied between steps, all or nothing, through one commit path (``World._change``): under
+  applied between steps, all or nothing, through one commit path (``WorldEdits._change``,
+  :mod:`.world_edits`, over the edit phase's state :class:`~.design.Design`): under
   the lock the edit is planned and the current spec taken; with the lock released a copy of the
   spec is edited and compiled and everything that does not need the live state is prepared
   (index, name matching, new data); under the lock again the state is carried over by names and

@@ -7,7 +7,7 @@ model without holding that model's index too (compare ``index.generation``).
 """
 
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import mujoco
 import numpy as np
@@ -88,13 +88,13 @@ class ModelIndex:
         return np.asarray(idx, dtype=int)
 
 
-def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
+def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
     """
     Index a compiled model.
 
-    :param spawned: entity name -> {'description': str, 'bodies': top-level body names, root
-        first} for entities spawned since load. Every other top-level body is an entity of
-        its own.
+    :param spawned: entity name -> :class:`~.design.Spawned` for the entities spawned since
+        load (their top-level bodies, description, namespace). Every other top-level body is
+        an entity of its own.
     """
     names = tuple('world' if b == 0 else (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
                                           or f'body_{b}') for b in range(m.nbody))
@@ -108,8 +108,8 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
     # A spawned model may bring several top-level bodies: all belong to its root's entity.
     entity_root = np.arange(m.nbody)
     ids = {n: b for b, n in enumerate(names)}
-    for meta in spawned.values():
-        group = [ids[n] for n in meta['bodies'] if n in ids]
+    for rec in spawned.values():
+        group = [ids[n] for n in rec.bodies if n in ids]
         entity_root[group] = group[0] if group else 0
     root_of = entity_root[top_of]
     root_of[0] = 0
@@ -144,7 +144,7 @@ def build(m: mujoco.MjModel, generation: int, spawned: dict) -> ModelIndex:
         entities=entities, entity_by_name={e.name: e for e in entities}, info=info)
 
 
-def _root_aliases(entities: tuple, spawned: dict, with_joints: set, nbody: int) -> tuple:
+def _root_aliases(entities: tuple, spawned: Mapping, with_joints: set, nbody: int) -> tuple:
     """
     Return each root body's own frame ``<entity>/<root>`` (robots and spawned URDFs).
 
@@ -155,9 +155,9 @@ def _root_aliases(entities: tuple, spawned: dict, with_joints: set, nbody: int) 
     """
     alias = [''] * nbody
     for rec in entities:
-        meta = spawned.get(rec.name)
-        if rec.name in with_joints or (meta and meta.get('urdf')):
-            alias[rec.root_body] = (meta.get('root_link') if meta else '') or \
+        own = spawned.get(rec.name)
+        if rec.name in with_joints or (own is not None and own.urdf):
+            alias[rec.root_body] = (own.root_link if own is not None else '') or \
                 f'{rec.name}/{rec.name}'
     return tuple(alias)
 
@@ -209,7 +209,7 @@ def _geom_visuals(m: mujoco.MjModel) -> tuple:
 
 
 def _entity_records(m: mujoco.MjModel, names: tuple, root_of: np.ndarray,
-                    spawned: dict) -> tuple:
+                    spawned: Mapping) -> tuple:
     """One record per entity root, grouped with index arrays (O(n), not O(n^2))."""
     jroot = root_of[m.jnt_bodyid]
     groot = root_of[m.geom_bodyid]
@@ -225,12 +225,12 @@ def _entity_records(m: mujoco.MjModel, names: tuple, root_of: np.ndarray,
         has_actuators = bool(np.any(aroot == root))
         category = ROBOT if other_joints or has_actuators else DYNAMIC if has_free else STATIC
         name = names[root]
-        meta = spawned.get(name)
+        own = spawned.get(name)
         recs.append(EntityRecord(
             name=name, category=category, root_body=root,
             body_ids=tuple(int(b) for b in np.nonzero(root_of == root)[0]),
             geom_ids=tuple(int(g) for g in np.nonzero(groot == root)[0]),
-            spawned=meta is not None,
-            description=meta['description'] if meta else 'from the scene',
-            has_free_joint=has_free, namespace=meta.get('namespace', '') if meta else ''))
+            spawned=own is not None,
+            description=own.description if own is not None else 'from the scene',
+            has_free_joint=has_free, namespace=own.namespace if own is not None else ''))
     return tuple(recs)

@@ -1,29 +1,30 @@
 """
-The MuJoCo world: one MjSpec/MjModel/MjData, its entities, and every change to them.
+The MuJoCo world while it runs: one MjModel/MjData, its lock, stepping, reading and reset.
 
-The world keeps the lock, the model generation and the recompile, and its public methods lock,
-validate and delegate: addresses to :mod:`.index`, joint commands to :mod:`.control`, the
-divergence check to :mod:`.guard`, spec edits to :mod:`.editor`, state reads and writes to
-:mod:`.state`. The threading contract is in the package docstring (``sim_node.core``).
+This is the run phase: the world keeps the lock, the current model, data, index and generation,
+and its public methods lock, validate and delegate: addresses to :mod:`.index`, joint commands
+to :mod:`.control`, the divergence check to :mod:`.guard`, state reads and writes to
+:mod:`.state` (and :mod:`.world_writes`). The edit phase (spawn, delete, contact, mass, the
+spec and its tables, the one commit path and compaction) is :mod:`.world_edits` over
+:mod:`.design`. The threading contract is in the package docstring (``sim_node.core``).
 """
 
 import contextlib
-import ctypes
 import logging
 from pathlib import Path
 import threading
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
-import warnings
 
 import mujoco
 import numpy as np
 
 from . import assets, checks, description, editor, guard
 from . import index as model_index
-from . import sources, state, trajectory, transfer
+from . import sources, state, trajectory
 from .checks import check_finite
 from .config import WorldConfig
 from .control import Control
+from .design import Design
 from .errors import (DivergenceError, FeatureUnsupportedError, IncorrectStateError,
                      InvalidArgumentError, InvalidPoseError, ResourceParseError)
 from .guard import clean, DivergenceGuard
@@ -40,16 +41,11 @@ log = logging.getLogger(__name__)
 
 ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the world is now at '
                         'generation {now} (an entity was spawned or deleted since)')
-ERR_COMPILE = 'the model does not compile: {err}'
 ERR_SCOPE = ('reset scope {scope} has bits no simulator defines: use 0 (all), 255 (all) or a '
              'combination of 1 (time), 2 (state) and 4 (spawned)')
 ERR_STEPS = 'steps must be >= 1, got {n}'
 ERR_NO_DESCRIPTION = ('entity {name!r} has no hinge or slide joints: only robots have a robot '
                       'description')
-#: Compact the spec (see World._compact_if_due) after this many spawned entities were removed.
-COMPACT_AFTER_REMOVALS = 32
-#: Times an edit is built outside the lock before it is done under it (see World._change).
-EDIT_ATTEMPTS = 3
 #: How long the loop lets callers waiting for the world lock go first, at most, per batch. It
 #: is time the world does not step: under a storm of edits there are always callers waiting,
 #: and 50 ms here stalled /clock by 50-77 ms at a time (make bench-storm).
@@ -59,20 +55,6 @@ ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the 
 
 _SCOPE_BITS = RESET_TIME | RESET_STATE | RESET_SPAWNED
 _NO_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-
-
-def _load_malloc_trim() -> Callable[[], None]:
-    """Return glibc's malloc_trim(0), or a no-op where there is none."""
-    try:
-        trim = ctypes.CDLL('libc.so.6').malloc_trim
-    except (OSError, AttributeError):
-        return lambda: None
-    return lambda: trim(0)
-
-
-#: Give memory freed by dropped models back to the system: glibc keeps it otherwise (a
-#: 400-box spawn-and-delete storm left 300 MiB of free heap in the process, measured).
-release_free_memory = _load_malloc_trim()
 
 
 class World(StateWrites, WorldEdits):
@@ -101,21 +83,11 @@ class World(StateWrites, WorldEdits):
         assets.set_mesh_cache(config.mesh_cache_mb)
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
-        self._auto_arena = spec.memory == -1  # the scene left it to MuJoCo's default
-        self._size_arena(spec)
-        keep = spec.copy()  # the world keeps its spec uncompiled (see _build)
-        try:
-            model = spec.compile()
-        except ValueError as exc:
-            raise ResourceParseError(f'the scene does not compile: {exc}') from None
-        self._spec = keep
-        # name -> {'frame': name, 'bodies': top-level body names, 'assets', 'description'}
-        self._spawned: dict = {}
-        self._overrides: dict = {}  # entity -> {'friction': (3,), 'restitution': float}
-        self._default_friction: Optional[np.ndarray] = None
-        self._default_restitution: Optional[float] = None
+        arena = ((config.arena_base_bytes, config.arena_bytes_per_body)
+                 if spec.memory == -1 else None)  # the scene left it to MuJoCo's default
+        # The edit phase's state, replaced whole by each structural edit (.design).
+        self._design, model = Design.start(spec, arena)
         self._generation = 0
-        self._removals = 0  # spawned entities removed since the spec was last compacted
         self._step_count = 0
         self._snapshot_seq = 0
         self._adopt_locked(model, mujoco.MjData(model))
@@ -237,7 +209,7 @@ class World(StateWrites, WorldEdits):
     def spawned_names(self) -> list:
         """Return the entities spawned since load (the ones that can be deleted)."""
         with self._locked():
-            return list(self._spawned)
+            return list(self._design.spawned)
 
     def joint_names(self) -> list:
         """Hinge and slide joints, the ones joint commands and joint_states cover."""
@@ -254,10 +226,10 @@ class World(StateWrites, WorldEdits):
         """
         with self._locked():
             rec = self._index.entity(name)
-            meta = self._spawned.get(name) or {}
+            spawned = self._design.spawned.get(name)
             model, info = self._model, self._index.info
-        if meta.get('urdf'):
-            return description.renamed_urdf(meta['urdf'], name)
+        if spawned is not None and spawned.urdf:
+            return description.renamed_urdf(spawned.urdf, name)
         if not info.body_alias[rec.root_body]:
             raise InvalidArgumentError(ERR_NO_DESCRIPTION.format(name=name))
         return description.from_model(model, rec.body_ids, info.body_alias[rec.root_body],
@@ -592,9 +564,9 @@ class World(StateWrites, WorldEdits):
         scope = _SCOPE_BITS if scope in (0, RESET_ALL) else scope
         if scope & RESET_SPAWNED:
             with self._locked():
-                anything = bool(self._spawned)
+                anything = bool(self._design.spawned)
             if anything:  # built outside the lock like every removal; the state below
-                self._change(lambda: self._plan_removal_locked(list(self._spawned)))
+                self._change(lambda: self._plan_removal_locked(list(self._design.spawned)))
         with self._locked():
             if scope & RESET_STATE:
                 self._reset_state_locked(keep_time=not scope & RESET_TIME)
@@ -618,191 +590,6 @@ class World(StateWrites, WorldEdits):
             self._step_count = 0
         self._forward_locked()
 
-    # ---------------------------------------------------------------- model edits
-    #
-    # One commit path for every structural edit. The world keeps its spec uncompiled: copying
-    # a compiled spec copies every processed mesh with the GIL held (190 ms for three arms,
-    # measured), an uncompiled one takes a few milliseconds. An edit builds a new spec from a
-    # copy and compiles it (MuJoCo's mesh cache makes the entities already there cheap, and the
-    # compile releases the GIL); only the commit runs under the world lock: the live state
-    # carried over by element names (:mod:`.transfer`), the check, the switch.
-
-    def _build(self, base: mujoco.MjSpec, edit: Callable[[mujoco.MjSpec], object]) -> tuple:
-        """
-        Return (spec to keep, compiled model) of `edit` applied to a copy of `base`.
-
-        :raises ResourceParseError: the edited spec does not compile (nothing is kept).
-        """
-        trial = base.copy()
-        edit(trial)
-        self._size_arena(trial)
-        keep = trial.copy()  # uncompiled: cheap to copy for the next edit
-        with warnings.catch_warnings(record=True) as conflicts:
-            warnings.simplefilter('always')
-            try:
-                model = trial.compile()
-            except ValueError as exc:
-                raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
-        for w in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
-            log.info('the world keeps its own settings: %s', ' '.join(str(w.message).split()))
-        return keep, model
-
-    def _change(self, plan_locked: Callable[[], tuple]):
-        """
-        Apply a structural edit with the world lock held only to plan and to commit.
-
-        ``plan_locked()`` runs under the lock, validates, and returns ``(edit, check, spawned,
-        overrides, removed, result)`` (see :meth:`_edit_locked`; an `edit` of None: nothing to
-        change, no compile). The spec is built and compiled
-        with the lock released, so the loop steps and readers read meanwhile; edits take turns
-        (``_edit_lock``), and if the world changed in between (a reset of the spawned, a
-        contact change), the edit is planned again on the new world.
-
-        :returns: the plan's ``result``.
-        """
-        if self.holds_lock():  # called inside locked(): waiting for _edit_lock could
-            with self._locked():  # deadlock with an edit waiting for the world lock
-                edit, check, spawned, overrides, removed, result = plan_locked()
-                self._edit_locked(edit, check, spawned, overrides, removed)
-                return result
-        with self._edit_lock:
-            for _ in range(EDIT_ATTEMPTS):
-                with self._locked():
-                    generation, base, old = self._generation, self._spec, self._model
-                    edit, check, spawned, overrides, removed, result = plan_locked()
-                    table = self._spawned if spawned is None else spawned
-                if edit is None:
-                    break
-                keep, model = self._build(base, edit)
-                prepared = _prepare(old, model, generation, table)
-                with self._locked():
-                    if self._generation == generation:
-                        self._commit_locked(keep, model, check, spawned, overrides, removed,
-                                            prepared)
-                        break
-            else:
-                with self._locked():  # the world kept changing: do it all under the lock
-                    edit, check, spawned, overrides, removed, result = plan_locked()
-                    self._edit_locked(edit, check, spawned, overrides, removed)
-            self._compact_if_due()
-        return result
-
-    def _commit_locked(self, keep: mujoco.MjSpec, model: mujoco.MjModel,
-                       check: Optional[Callable[..., None]],
-                       spawned: Optional[dict], overrides: Optional[dict],
-                       removed: int, prepared: Optional[tuple] = None) -> None:
-        """
-        Make a compiled edit the world, carrying the live state over by names.
-
-        The world must be the one the edit was built from (same generation): the caller checks.
-        ``check(model, data, keep)`` runs last, under the lock, with the new model and data
-        ready and the live world still the old one: it may refuse (raise), or settle what
-        depends on the live state at this instant (a weld where the object is now) in the new
-        model, data and spec. A failed check leaves the world exactly as it was.
-
-        :param prepared: (index, state mapping, fresh data) made beforehand for this
-            generation, or None to make them here.
-        """
-        if prepared is None:
-            index, data = None, transfer.transfer(self._model, self._data, model)
-        else:
-            index, matching, data = prepared
-            transfer.carry(matching, self._data, data)
-        if check is not None:
-            mujoco.mj_forward(model, data)  # the check sees the new world's poses
-            check(model, data, keep)
-        self._switch_locked(keep, model, data, spawned, overrides, removed, index)
-
-    def _edit_locked(self, edit: Optional[Callable[[mujoco.MjSpec], object]],
-                     check: Optional[Callable[..., None]] = None,
-                     spawned: Optional[dict] = None, overrides: Optional[dict] = None,
-                     removed: int = 0) -> None:
-        """
-        Apply `edit` to a copy of the spec, compile it and commit it, all under the lock.
-
-        For edits that read the live state as they are made (moving a welded entity within a
-        state write) and edits made inside :meth:`locked`; spawn, delete, reset of the spawned,
-        contact, mass, welds, gravity and timestep go through :meth:`_change`. Only if the copy
-        compiles (and `check` passes) does it become the world. A failed compile or check
-        leaves the world, its spec and its generation exactly as they were.
-
-        :param spawned: the spawned-entity table that goes with the edited spec.
-        :param overrides: likewise, per-entity contact settings.
-        :param removed: how many spawned entities the edit removes (see :meth:`_compact_if_due`).
-        """
-        if edit is None:  # nothing to change (see _change)
-            return
-        keep, model = self._build(self._spec, edit)
-        self._commit_locked(keep, model, check, spawned, overrides, removed)
-
-    def _switch_locked(self, trial: mujoco.MjSpec, model: mujoco.MjModel, data: mujoco.MjData,
-                       spawned: Optional[dict], overrides: Optional[dict], removed: int,
-                       index: Optional[ModelIndex] = None) -> None:
-        """Switch the world to a new spec, model and data together, or not at all."""
-        saved = (self._spec, self._spawned, self._overrides, self._generation, self._model,
-                 self._data, self._control.held_copy())
-        try:
-            self._spec = trial
-            if spawned is not None:
-                self._spawned = spawned
-            if overrides is not None:
-                self._overrides = overrides
-            self._generation += 1
-            self._adopt_locked(model, data, index)
-        except BaseException:
-            # Whatever failed while switching over (index, commands, guard), the world goes
-            # back to exactly what it was: a request that fails changes nothing.
-            (self._spec, self._spawned, self._overrides, self._generation, model, data,
-             held) = saved
-            self._control.restore_held(held)
-            self._adopt_locked(model, data)
-            raise
-        self._removals += removed
-
-    def _compact_if_due(self) -> None:
-        """
-        Replace the spec by the same world written out and read back, once enough were removed.
-
-        MuJoCo keeps every model ever attached to a spec, deleted or not (about 35 kB for a
-        box, measured): a world that spawns and deletes for days would grow without end. The
-        round trip compiles to the same model (same sizes, checked), and the state carries over
-        by names like any other edit. Built outside the world lock; called with ``_edit_lock``.
-        """
-        with self._locked():
-            if self._removals < COMPACT_AFTER_REMOVALS:
-                return
-            generation, base, old, table = (self._generation, self._spec, self._model,
-                                            self._spawned)
-        try:
-            clean = mujoco.MjSpec.from_string(base.to_xml())
-            keep, model = self._build(clean, lambda spec: None)
-        except (ValueError, ResourceParseError) as exc:  # keep the spec; try again later
-            log.debug('could not compact the model spec: %s', exc)
-            return
-        sizes = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq',
-                 'nuserdata')
-        if any(getattr(model, k) != getattr(old, k) for k in sizes):
-            log.debug('compacting the model spec changed its layout; kept the spec as it is')
-            return
-        prepared = _prepare(old, model, generation, table)
-        with self._locked():
-            if self._generation != generation:
-                return  # changed meanwhile (an edit inside locked()): compact another time
-            self._removals = 0
-            self._commit_locked(keep, model, None, None, None, 0, prepared)
-        del old, prepared
-        release_free_memory()
-
-    def _size_arena(self, spec: mujoco.MjSpec) -> None:
-        """
-        Give a spec whose scene did not size MuJoCo's arena one proportional to its bodies.
-
-        See ``WorldConfig.arena_bytes_per_body``.
-        """
-        if self._auto_arena:
-            spec.memory = (self.config.arena_base_bytes
-                           + self.config.arena_bytes_per_body * len(spec.bodies))
-
     def _adopt_locked(self, model: mujoco.MjModel, data: mujoco.MjData,
                       index: Optional[ModelIndex] = None) -> None:
         """
@@ -813,7 +600,7 @@ class World(StateWrites, WorldEdits):
         """
         self._model, self._data = model, data
         if index is None or index.generation != self._generation:
-            index = model_index.build(model, self._generation, self._spawned)
+            index = model_index.build(model, self._generation, self._design.spawned)
         self._index: ModelIndex = index
         self._ctrl = data.ctrl
         self._good_buf = np.empty(self._index.state_size)
@@ -822,18 +609,6 @@ class World(StateWrites, WorldEdits):
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.
         self._guard.bind(data)
         self._forward_locked()
-
-
-def _prepare(old: mujoco.MjModel, model: mujoco.MjModel, generation: int,
-             table: dict) -> tuple:
-    """
-    Prepare a commit of `model` outside the world lock: what needs no live state.
-
-    For the generation after `generation`, with the spawned table `table`: the index (names,
-    visuals, meshes for markers), the name matching of `old`'s state, the new data.
-    """
-    return (model_index.build(model, generation + 1, table), transfer.mapping(old, model),
-            mujoco.MjData(model))
 
 
 def _tolerance(names: tuple, given: Optional[dict]) -> trajectory.Tolerance:

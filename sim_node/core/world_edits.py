@@ -1,23 +1,38 @@
 """
-World model edits.
+The edit phase of a :class:`~sim_node.core.world.World`: every structural change, one commit path.
 
-Spawn, add a body, delete, and physics parameters (contact, mass, gravity, timestep). A mixin of
-:class:`~sim_node.core.world.World`, split out only to keep one file per job: each method locks,
-validates, and hands a spec edit to ``World._edit_locked`` (the recompile and generation stay in
-``world.py``).
+Spawn, add a body, delete, the removal of the spawned on reset, contact, mass, welds, gravity
+and timestep. Each public method validates its arguments, then hands a plan to
+:meth:`WorldEdits._change`: the plan runs under the world lock, checks against the live
+world, and returns an :class:`~.design.Edit`; the edit is applied to a copy of the world's
+:class:`~.design.Design` and compiled with the lock released, and the commit under the lock
+swaps design, model, data and index together, carrying the state over by names
+(:mod:`.transfer`), or changes nothing. Compaction (:meth:`Design.compacted`) goes the same way.
+
+What this mixin uses of the run phase (``world.py``), and nothing else: the lock
+(``_locked``, ``holds_lock``, ``_edit_lock``), the current ``_model``, ``_data``, ``_index``
+and ``_generation``, ``_kinematics_locked`` and ``_pose_frame_locked`` to read poses, and
+``_adopt_locked`` with ``_control``'s held commands to switch models. What it owns:
+``_design``.
 """
 
-from types import SimpleNamespace
-from typing import Optional, Sequence
+import ctypes
+import logging
+from typing import Callable, Optional, Sequence
 
 import mujoco
 import numpy as np
 
-from . import checks, editor, quat, sources, state
+from . import checks, editor, quat, sources, state, transfer
+from . import index as model_index
 from .checks import check_finite, check_pose
+from .design import Contact, Design, Edit, NOTHING, Spawned
 from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
                      NameNotUniqueError)
+from .index import ModelIndex
 from .records import ROBOT, STATIC
+
+log = logging.getLogger(__name__)
 
 ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '
                 'max_bodies): delete entities first, or raise the limit')
@@ -27,15 +42,26 @@ ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth
 ERR_NOT_SPAWNED = '{name!r} is part of the loaded scene; only spawned entities can be deleted'
 ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
 ERR_NO_MASS = '{name!r} has no mass to scale'
+#: Times an edit is built outside the lock before it is done under it (see WorldEdits._change).
+EDIT_ATTEMPTS = 3
+
+
+def _load_malloc_trim() -> Callable[[], None]:
+    """Return glibc's malloc_trim(0), or a no-op where there is none."""
+    try:
+        trim = ctypes.CDLL('libc.so.6').malloc_trim
+    except (OSError, AttributeError):
+        return lambda: None
+    return lambda: trim(0)
+
+
+#: Give memory freed by dropped models back to the system: glibc keeps it otherwise (a
+#: 400-box spawn-and-delete storm left 300 MiB of free heap in the process, measured).
+release_free_memory = _load_malloc_trim()
 
 
 class WorldEdits:
     """Structural and physics-parameter changes of a :class:`World` (see its docstring)."""
-
-    def _frame_of(self, name: str) -> Optional[str]:
-        """Return the name of the frame a spawned entity hangs from (None: a scene entity)."""
-        meta = self._spawned.get(name)
-        return meta['frame'] if meta else None
 
     def _check_capacity_locked(self, new_bodies: int) -> None:
         total = self._model.nbody + new_bodies
@@ -79,20 +105,16 @@ class WorldEdits:
             checks.check_name(name)
         overlap_ok = (self.config.allow_interpenetration if allow_interpenetration is None
                       else allow_interpenetration)
-        # The compile, the slow part, runs outside the world lock (World._change): the loop
+        # The compile, the slow part, runs outside the world lock (_change): the loop
         # steps and /clock goes on meanwhile.
 
-        def plan() -> tuple:
-            p = self._plan_spawn_locked(name, source, pos, q, reference, allow_renaming,
-                                        overlap_ok, namespace)
-            return p.edit, p.check, p.spawned, None, 0, p.name
-
-        return self._change(plan)
+        return self._change(lambda: self._plan_spawn_locked(
+            name, source, pos, q, reference, allow_renaming, overlap_ok, namespace))
 
     def _plan_spawn_locked(self, name: str, source: sources.SpawnSource, pos: np.ndarray,
                            q: np.ndarray, reference: str, allow_renaming: bool,
-                           overlap_ok: bool, namespace: str = '') -> SimpleNamespace:
-        """Return the checked name, the spec edit, the overlap check and the new table."""
+                           overlap_ok: bool, namespace: str = '') -> Edit:
+        """Return the spawn's edit: its result is the checked name."""
         self._check_capacity_locked(len(source.spec.bodies) - 1)
         if not name or name in self._index.body_ids:
             if not allow_renaming:
@@ -101,21 +123,20 @@ class WorldEdits:
         if reference:
             pos, q = quat.from_frame(*self._pose_frame_locked(reference), pos, q)
         checks.check_extent(pos, self.config.world_extent)
-        meta = {'assets': tuple(source.assets), 'description': source.description,
-                'namespace': namespace}
-        contact = (self._contact_of({}) if self._default_friction is not None
-                   or self._default_restitution is not None else None)
+        design = self._design
+        contact = design.contact_of(None) if design.default_contact.is_set else None
 
-        def edit(spec: mujoco.MjSpec) -> None:
-            (meta['frame'], meta['bodies'], root,
-             meta['defaults']) = editor.attach(spec, name, source, pos, q)
-            # Its root body's own frame (see ModelInfo.body_alias), and a URDF's own text.
-            meta['root_link'] = f'{name}/{root}'
-            meta['urdf'] = source.text if source.kind == 'urdf' else ''
+        def apply(spec: mujoco.MjSpec) -> Spawned:
+            frame, bodies, root, defaults = editor.attach(spec, name, source, pos, q)
             if contact is not None:
-                geoms = [g.name for b in meta['bodies']
+                geoms = [g.name for b in bodies
                          for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]
                 editor.apply_contact(spec, geoms, *contact)
+            # Its root body's own frame (see ModelInfo.body_alias), and a URDF's own text.
+            return Spawned(frame=frame, bodies=bodies, root_link=f'{name}/{root}',
+                           defaults=defaults, assets=tuple(source.assets),
+                           description=source.description, namespace=namespace,
+                           urdf=source.text if source.kind == 'urdf' else '')
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name, self.config.interpenetration_tolerance)
@@ -123,8 +144,8 @@ class WorldEdits:
                 raise InvalidPoseError(ERR_INTERPENETRATION.format(
                     name=name, other=hit[0], depth=hit[1]))
 
-        return SimpleNamespace(name=name, edit=edit, check=None if overlap_ok else check,
-                               spawned={**self._spawned, name: meta})
+        return Edit(apply, None if overlap_ok else check,
+                    lambda nxt, spawned: nxt.with_spawned(name, spawned), result=name)
 
     def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
                  position: Sequence[float] = (0.0, 0.0, 0.0),
@@ -149,17 +170,17 @@ class WorldEdits:
         colour = sources.check_rgba(rgba)
         sources.check_mass(mass)
 
-        def plan() -> tuple:  # compiled outside the world lock (World._change)
+        def plan() -> Edit:  # compiled outside the world lock (_change)
             root = self._index.entity_of_body(parent)
-            if root not in self._spawned:
+            if root not in self._design.spawned:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
             self._check_capacity_locked(1)
             full = f'{root}/{name}'
             if full in self._index.body_ids:
                 raise NameNotUniqueError(ERR_DUPLICATE.format(name=full))
-            return (lambda spec: editor.add_child(
+            return Edit(lambda spec: editor.add_child(
                 spec, parent, full, shape, full_size, pos, q, mass, joint, ax, colour),
-                None, None, None, 0, full)
+                result=full)
 
         return self._change(plan)
 
@@ -169,37 +190,32 @@ class WorldEdits:
 
         Contact pairs, excludes and joint commands; everything else keeps its state exactly.
         """
-        def plan() -> tuple:
+        def plan() -> Edit:
             self._index.entity(name)
-            if name not in self._spawned:
+            if name not in self._design.spawned:
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
             return self._plan_removal_locked([name])
 
         self._change(plan)
 
-    def _plan_removal_locked(self, names: Sequence[str]) -> tuple:
-        """Return the World._change plan that removes spawned entities `names`."""
-        doomed = {n: self._spawned[n] for n in names}
-        return (lambda spec: [editor.remove(spec, n, meta['frame'], meta['assets'],
-                                            meta.get('defaults', ()))
-                              for n, meta in doomed.items()],
-                None, {k: v for k, v in self._spawned.items() if k not in doomed},
-                {k: v for k, v in self._overrides.items() if k not in doomed}, len(doomed),
-                None)
+    def _plan_removal_locked(self, names: Sequence[str]) -> Edit:
+        """Return the edit that removes spawned entities `names`."""
+        doomed = {n: self._design.spawned[n] for n in names}
+        return Edit(lambda spec: [editor.remove(spec, n, rec.frame, rec.assets, rec.defaults)
+                                  for n, rec in doomed.items()],
+                    redesign=lambda nxt, _: nxt.without(list(doomed)))
 
     # ---------------------------------------------------------------- physics parameters
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
         g = check_finite('gravity', gravity, 3)
-        self._change(lambda: (lambda spec: setattr(spec.option, 'gravity', g.tolist()),
-                              None, None, None, 0, None))
+        self._change(lambda: Edit(lambda spec: setattr(spec.option, 'gravity', g.tolist())))
 
     def set_timestep(self, timestep: float) -> None:
         (dt,) = check_finite('timestep', [timestep], 1)
         if not 0 < dt <= 0.1:
             raise InvalidArgumentError(f'timestep must be in (0, 0.1] s, got {timestep}')
-        self._change(lambda: (lambda spec: setattr(spec.option, 'timestep', float(dt)),
-                              None, None, None, 0, None))
+        self._change(lambda: Edit(lambda spec: setattr(spec.option, 'timestep', float(dt))))
 
     def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
                      rolling: Optional[float] = None) -> None:
@@ -208,7 +224,7 @@ class WorldEdits:
 
         It wins over surfaces without friction of their own (see :func:`editor.apply_contact`).
         """
-        def plan() -> tuple:
+        def plan() -> Edit:
             rec = self._index.entity(name)
             cur = (self._model.geom_friction[rec.geom_ids[0]] if rec.geom_ids
                    else np.array([1.0, 0.005, 0.0001]))
@@ -216,7 +232,7 @@ class WorldEdits:
                                           cur[2] if rolling is None else rolling], 3)
             if np.any(f < 0):
                 raise InvalidArgumentError(f'friction must be >= 0, got {f.tolist()}')
-            return self._plan_override_locked(name, 'friction', f)
+            return self._plan_contact_locked(name, friction=f)
         self._change(plan)
 
     def set_restitution(self, name: str, restitution: float) -> None:
@@ -227,46 +243,34 @@ class WorldEdits:
         :func:`editor.apply_contact`).
         """
         e = self._check_restitution(restitution)
-        self._change(lambda: self._plan_override_locked(name, 'restitution', e))
+        self._change(lambda: self._plan_contact_locked(name, restitution=e))
 
-    def _plan_override_locked(self, name: str, key: str, value) -> tuple:
-        """Return the World._change plan of one entity's contact setting."""
-        own = {**self._overrides.get(name, {}), key: value}
+    def _plan_contact_locked(self, name: str, friction: Optional[np.ndarray] = None,
+                             restitution: Optional[float] = None) -> Edit:
+        """Return the edit that gives one entity its own friction and/or restitution."""
         geoms = [self._index.geom_names[g] for g in self._index.entity(name).geom_ids]
-        contact = self._contact_of(own)
-        return (lambda spec: editor.apply_contact(spec, geoms, *contact), None, None,
-                {**self._overrides, name: own}, 0, None)
-
-    def _contact_of(self, own: dict) -> tuple:
-        """(friction, restitution, priority) for geoms with settings `own` (maybe none)."""
-        return (own.get('friction', self._default_friction),
-                own.get('restitution', self._default_restitution),
-                editor.OWN_CONTACT_PRIORITY if own else 0)
+        own = self._design.contacts.get(name, Contact()).merged(friction, restitution)
+        contact = self._design.with_contact(name, own).contact_of(name)
+        return Edit(lambda spec: editor.apply_contact(spec, geoms, *contact),
+                    redesign=lambda nxt, _: nxt.with_contact(name, own))
 
     def set_default_contact(self, friction: Optional[Sequence[float]] = None,
                             restitution: Optional[float] = None) -> None:
         """Global friction (3 values) and/or restitution for every geom without its own."""
         f = None if friction is None else check_finite('friction', friction, 3)
         e = None if restitution is None else self._check_restitution(restitution)
-        with self._locked():
-            old = self._default_friction, self._default_restitution
 
-        def plan() -> tuple:  # compiled outside the world lock (World._change); edits take
-            self._default_friction = old[0] if f is None else f  # turns, so no other edit
-            self._default_restitution = old[1] if e is None else e  # plans meanwhile
-            idx = self._index
-            groups = [([idx.geom_names[g] for g in r.geom_ids],
-                       self._contact_of(self._overrides.get(r.name, {}))) for r in idx.entities]
+        def plan() -> Edit:  # compiled outside the world lock (_change)
+            default = self._design.default_contact.merged(f, e)
+            nxt, idx = self._design.with_default_contact(default), self._index
+            groups = [([idx.geom_names[g] for g in r.geom_ids], nxt.contact_of(r.name))
+                      for r in idx.entities]
             groups.append(([n for g, n in enumerate(idx.geom_names)
-                            if self._model.geom_bodyid[g] == 0], self._contact_of({})))
-            return (lambda spec: [editor.apply_contact(spec, geoms, *contact)
-                                  for geoms, contact in groups], None, None, None, 0, None)
-        try:
-            self._change(plan)
-        except Exception:
-            with self._locked():
-                self._default_friction, self._default_restitution = old
-            raise
+                            if self._model.geom_bodyid[g] == 0], nxt.contact_of(None)))
+            return Edit(lambda spec: [editor.apply_contact(spec, geoms, *contact)
+                                      for geoms, contact in groups],
+                        redesign=lambda after, _: after.with_default_contact(default))
+        self._change(plan)
 
     @staticmethod
     def _check_restitution(restitution: float) -> float:
@@ -284,13 +288,13 @@ class WorldEdits:
         so the commit puts the welded body where the object is at that instant, in the new model
         and in the kept spec alike.
         """
-        def plan() -> tuple:
+        def plan() -> Edit:
             rec = self._index.entity(name)
             if rec.category == ROBOT:
                 raise IncorrectStateError(ERR_ROBOT_WELD.format(name=name))
             if not rec.has_free_joint:  # static already: nothing to compile
-                return None, None, None, None, 0, None
-            frame = self._frame_of(name)
+                return NOTHING
+            frame = self._design.frame_of(name)
             self._kinematics_locked()
             pos, q = state.body_pose(self._data, rec.root_body)
 
@@ -302,8 +306,7 @@ class WorldEdits:
                 model.body_pos[body], model.body_quat[body] = now_pos, now_q
                 editor.weld_in_place(keep, frame, rec, now_pos, now_q)  # the spec agrees
                 mujoco.mj_forward(model, data)
-            return (lambda spec: editor.weld_in_place(spec, frame, rec, pos, q), here_now,
-                    None, None, 0, None)
+            return Edit(lambda spec: editor.weld_in_place(spec, frame, rec, pos, q), here_now)
         self._change(plan)
 
     def set_mass(self, name: str, mass: float) -> None:
@@ -321,14 +324,145 @@ class WorldEdits:
             self._weld(name)
             return
 
-        def plan() -> tuple:
+        def plan() -> Edit:
             rec = self._index.entity(name)
             total = float(sum(self._model.body_mass[b] for b in rec.body_ids))
             if total <= 0:
                 raise IncorrectStateError(ERR_NO_MASS.format(name=name))
             model, index = self._model, self._index
-            return (lambda spec: (
+            return Edit(lambda spec: (
                 editor.free(spec, rec) if rec.category == STATIC else None,
-                editor.scale_mass(spec, model, index, rec, m_new / total)),
-                None, None, None, 0, None)
+                editor.scale_mass(spec, model, index, rec, m_new / total)))
         self._change(plan)
+
+    # ---------------------------------------------------------------- the one commit path
+    #
+    # An edit is planned under the world lock, built from a copy of the design and compiled
+    # with the lock released (MuJoCo's mesh cache makes the entities already there cheap, and
+    # the compile releases the GIL); only the commit runs under the world lock: the live state
+    # carried over by element names (:mod:`.transfer`), the check, the switch.
+
+    def _change(self, plan_locked: Callable[[], Edit]):
+        """
+        Apply a structural edit with the world lock held only to plan and to commit.
+
+        ``plan_locked()`` runs under the lock, validates against the live world, and returns
+        the :class:`Edit`. Its design is built and compiled with the lock released, so the loop
+        steps and readers read meanwhile; edits take turns (``_edit_lock``), and if the world
+        changed in between (a state write that moved a welded entity, an edit made inside
+        ``locked()``), the edit is planned again on the new world.
+
+        :returns: the edit's ``result``.
+        """
+        if self.holds_lock():  # called inside locked(): waiting for _edit_lock could
+            with self._locked():  # deadlock with an edit waiting for the world lock
+                edit = plan_locked()
+                self._edit_locked(edit)
+                return edit.result
+        with self._edit_lock:
+            for _ in range(EDIT_ATTEMPTS):
+                with self._locked():
+                    generation, design, old = self._generation, self._design, self._model
+                    edit = plan_locked()
+                if edit.apply is None:
+                    break
+                nxt, model = design.build(edit)
+                prepared = _prepare(old, model, generation, nxt)
+                with self._locked():
+                    if self._generation == generation:
+                        self._commit_locked(nxt, model, edit.check, prepared)
+                        break
+            else:
+                with self._locked():  # the world kept changing: do it all under the lock
+                    edit = plan_locked()
+                    self._edit_locked(edit)
+            self._compact_if_due()
+        return edit.result
+
+    def _edit_locked(self, edit: Edit) -> None:
+        """
+        Build and commit `edit` all under the lock.
+
+        For edits that read the live state as they are made (moving a welded entity within a
+        state write) and edits made inside :meth:`locked`; every other edit goes through
+        :meth:`_change`. A failed compile or check leaves the world, its design and its
+        generation exactly as they were.
+        """
+        if edit.apply is None:  # nothing to change
+            return
+        nxt, model = self._design.build(edit)
+        self._commit_locked(nxt, model, edit.check)
+
+    def _commit_locked(self, nxt: Design, model: mujoco.MjModel,
+                       check: Optional[Callable[..., None]],
+                       prepared: Optional[tuple] = None) -> None:
+        """
+        Make a built design and its model the world, carrying the live state over by names.
+
+        The world must be the one the design was built from (same generation): the caller
+        checks. `check` (see :class:`Edit`) runs last; if it raises, nothing changed.
+
+        :param prepared: (index, state mapping, fresh data) made beforehand by :func:`_prepare`
+            for this generation, or None to make them here.
+        """
+        if prepared is None:
+            index, data = None, transfer.transfer(self._model, self._data, model)
+        else:
+            index, matching, data = prepared
+            transfer.carry(matching, self._data, data)
+        if check is not None:
+            mujoco.mj_forward(model, data)  # the check sees the new world's poses
+            check(model, data, nxt.spec)
+        self._switch_locked(nxt, model, data, index)
+
+    def _switch_locked(self, nxt: Design, model: mujoco.MjModel, data: mujoco.MjData,
+                       index: Optional[ModelIndex] = None) -> None:
+        """Switch the world to a new design, model and data together, or not at all."""
+        saved = (self._design, self._generation, self._model, self._data,
+                 self._control.held_copy())
+        try:
+            self._design = nxt
+            self._generation += 1
+            self._adopt_locked(model, data, index)
+        except BaseException:
+            # Whatever failed while switching over (index, commands, guard), the world goes
+            # back to exactly what it was: a request that fails changes nothing.
+            self._design, self._generation, model, data, held = saved
+            self._control.restore_held(held)
+            self._adopt_locked(model, data)
+            raise
+
+    def _compact_if_due(self) -> None:
+        """
+        Replace the spec by the same world written out and read back, once enough were removed.
+
+        See :meth:`Design.compacted`; the state carries over by names like any other edit.
+        Built outside the world lock; called with ``_edit_lock``.
+        """
+        with self._locked():
+            if not self._design.due_for_compaction:
+                return
+            generation, design, old = self._generation, self._design, self._model
+        compacted = design.compacted(old)
+        if compacted is None:  # keep the spec; try again after the next edit
+            return
+        nxt, model = compacted
+        prepared = _prepare(old, model, generation, nxt)
+        with self._locked():
+            if self._generation != generation:
+                return  # changed meanwhile (an edit inside locked()): compact another time
+            self._commit_locked(nxt, model, None, prepared)
+        del old, prepared, compacted
+        release_free_memory()
+
+
+def _prepare(old: mujoco.MjModel, model: mujoco.MjModel, generation: int,
+             nxt: Design) -> tuple:
+    """
+    Prepare a commit of `model` outside the world lock: what needs no live state.
+
+    For the generation after `generation`, with the design `nxt`: the index (names, visuals,
+    meshes for markers), the name matching of `old`'s state, the new data.
+    """
+    return (model_index.build(model, generation + 1, nxt.spawned), transfer.mapping(old, model),
+            mujoco.MjData(model))

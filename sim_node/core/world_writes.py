@@ -11,6 +11,7 @@ import numpy as np
 
 from . import checks, editor, quat, state
 from .checks import check_finite, check_pose
+from .design import Edit
 from .errors import OperationFailedError
 from .records import EntityRecord
 
@@ -92,10 +93,10 @@ class StateWrites:
                 welded_moves.append((rec, pos, q))
         if welded_moves:  # all moves in one rebuild, before the direct writes
             m = self._model
-            self._edit_locked(lambda spec: [editor.move_group(
-                spec, self._frame_of(rec.name), rec.name,
+            self._edit_locked(Edit(lambda spec: [editor.move_group(
+                spec, self._design.frame_of(rec.name), rec.name,
                 (m.body_pos[rec.root_body], m.body_quat[rec.root_body]), pos, q)
-                for rec, pos, q in welded_moves])
+                for rec, pos, q in welded_moves]))
         for rec, pos, q, lin, ang in targets.values():
             if rec.has_free_joint:
                 state.write_free_body(self._model, self._data, rec, pos, q, lin, ang)

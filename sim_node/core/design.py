@@ -1,0 +1,243 @@
+"""
+The edit phase's state: what the world is made of, as one value replaced whole by each edit.
+
+A :class:`Design` holds the world's spec (kept uncompiled) and what the world knows about it that
+MuJoCo does not: the entities spawned since load (:class:`Spawned`, one typed record each), the
+contact settings of single entities and of the whole world (:class:`Contact`), and how many
+spawned entities were removed since the spec was last compacted. It is never changed in place:
+:meth:`Design.build` applies an :class:`Edit` to a copy and compiles it, giving the next design
+and its model, and the world commits both together or neither (``WorldEdits._change``).
+Rolling a failed commit back is putting the old design back.
+
+No locks here and no live state (MjData): a design is built outside the world lock.
+"""
+
+from dataclasses import dataclass, field, replace
+import logging
+from types import MappingProxyType
+from typing import Any, Callable, Mapping, Optional, Sequence, Tuple
+import warnings
+
+import mujoco
+import numpy as np
+
+from . import editor
+from .errors import ResourceParseError
+
+log = logging.getLogger(__name__)
+
+ERR_COMPILE = 'the model does not compile: {err}'
+#: Compact the spec (:meth:`Design.compacted`) after this many spawned entities were removed.
+COMPACT_AFTER_REMOVALS = 32
+#: Model sizes a compaction must keep (it is the same world written out and read back).
+_COMPACT_SIZES = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq',
+                  'nuserdata')
+
+
+@dataclass(frozen=True)
+class Spawned:
+    """
+    An entity spawned since load, as the spec holds it: what a delete removes, what describes it.
+
+    :param frame: the frame in the world body it is attached through (its spawn pose).
+    :param bodies: its top-level bodies' names, the root (named as the entity) first.
+    :param root_link: ``<entity>/<root body's name in its own model>``, its own frame's name.
+    :param defaults: the default classes it brought (``<entity>/<class>``), outermost first.
+    :param assets: names of the asset files it brought (removed with it).
+    :param description: what it was spawned from, for ``get_entities``' description.
+    :param namespace: the ROS namespace it was spawned with ('' for none).
+    :param urdf: a URDF source's own text ('' when spawned from anything else).
+    """
+
+    frame: str
+    bodies: Tuple[str, ...]
+    root_link: str
+    defaults: Tuple[str, ...] = ()
+    assets: Tuple[str, ...] = ()
+    description: str = ''
+    namespace: str = ''
+    urdf: str = ''
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Friction (MuJoCo's 3 coefficients) and restitution set by a user; None: not set."""
+
+    friction: Optional[Tuple[float, float, float]] = None
+    restitution: Optional[float] = None
+
+    def merged(self, friction: Optional[Sequence[float]] = None,
+               restitution: Optional[float] = None) -> 'Contact':
+        """Return these settings with the ones given (not None) replaced."""
+        return Contact(self.friction if friction is None else tuple(float(f) for f in friction),
+                       self.restitution if restitution is None else float(restitution))
+
+    @property
+    def is_set(self) -> bool:
+        return self.friction is not None or self.restitution is not None
+
+
+@dataclass(frozen=True)
+class Edit:
+    """
+    A structural edit, planned under the world lock and built outside it.
+
+    :param apply: changes a copy of the spec; what it returns goes to `redesign`. None: there
+        is nothing to change (no compile, no commit).
+    :param check: ``check(model, data, spec)`` under the world lock at the commit, with the new
+        model and data ready (state carried over, poses computed) and the live world still the
+        old one: it may refuse (raise), or settle what depends on the live state at that
+        instant in the new model, data and spec. A failed check changes nothing.
+    :param redesign: ``redesign(design, applied)`` gives the next design's tables from the
+        edited one's (the spec is already the edited one); None: the tables stay.
+    :param result: what the edit's public method returns.
+    """
+
+    apply: Optional[Callable[[mujoco.MjSpec], Any]]
+    check: Optional[Callable[[mujoco.MjModel, mujoco.MjData, mujoco.MjSpec], None]] = None
+    redesign: Optional[Callable[['Design', Any], 'Design']] = None
+    result: Any = None
+
+
+#: The edit that changes nothing.
+NOTHING = Edit(None)
+
+
+@dataclass(frozen=True)
+class Design:
+    """
+    The world's spec and its tables (see the module docstring).
+
+    :param spec: uncompiled: copying a compiled spec copies every processed mesh with the GIL
+        held (190 ms for three arms, measured), an uncompiled one takes a few milliseconds.
+    :param arena: (base bytes, bytes per body) when the scene left MuJoCo's arena to us (see
+        ``WorldConfig.arena_bytes_per_body``): every build sizes it for the edited world.
+    :param spawned: entity name -> its record, for the entities spawned since load.
+    :param contacts: entity name -> its own contact settings (set_friction, set_restitution).
+    :param default_contact: the world's, for every geom without its own.
+    :param removals: spawned entities removed since the spec was last compacted.
+    """
+
+    spec: mujoco.MjSpec
+    arena: Optional[Tuple[int, int]] = None
+    spawned: Mapping[str, Spawned] = field(default_factory=lambda: MappingProxyType({}))
+    contacts: Mapping[str, Contact] = field(default_factory=lambda: MappingProxyType({}))
+    default_contact: Contact = Contact()
+    removals: int = 0
+
+    @classmethod
+    def start(cls, spec: mujoco.MjSpec,
+              arena: Optional[Tuple[int, int]]) -> Tuple['Design', mujoco.MjModel]:
+        """
+        Return the design of a loaded scene and its model (the scene's spec is not kept).
+
+        :raises ResourceParseError: the scene does not compile.
+        """
+        _size_arena(spec, arena)
+        keep = spec.copy()
+        try:
+            model = spec.compile()
+        except ValueError as exc:
+            raise ResourceParseError(f'the scene does not compile: {exc}') from None
+        return cls(keep, arena), model
+
+    # ---------------------------------------------------------------- reading
+
+    def frame_of(self, name: str) -> Optional[str]:
+        """Return the frame a spawned entity hangs from (None: an entity of the scene)."""
+        rec = self.spawned.get(name)
+        return rec.frame if rec else None
+
+    def contact_of(self, name: Optional[str]) -> tuple:
+        """
+        Return (friction, restitution, priority) for the geoms of entity `name` (None: none).
+
+        Its own settings where it has them, else the world's; own settings win contacts
+        (:data:`editor.OWN_CONTACT_PRIORITY`).
+        """
+        own = self.contacts.get(name, Contact()) if name is not None else Contact()
+        d = self.default_contact
+        friction = own.friction if own.friction is not None else d.friction
+        return (None if friction is None else np.array(friction),
+                own.restitution if own.restitution is not None else d.restitution,
+                editor.OWN_CONTACT_PRIORITY if own.is_set else 0)
+
+    @property
+    def due_for_compaction(self) -> bool:
+        return self.removals >= COMPACT_AFTER_REMOVALS
+
+    # ---------------------------------------------------------------- the next design
+
+    def with_spawned(self, name: str, rec: Spawned) -> 'Design':
+        return replace(self, spawned=MappingProxyType({**self.spawned, name: rec}))
+
+    def without(self, names: Sequence[str]) -> 'Design':
+        """Return the tables with spawned entities `names` gone (counted for compaction)."""
+        gone = set(names)
+        return replace(
+            self, spawned=MappingProxyType({k: v for k, v in self.spawned.items()
+                                            if k not in gone}),
+            contacts=MappingProxyType({k: v for k, v in self.contacts.items()
+                                       if k not in gone}),
+            removals=self.removals + len(gone))
+
+    def with_contact(self, name: str, contact: Contact) -> 'Design':
+        return replace(self, contacts=MappingProxyType({**self.contacts, name: contact}))
+
+    def with_default_contact(self, contact: Contact) -> 'Design':
+        return replace(self, default_contact=contact)
+
+    def build(self, edit: Edit) -> Tuple['Design', mujoco.MjModel]:
+        """
+        Return the next design and its compiled model: `edit` applied to a copy of the spec.
+
+        Slow (the compile; MuJoCo releases the GIL in it): called with no lock held.
+
+        :raises ResourceParseError: the edited spec does not compile (this design stays).
+        """
+        trial = self.spec.copy()
+        applied = edit.apply(trial)
+        _size_arena(trial, self.arena)
+        keep = trial.copy()  # uncompiled: cheap to copy for the next edit
+        with warnings.catch_warnings(record=True) as conflicts:
+            warnings.simplefilter('always')
+            try:
+                model = trial.compile()
+            except ValueError as exc:
+                raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
+        for w in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
+            log.info('the world keeps its own settings: %s', ' '.join(str(w.message).split()))
+        nxt = replace(self, spec=keep)
+        if edit.redesign is not None:
+            nxt = edit.redesign(nxt, applied)
+        return nxt, model
+
+    def compacted(self, model: mujoco.MjModel) -> Optional[Tuple['Design', mujoco.MjModel]]:
+        """
+        Return this design with its spec written out and read back, and its model, or None.
+
+        MuJoCo keeps every model ever attached to a spec, deleted or not (about 35 kB for a
+        box, measured): a world that spawns and deletes for days would grow without end. The
+        round trip compiles to the same model as `model` (same sizes, checked: None if not, or
+        if it fails; the world then keeps its spec and tries another time).
+        """
+        try:
+            clean = replace(self, spec=mujoco.MjSpec.from_string(self.spec.to_xml()))
+            nxt, compiled = clean.build(NOTHING_TO_APPLY)
+        except (ValueError, ResourceParseError) as exc:
+            log.debug('could not compact the model spec: %s', exc)
+            return None
+        if any(getattr(compiled, k) != getattr(model, k) for k in _COMPACT_SIZES):
+            log.debug('compacting the model spec changed its layout; kept the spec as it is')
+            return None
+        return replace(nxt, removals=0), compiled
+
+
+#: An edit that compiles the spec as it is (a compaction's round trip).
+NOTHING_TO_APPLY = Edit(lambda spec: None)
+
+
+def _size_arena(spec: mujoco.MjSpec, arena: Optional[Tuple[int, int]]) -> None:
+    """Give a spec whose scene did not size MuJoCo's arena one proportional to its bodies."""
+    if arena is not None:
+        spec.memory = arena[0] + arena[1] * len(spec.bodies)
