@@ -27,6 +27,7 @@ setup(
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
         ('share/' + PACKAGE + '/rviz', glob('rviz/*.rviz')),
     ] + scene_data_files(),
+    package_data={'sim_node': ['fastdds_profiles.xml']},
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='sim developers',

@@ -8,11 +8,13 @@ import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
+from . import middleware
 from .core.errors import SimError
 from .params import parameter_error
 
 
 def main(args=None) -> int:
+    middleware.configure()  # before rclpy reads the environment
     rclpy.init(args=args)  # returns None on Jazzy: no `with` block
     node = executor = None
     code = 0

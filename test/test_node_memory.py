@@ -1,5 +1,10 @@
-"""The node gives memory back: its RSS after reset cycles and after a spawn/delete storm."""
+"""
+The node gives memory back: its RSS after reset cycles, a spawn/delete storm, refused requests.
 
+And the process settings that make it so (:mod:`sim_node.middleware`) yield to the user's own.
+"""
+
+import os
 from pathlib import Path
 import threading
 import time
@@ -50,6 +55,39 @@ def test_reset_cycles_leave_at_most_20_mib(warm):
         client.delete(f'cycle{k}')
         client.reset()
     assert grown(node, before) <= 20.0
+
+
+def test_refused_large_requests_leave_at_most_20_mib(warm):
+    """A 50 MB resource string and six 10 MB names, each refused: their memory comes back."""
+    from sim_node.client import SimServiceError
+    node, client, before = warm
+    with pytest.raises(SimServiceError):
+        client.spawn('big', resource_string='<mujoco>' + 'x' * 50_000_000 + '</mujoco>')
+    for k in range(6):
+        with pytest.raises(SimServiceError):
+            client.spawn('n' * 10_000_000 + str(k), uri='box', position=(0, 0, 3))
+    assert client.entities()  # and the node still answers
+    assert grown(node, before) <= 20.0
+
+
+@pytest.mark.parametrize('given', [{}, {'FASTRTPS_DEFAULT_PROFILES_FILE': '/theirs.xml'},
+                                   {'RMW_FASTRTPS_USE_QOS_FROM_XML': '0'},
+                                   {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}])
+def test_the_node_loads_its_fast_dds_profiles_only_where_the_user_set_none(given, monkeypatch):
+    from sim_node import middleware
+    for key in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'RMW_FASTRTPS_USE_QOS_FROM_XML',
+                'RMW_IMPLEMENTATION'):
+        monkeypatch.delenv(key, raising=False)
+    for key, value in given.items():
+        monkeypatch.setenv(key, value)
+    middleware.configure()
+    if given:
+        assert all(os.environ[k] == v for k, v in given.items())
+        assert os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') != str(middleware.PROFILES)
+    else:
+        assert os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] == str(middleware.PROFILES)
+        assert os.environ['RMW_FASTRTPS_USE_QOS_FROM_XML'] == '1'
+        assert middleware.PROFILES.is_file()
 
 
 def test_a_storm_of_eight_spawning_and_deleting_clients_leaves_at_most_50_mib(warm):
