@@ -129,7 +129,9 @@ class Design:
     def start(cls, spec: mujoco.MjSpec,
               arena: Optional[Tuple[int, int]]) -> Tuple['Design', mujoco.MjModel]:
         """
-        Return the design of a loaded scene and its model (the scene's spec is not kept).
+        Return the design of a loaded scene and its model.
+
+        `spec` is compiled; the design keeps an uncompiled copy made just before.
 
         :raises ResourceParseError: the scene does not compile.
         """
