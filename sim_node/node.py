@@ -44,9 +44,9 @@ from .command_drain import CommandDrain
 from .core.config import WorldConfig
 from .core.errors import IncorrectStateError, InvalidArgumentError, SimError
 from .core.loop import SimLoop
+from .core.memory import release_free_memory
 from .core.records import EFFORT, POSITION, VELOCITY
 from .core.world import World
-from .core.world_edits import release_free_memory
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
 from .qos import LATCHED_QOS

@@ -9,8 +9,8 @@ addresses of one model), :mod:`.control` (joint commands), :mod:`.guard` (diverg
 :mod:`.editor` (MjSpec edits), :mod:`.state` (reading and writing state), :mod:`.sources`
 (what can be spawned), :mod:`.assets` (model files resolved, checked and copied once),
 :mod:`.trajectory` (joint trajectories in simulated time, driven per step by :mod:`.control`
-under the world lock), :mod:`.loop` (the stepping thread), :mod:`.checks` and :mod:`.quat`
-(shared helpers).
+under the world lock), :mod:`.loop` (the stepping thread), :mod:`.memory` (freed memory given
+back to the system), :mod:`.checks` and :mod:`.quat` (shared helpers).
 
 Threading contract
 ------------------

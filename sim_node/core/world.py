@@ -10,7 +10,6 @@ spec and its tables, the one commit path and compaction) is :mod:`.world_edits` 
 """
 
 import contextlib
-import logging
 from pathlib import Path
 import threading
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
@@ -36,8 +35,6 @@ from .world_edits import WorldEdits
 from .world_writes import StateWrites
 
 T = TypeVar('T')
-
-log = logging.getLogger(__name__)
 
 ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the world is now at '
                         'generation {now} (an entity was spawned or deleted since)')

@@ -16,8 +16,6 @@ and ``_generation``, ``_kinematics_locked`` and ``_pose_frame_locked`` to read p
 ``_design``.
 """
 
-import ctypes
-import logging
 from typing import Callable, Optional, Sequence
 
 import mujoco
@@ -30,9 +28,8 @@ from .design import Contact, Design, Edit, NOTHING, Spawned
 from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
                      NameNotUniqueError)
 from .index import ModelIndex
+from .memory import release_free_memory
 from .records import ROBOT, STATIC
-
-log = logging.getLogger(__name__)
 
 ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '
                 'max_bodies): delete entities first, or raise the limit')
@@ -44,20 +41,6 @@ ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
 ERR_NO_MASS = '{name!r} has no mass to scale'
 #: Times an edit is built outside the lock before it is done under it (see WorldEdits._change).
 EDIT_ATTEMPTS = 3
-
-
-def _load_malloc_trim() -> Callable[[], None]:
-    """Return glibc's malloc_trim(0), or a no-op where there is none."""
-    try:
-        trim = ctypes.CDLL('libc.so.6').malloc_trim
-    except (OSError, AttributeError):
-        return lambda: None
-    return lambda: trim(0)
-
-
-#: Give memory freed by dropped models back to the system: glibc keeps it otherwise (a
-#: 400-box spawn-and-delete storm left 300 MiB of free heap in the process, measured).
-release_free_memory = _load_malloc_trim()
 
 
 class WorldEdits:
@@ -107,7 +90,6 @@ class WorldEdits:
                       else allow_interpenetration)
         # The compile, the slow part, runs outside the world lock (_change): the loop
         # steps and /clock goes on meanwhile.
-
         return self._change(lambda: self._plan_spawn_locked(
             name, source, pos, q, reference, allow_renaming, overlap_ok, namespace))
 
