@@ -5,6 +5,7 @@ Each case asserts the exact error type (the node maps it to the standard code), 
 at once (no FIFO blocks, no 11 s compile), and that the world is intact afterwards.
 """
 
+import gc
 import os
 from pathlib import Path
 import struct
@@ -16,6 +17,7 @@ import pytest
 from sim_node.core import sources
 from sim_node.core.errors import (MissingAssetsError, NameInvalidError, ResourceParseError,
                                   UnsupportedAssetsError, UnsupportedFormatError)
+from sim_node.core.memory import release_free_memory
 from sim_node.core.world import World
 
 BODY = '<worldbody><body name="b"><freejoint/><geom size=".05"/></body></worldbody>'
@@ -199,12 +201,20 @@ def test_a_spawn_and_delete_storm_gives_its_memory_back(world):
         for i in range(n):
             world.delete(f's{i}')
 
+    def settled_rss() -> float:  # as the node's housekeeping leaves it, once a second
+        gc.collect()
+        release_free_memory()
+        return _rss_mib()
+
     storm(200)  # warm-up: caches, the allocator's first growth
-    before = _rss_mib()
+    before = settled_rss()
     for _ in range(2):
         storm(200)
-    grown = _rss_mib() - before
-    assert grown < 20, f'RSS grew {grown:.0f} MiB over 400 spawns and deletes'
+    grown = settled_rss() - before
+    # Issue 21's storm target. Each model kept alive would cost about 1 MiB, so 400 kept
+    # models, or glibc keeping their freed heap (300 MiB measured), fail it; the RSS of an
+    # idle process still moves by about 10 MiB either way (fragmentation), hence no tighter.
+    assert grown < 50, f'RSS grew {grown:.0f} MiB over 400 spawns and deletes'
     assert [e.name for e in world.entities()] == ['robot', 'table', 'box_a', 'box_b']
 
 
