@@ -233,3 +233,18 @@ def test_the_body_cap_refuses_a_spawn_past_it_and_says_which_limit():
     w.delete('c0')
     w.spawn('again', sources.primitive('box', [0.05] * 3), position=[0, -2, 1])  # room again
     assert [e.name for e in w.entities()][:len(names)] == names
+
+
+def test_a_busy_trim_waits_until_enough_is_free_then_memory_goes_back():
+    """The trim stalls allocations: a caller that asks for a lot free gets no trim short of it."""
+    from sim_node.core.memory import free_heap_bytes
+    if free_heap_bytes() is None:
+        pytest.skip('not glibc 2.33 or later: no mallinfo2, every trim is made')
+    blocks = [bytearray(4000) for _ in range(50_000)]  # 200 MB of heap blocks
+    del blocks[:-1]  # freed, all but the last: the heap cannot shrink from its top
+    held = _rss_mib()
+    assert free_heap_bytes() >= 150 << 20
+    assert not release_free_memory(at_least=1 << 40)
+    assert _rss_mib() > held - 20  # kept
+    assert release_free_memory(at_least=100 << 20)
+    assert _rss_mib() < held - 150  # given back

@@ -189,12 +189,12 @@ def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_l
     """
     loop = make_loop(real_time_factor=0)
     world = loop.world
-    real_step = world.step
+    real_step = world.step_batch
 
     def broken(*args, **kwargs):
-        world.step = real_step
+        world.step_batch = real_step
         raise RuntimeError('injected fault')
-    world.step = broken
+    world.step_batch = broken
     deadline = time.monotonic() + 5
     while not loop.failure and time.monotonic() < deadline:
         time.sleep(0.01)

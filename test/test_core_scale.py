@@ -228,3 +228,71 @@ def test_a_model_of_5000_bodies_spawns_when_max_bodies_allows_it():
     w.step(200)  # 0.4 s: every box has landed on the floor, 20,000 contacts
     assert w.model_info.body_names.count('many') == 1
     assert abs(w.get_entity_state('many').position[2] - 0.1) < 0.01
+
+
+def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
+    """Run `edits` (name -> callable) on threads of their own while a slow spawn compiles."""
+    import threading
+
+    from sim_node.core import assets
+    answers: dict = {}
+
+    def run(name, edit):
+        try:
+            answers[name] = edit()
+        except Exception as exc:  # noqa: B902 (the answer this caller got)
+            answers[name] = exc
+    slow = threading.Thread(target=lambda: world.spawn('big', slow_source, position=[0, 2, 1]))
+    assets.set_mesh_cache(0)  # compiled before by another test: slow all the same
+    try:
+        slow.start()
+        time.sleep(0.3)  # compiling: the edits below queue behind it
+        threads = [threading.Thread(target=run, args=item) for item in edits.items()]
+        for t in threads:
+            t.start()
+        slow.join()
+        for t in threads:
+            t.join()
+    finally:
+        assets.set_mesh_cache(WorldConfig().mesh_cache_mb)
+    return answers
+
+
+def test_edits_queued_behind_a_slow_one_are_made_together_each_with_its_own_answer(slow_source):
+    """Six spawns and a delete queue while a spawn compiles: one more compile for all seven."""
+    from sim_node.core import sources
+    w = World.from_file(str(DEFAULT_SCENE))
+    box = sources.primitive('box', [0.05] * 3)
+    w.spawn('old', box, position=[1.5, 1.5, 1])
+    before = w.get_state().generation
+    edits = {f'b{i}': (lambda i=i: w.spawn(f'b{i}', box, position=[-2 + 0.3 * i, -2, 0.5]))
+             for i in range(6)}
+    edits['delete'] = lambda: w.delete('old')
+    answers = _queue_behind_a_slow_spawn(w, slow_source, edits)
+    assert answers == dict({f'b{i}': f'b{i}' for i in range(6)}, delete=None)
+    names = {e.name for e in w.entities()}
+    assert {'big', *(f'b{i}' for i in range(6))} <= names and 'old' not in names
+    assert w.get_state().generation == before + 2  # the slow spawn, then the seven at once
+    w.step(500)
+    assert w.get_entity_state('b5').position[2] == pytest.approx(0.05, abs=0.01)  # landed
+
+
+def test_edits_that_clash_in_a_group_are_made_one_by_one_and_refused_alone(slow_source):
+    """Two spawns of one name, two at one place: one of each pair lands, the other is refused."""
+    from sim_node.core import sources
+    from sim_node.core.errors import InvalidPoseError, NameNotUniqueError
+    w = World.from_file(str(DEFAULT_SCENE))
+    box = sources.primitive('box', [0.05] * 3)
+    edits = {'twin_a': lambda: w.spawn('twin', box, position=[-2, -2, 0.5]),
+             'twin_b': lambda: w.spawn('twin', box, position=[-1, -2, 0.5]),
+             'here_a': lambda: w.spawn('here_a', box, position=[-2, 2, 0.5]),
+             'here_b': lambda: w.spawn('here_b', box, position=[-2, 2, 0.5]),
+             'free': lambda: w.spawn('free', box, position=[2, -2, 0.5])}
+    answers = _queue_behind_a_slow_spawn(w, slow_source, edits)
+    twins = sorted(type(answers[k]).__name__ for k in ('twin_a', 'twin_b'))
+    assert twins == sorted([NameNotUniqueError.__name__, 'str'])
+    here = [answers[k] for k in ('here_a', 'here_b')]
+    assert sum(isinstance(a, InvalidPoseError) for a in here) == 1
+    assert answers['free'] == 'free'
+    names = [e.name for e in w.entities()]
+    assert names.count('twin') == 1 and ('here_a' in names) != ('here_b' in names)

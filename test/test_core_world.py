@@ -546,3 +546,74 @@ def test_entity_acceleration_is_the_coordinate_acceleration():
     assert brick.angular_acceleration == pytest.approx(fd, abs=0.02 * np.abs(fd).max())
     resting = world.get_entity_state('crate')
     assert np.abs(resting.linear_acceleration).max() < 0.05
+
+
+_EVERY_STATE_PART = """
+<mujoco>
+  <size nuserdata="3"/>
+  <worldbody>
+    <body name="target" mocap="true" pos="0 0 1">
+      <geom type="sphere" size=".05" contype="0" conaffinity="0"/>
+    </body>
+    <body name="arm" pos="0 0 1">
+      <joint name="hinge" type="hinge" axis="0 1 0" damping=".1"/>
+      <geom type="capsule" fromto="0 0 0 .3 0 0" size=".03"/>
+    </body>
+    <body name="crate" pos="1 0 .5"><freejoint/><geom type="box" size=".05 .05 .05"/></body>
+    <geom type="plane" size="3 3 .1"/>
+  </worldbody>
+  <equality><weld body1="target" body2="crate" active="false"/></equality>
+  <actuator><general joint="hinge" dyntype="filter" dynprm=".05" gainprm="2"/></actuator>
+</mujoco>"""
+
+
+def test_the_loops_numpy_state_copy_is_mj_getState_bit_for_bit():
+    """Every part of the integration state, each set to something, in MuJoCo's order."""
+    from sim_node.core.index import STATE_SPEC
+    from sim_node.core.state import state_copier
+    m = mujoco.MjModel.from_xml_string(_EVERY_STATE_PART)
+    d = mujoco.MjData(m)
+    d.ctrl[:] = 0.7
+    d.qfrc_applied[:] = np.arange(m.nv) * 0.01
+    d.xfrc_applied[3] = [0.1, 0.2, 0.3, 0.01, 0.02, 0.03]
+    d.userdata[:] = [1.5, -2.5, 3.5]
+    d.mocap_pos[0] = [0.2, 0.1, 1.1]
+    d.mocap_quat[0] = [0.9, 0.1, 0.1, 0.0]
+    mujoco.mj_step(m, d, 30)
+    d.eq_active[0] = 1
+    mujoco.mj_step(m, d, 30)
+    assert d.act[0] != 0 and d.time > 0 and np.any(d.qacc_warmstart != 0)
+    expected = np.empty(mujoco.mj_stateSize(m, STATE_SPEC))
+    mujoco.mj_getState(m, d, expected, STATE_SPEC)
+    copy = state_copier(m, d, STATE_SPEC)
+    got = np.full_like(expected, np.nan)
+    copy(got)
+    assert got.tobytes() == expected.tobytes()
+    mujoco.mj_step(m, d, 5)  # the copier reads the live arrays, not the ones it was made with
+    mujoco.mj_getState(m, d, expected, STATE_SPEC)
+    copy(got)
+    assert got.tobytes() == expected.tobytes()
+
+
+_COASTING = """<mujoco><option gravity="0 0 0"/><worldbody><body name="slider">
+  <joint name="j" type="slide" axis="1 0 0"/>
+  <geom type="sphere" size=".1" mass="1" contype="0" conaffinity="0"/></body></worldbody>
+  </mujoco>"""
+
+
+@pytest.mark.parametrize('how', ['step', 'step_batch'])
+def test_a_value_gone_bad_in_a_batchs_last_integration_is_caught_in_that_batch(how):
+    """
+    Catch a bad qpos at the end of the batch; MuJoCo checks at the start of the next step.
+
+    A slider at 9.99e9 m coasting at 9e9 m/s: both fine for MuJoCo (up to 1e10), until the one
+    step's integration carries it past. Both ways of stepping (the loop's, quiet about the
+    GIL, and everyone else's) say so in that step.
+    """
+    world = World.from_string(_COASTING)
+    with world.locked() as (m, d):
+        d.qpos[0], d.qvel[0] = 9.99e9, 9e9
+    with pytest.raises(DivergenceError) as info:
+        world.step(1) if how == 'step' else world.step_batch(1, snapshot=False)
+    assert info.value.step == 1 and 'BADQPOS' in ''.join(info.value.report['warnings'])
+    assert world.step_count == 0 and world.get_state().values[1] == 9.99e9

@@ -20,8 +20,11 @@ Threading contract
   public method. The order (``docs/threading.md``, with every thread of the node):
   ``World._edit_lock``, then the world lock, then leaves that are never held while taking
   another lock: the loop's ``_cv`` and ``_snapshot_cv``, the control's staging lock (commands
-  are staged outside the world lock and applied under it), the lock's own waiter count. The
-  loop reads what a batch needs (``World.clock``) before taking its ``_cv``; a step request's
+  are staged outside the world lock and applied under it), the lock's own waiter count, the
+  queue of edits waiting for their turn. The loop reads what a batch needs (``World.clock``,
+  or the clock its last batch gave, ``World.clock_since_batch``) before taking its ``_cv``,
+  and takes the world lock once per batch (``World.step_batch``: the steps, the clock and the
+  snapshot, with no MuJoCo call but the steps while the state is clean); a step request's
   feedback runs with no lock of the loop held; ``SimLoop.step`` inside ``World.locked()`` is
   refused (the loop could never take its steps).
 * **Who may take it.** Any thread. MuJoCo releases the GIL while stepping and compiling, so the
@@ -39,12 +42,14 @@ Threading contract
   model, data, index, control binding and guard are swapped together (a few milliseconds,
   whatever the model's size), raising the generation. Structural edits take turns on
   ``World._edit_lock``, which is taken before the world lock, never while holding it (an edit
-  called inside ``World.locked()`` is done wholly under the world lock instead). If the world
-  changed while an edit compiled, it is planned again. The world keeps its spec uncompiled (a
+  called inside ``World.locked()`` is done wholly under the world lock instead). Spawns and
+  deletes that queued meanwhile are made together, one compile and one commit for the group,
+  or one by one if the group fails anywhere. If the world changed while an edit compiled, it
+  is planned again. The world keeps its spec uncompiled (a
   compiled spec holds every processed mesh: copying it took 190 ms with three arms), and MuJoCo
   reads only checked copies of files (:mod:`.assets`).
-* **Snapshots.** ``World.snapshot`` is the one producer: it copies what publishers need under
-  the lock and numbers it (``seq``). The loop makes one per batch at ``snapshot_rate_hz``, and
+* **Snapshots.** ``World.snapshot`` (and ``World.step_batch``, for the loop) is the one
+  producer: it copies what publishers need under the lock and numbers it (``seq``). The loop makes one per batch at ``snapshot_rate_hz``, and
   services make one after a change; :class:`~.loop.SimLoop` keeps only the newest by ``seq``,
   so a consumer never sees time go backwards because two threads raced to publish.
 * **ROS.** The loop thread never calls rclpy; the node reads snapshots, never MjData.

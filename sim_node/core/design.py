@@ -91,12 +91,15 @@ class Edit:
     :param redesign: ``redesign(design, applied)`` gives the next design's tables from the
         edited one's (the spec is already the edited one); None: the tables stay.
     :param result: what the edit's public method returns.
+    :param batchable: it may be made together with other such edits queued at once, in one
+        compile and one commit (spawns and deletes: they touch their own entities only).
     """
 
     apply: Optional[Callable[[mujoco.MjSpec], Any]]
     check: Optional[Callable[[mujoco.MjModel, mujoco.MjData, mujoco.MjSpec], None]] = None
     redesign: Optional[Callable[['Design', Any], 'Design']] = None
     result: Any = None
+    batchable: bool = False
 
 
 #: The edit that changes nothing.

@@ -386,14 +386,16 @@ class SimLoop:
         Wait until stepping is due, run one batch of steps, hand out a snapshot.
 
         The world lock is never taken while ``_cv`` is held (the lock order, docs/threading.md):
-        what the batch needs of the world is read before.
+        what the batch needs of the world is read before. A batch takes the world lock once:
+        the clock comes from the batch before unless something changed the world since
+        (:meth:`World.clock_since_batch`), and the snapshot is made in the batch's hold.
         """
         with self._cv:
             idle = not self._stopping and self._paused and not self._pending_steps
         if idle:
             # Consumers see the state the loop stopped in, not one from before the pause.
             self.refresh_snapshot()
-        clock = self.world.clock()
+        clock = self.world.clock_since_batch() or self.world.clock()
         with self._cv:
             if not self._stopping and self._paused and not self._pending_steps:
                 while not self._stopping and self._paused and not self._pending_steps:
@@ -429,10 +431,13 @@ class SimLoop:
                 n = self._batch
             if not stepping_request:
                 n = min(n, self._steps_to_limit(clock))
+            # A step request's last batch is shown by a snapshot before its caller hears.
+            last_request_batch = stepping_request and self._pending_steps <= n
         self.world.wait_for_callers()
         t0 = time.perf_counter()
         try:
-            self.world.step(n)
+            _, snap = self.world.step_batch(n, last_request_batch or (
+                t0 - self._last_snapshot >= self._snapshot_period))
         except DivergenceError as exc:
             log.error('%s', exc)
             action = self._after_divergence(exc.report)
@@ -445,10 +450,13 @@ class SimLoop:
             self.refresh_snapshot()
             return
         now = time.perf_counter()
+        if snap is not None:
+            self._last_snapshot = now
+            self._publish(snap)
         if stepping_request:
             with self._cv:
                 last_batch = self._pending_steps <= n
-            if last_batch:  # the caller hears the steps are done after the snapshot shows them
+            if last_batch and snap is None:  # a cancel meanwhile left fewer steps to do
                 self.refresh_snapshot()
             with self._cv:
                 self._pending_steps = max(0, self._pending_steps - n)
@@ -463,6 +471,3 @@ class SimLoop:
                                  int(MAX_BATCH_WALL_SEC / max(per_step, 1e-7))))
         if not stepping_request:
             self._track_rate(now, n, rtf, (now - t0) / n)
-        if now - self._last_snapshot >= self._snapshot_period:
-            self._last_snapshot = now
-            self._publish(self.world.snapshot())

@@ -6,7 +6,7 @@ world calls them with its lock held and derived quantities up to date (see
 ``World._kinematics_locked``).
 """
 
-from typing import Optional
+from typing import Callable, Optional
 
 import mujoco
 import numpy as np
@@ -18,6 +18,58 @@ from .records import EntityRecord, EntityState, Snapshot
 _XBODY = int(mujoco.mjtObj.mjOBJ_XBODY)  # a body's own frame (mjOBJ_BODY: its centre of mass)
 _NO_GRAVITY = int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
 _PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
+
+
+#: mj_getState's parts that are plain MjData arrays, by state bit (mjtState), in its order.
+_STATE_ARRAYS = {
+    int(mujoco.mjtState.mjSTATE_QPOS): 'qpos', int(mujoco.mjtState.mjSTATE_QVEL): 'qvel',
+    int(mujoco.mjtState.mjSTATE_ACT): 'act',
+    int(mujoco.mjtState.mjSTATE_WARMSTART): 'qacc_warmstart',
+    int(mujoco.mjtState.mjSTATE_CTRL): 'ctrl',
+    int(mujoco.mjtState.mjSTATE_QFRC_APPLIED): 'qfrc_applied',
+    int(mujoco.mjtState.mjSTATE_XFRC_APPLIED): 'xfrc_applied',
+    int(mujoco.mjtState.mjSTATE_EQ_ACTIVE): 'eq_active',
+    int(mujoco.mjtState.mjSTATE_MOCAP_POS): 'mocap_pos',
+    int(mujoco.mjtState.mjSTATE_MOCAP_QUAT): 'mocap_quat',
+    int(mujoco.mjtState.mjSTATE_USERDATA): 'userdata',
+}
+_TIME = int(mujoco.mjtState.mjSTATE_TIME)
+
+
+def state_copier(model: mujoco.MjModel, data: mujoco.MjData,
+                 spec: int) -> Optional[Callable[[np.ndarray], None]]:
+    """
+    Return ``copy(out)``: ``mj_getState(model, data, out, spec)`` done with numpy, or None.
+
+    The same values in the same order, without a MuJoCo call: every MuJoCo call releases the
+    GIL, and getting it back took up to a switch interval (5 ms) each while other threads ran
+    Python (the node's loop under a storm of edits). None when a part of the state is not a
+    plain array of `data` (history, plugin or plasticity state): use ``mj_getState`` then.
+    """
+    parts, offset = [], 0
+    for i in range(int(mujoco.mjtState.mjNSTATE)):
+        bit = 1 << i
+        size = mujoco.mj_stateSize(model, bit) if spec & bit else 0
+        if not size:
+            continue
+        if bit == _TIME:
+            parts.append((offset, None))
+        elif bit in _STATE_ARRAYS:
+            array = getattr(data, _STATE_ARRAYS[bit]).reshape(-1)  # a view: (nbody, 6) etc.
+            if array.size != size:
+                return None
+            parts.append((offset, array))
+        else:
+            return None
+        offset += size
+    if offset != mujoco.mj_stateSize(model, spec):
+        return None
+    spans = [(a, a + (1 if array is None else array.size), array) for a, array in parts]
+
+    def copy(out: np.ndarray) -> None:
+        for a, b, array in spans:
+            out[a:b] = data.time if array is None else array
+    return copy
 
 
 def snapshot(data: mujoco.MjData, index: ModelIndex, step: int, seq: int) -> Snapshot:

@@ -69,6 +69,8 @@ class World(StateWrites, WorldEdits):
         self.source = source
         self._lock_cm = WorldLock()
         self._edit_lock = threading.Lock()  # structural edits take turns (see _change)
+        self._queue_lock = threading.Lock()  # a leaf: the edits waiting for _edit_lock
+        self._queued: list = []
         self._lock = self._lock_cm.lock
         self._control = Control(config.kp, config.kd)
         self._guard = DivergenceGuard()
@@ -87,6 +89,7 @@ class World(StateWrites, WorldEdits):
         self._generation = 0
         self._step_count = 0
         self._snapshot_seq = 0
+        self._batch_clock: Optional[Clock] = None  # see clock_since_batch
         self._adopt_locked(model, mujoco.MjData(model))
         self._reset_state_locked(keep_time=False)
 
@@ -249,13 +252,15 @@ class World(StateWrites, WorldEdits):
     def snapshot(self) -> Snapshot:
         """Return an immutable copy for publishers, with the model info of its generation."""
         with self._locked():
-            if self._stale_kinematics:
-                # Body poses only: a third of _kinematics_locked's cost (1,000 bodies at
-                # 200 Hz), which stays due for readers of velocities.
-                mujoco.mj_kinematics(self._model, self._data)
-            self._snapshot_seq += 1
-            return state.snapshot(self._data, self._index, self._step_count,
-                                  self._snapshot_seq)
+            return self._snapshot_locked()
+
+    def _snapshot_locked(self) -> Snapshot:
+        if self._stale_kinematics:
+            # Body poses only: a third of _kinematics_locked's cost (1,000 bodies at 200 Hz),
+            # which stays due for readers of velocities.
+            mujoco.mj_kinematics(self._model, self._data)
+        self._snapshot_seq += 1
+        return state.snapshot(self._data, self._index, self._step_count, self._snapshot_seq)
 
     def get_state(self) -> PhysicsState:
         """Return the full integration state, like the older systems' ``getState``."""
@@ -414,11 +419,47 @@ class World(StateWrites, WorldEdits):
         with self._lock_cm:
             return self._step_locked(int(n), ctrl, then)
 
+    def step_batch(self, n: int, snapshot: bool) -> tuple:
+        """
+        For the loop: `n` steps, then the clock and, if asked, a snapshot, in one hold.
+
+        One acquisition of the world lock per batch instead of three (clock, step, snapshot):
+        under a storm of edits each acquisition can wait behind other callers, and the waits
+        added up to stalls of 60-110 ms (``make bench-storm``). Returns (:class:`Clock` after
+        the steps, :class:`Snapshot` or None); raises as :meth:`step` does.
+        """
+        with self._lock_cm:
+            self._step_locked(int(n), None, None, quiet=True)
+            clock = Clock(float(self._data.time), self._step_count,
+                          float(self._model.opt.timestep))
+            self._batch_clock = clock
+            return clock, (self._snapshot_locked() if snapshot else None)
+
+    def clock_since_batch(self) -> Optional[Clock]:
+        """
+        Return the clock :meth:`step_batch` gave, if nothing changed the world since; else None.
+
+        Without the lock: every write of the state (resets, set_state, ``locked()``, a new
+        model) clears ``_cached`` under the lock before it changes time, step count or timestep,
+        and only the loop, which asks, steps. A read racing a write is one from just before it,
+        as a locked read made a moment earlier would be.
+        """
+        return self._batch_clock if self._cached is not None else None
+
     def _step_locked(self, n: int, ctrl: Optional[np.ndarray],
-                     then: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]]) -> int:
+                     then: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]],
+                     quiet: bool = False) -> int:
+        """
+        Step under the lock; see :meth:`step`.
+
+        :param quiet: make no MuJoCo call but the steps themselves on a clean batch (the loop:
+            each call gives the GIL away, and other threads kept it for up to 5 ms each time
+            under a storm of edits, with the world lock held meanwhile). Same results.
+        """
         # The state after the last clean batch, if untouched since: it holds the previous
         # controls, so a replay writes `ctrl` again.
         before = self._cached
+        self._batch_clock = None  # set again by step_batch, the loop's way to step
         if ctrl is not None:
             self._ctrl[:] = ctrl
         m, d, control = self._model, self._data, self._control
@@ -435,13 +476,16 @@ class World(StateWrites, WorldEdits):
                 mujoco.mj_step(m, d)
         else:
             mujoco.mj_step(m, d, n)
-        if self._guard.diverged(m, d):
+        if self._guard.diverged(m, d, quiet):
             self._diverged_locked(before, n, ctrl)
         self._step_count += n
         # The state after a clean batch: the next batch's starting point (unless something
         # changes it), and the fallback for divergence caused by values put in between steps
         # (e.g. through locked()). One buffer, overwritten in place: `before` is spent by now.
-        mujoco.mj_getState(m, d, self._good_buf, STATE_SPEC)
+        if quiet and self._copy_state is not None:
+            self._copy_state(self._good_buf)
+        else:
+            mujoco.mj_getState(m, d, self._good_buf, STATE_SPEC)
         self._last_good = self._cached = self._good_buf
         self._stale_kinematics = self._stale_dynamics = True
         if then is not None:
@@ -601,6 +645,7 @@ class World(StateWrites, WorldEdits):
         self._index: ModelIndex = index
         self._ctrl = data.ctrl
         self._good_buf = np.empty(self._index.state_size)
+        self._copy_state = state.state_copier(model, data, STATE_SPEC)
         self._last_good = None  # its layout belongs to the old model
         self._control.bind(self._index, model, data, new_model=True)
         # Derived quantities (xpos, contacts) are zero until mj_forward runs.

@@ -16,6 +16,7 @@ and ``_generation``, ``_kinematics_locked`` and ``_pose_frame_locked`` to read p
 ``_design``.
 """
 
+import logging
 from typing import Callable, Optional, Sequence
 
 import mujoco
@@ -41,6 +42,10 @@ ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
 ERR_NO_MASS = '{name!r} has no mass to scale'
 #: Times an edit is built outside the lock before it is done under it (see WorldEdits._change).
 EDIT_ATTEMPTS = 3
+#: A compaction gives freed memory back once this much is free (a trim stalls allocations).
+TRIM_AFTER_COMPACTION_BYTES = 32 << 20
+
+log = logging.getLogger(__name__)
 
 
 class WorldEdits:
@@ -127,7 +132,8 @@ class WorldEdits:
                     name=name, other=hit[0], depth=hit[1]))
 
         return Edit(apply, None if overlap_ok else check,
-                    lambda nxt, spawned: nxt.with_spawned(name, spawned), result=name)
+                    lambda nxt, spawned: nxt.with_spawned(name, spawned), result=name,
+                    batchable=True)
 
     def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
                  position: Sequence[float] = (0.0, 0.0, 0.0),
@@ -185,7 +191,7 @@ class WorldEdits:
         doomed = {n: self._design.spawned[n] for n in names}
         return Edit(lambda spec: [editor.remove(spec, n, rec.frame, rec.assets, rec.defaults)
                                   for n, rec in doomed.items()],
-                    redesign=lambda nxt, _: nxt.without(list(doomed)))
+                    redesign=lambda nxt, _: nxt.without(list(doomed)), batchable=True)
 
     # ---------------------------------------------------------------- physics parameters
 
@@ -334,6 +340,13 @@ class WorldEdits:
         changed in between (a state write that moved a welded entity, an edit made inside
         ``locked()``), the edit is planned again on the new world.
 
+        Edits that queued while another was being made are made together when they can be
+        (spawns and deletes, :attr:`Edit.batchable`): one compile and one commit for all of
+        them, as a database commits a group. Under 8 clients spawning and deleting, each edit
+        cost the process a compile of the whole world, and the node ran out of CPU. When the
+        group fails anywhere (one name twice, an overlap between two of them, over
+        ``max_bodies``), its edits are made one by one, each with its own answer.
+
         :returns: the edit's ``result``.
         """
         if self.holds_lock():  # called inside locked(): waiting for _edit_lock could
@@ -341,24 +354,81 @@ class WorldEdits:
                 edit = plan_locked()
                 self._edit_locked(edit)
                 return edit.result
+        pending = _Pending(plan_locked)
+        with self._queue_lock:
+            self._queued.append(pending)
         with self._edit_lock:
-            for _ in range(EDIT_ATTEMPTS):
-                with self._locked():
-                    generation, design, old = self._generation, self._design, self._model
-                    edit = plan_locked()
-                if edit.apply is None:
-                    break
-                nxt, model = design.build(edit)
-                prepared = _prepare(old, model, generation, nxt)
-                with self._locked():
-                    if self._generation == generation:
-                        self._commit_locked(nxt, model, edit.check, prepared)
-                        break
-            else:
-                with self._locked():  # the world kept changing: do it all under the lock
-                    edit = plan_locked()
-                    self._edit_locked(edit)
-            self._compact_if_due()
+            if not pending.done:  # else an edit before it made it
+                with self._queue_lock:
+                    group, self._queued = self._queued, []
+                try:
+                    self._make_group(group)
+                finally:
+                    for p in group:  # never leave a caller without an answer
+                        if not p.done:
+                            p.finish(error=RuntimeError('the edit was not made'))
+                self._compact_if_due()
+        return pending.outcome()
+
+    def _make_group(self, group: list) -> None:
+        """Make the queued edits `group` (:class:`_Pending`): together where they can be."""
+        alone = group
+        if len(group) > 1:
+            with self._locked():
+                generation, design, old = self._generation, self._design, self._model
+                planned = []
+                for p in group:
+                    try:
+                        planned.append((p, p.plan_locked()))
+                    except Exception as exc:  # noqa: B902 (refused: that caller's answer)
+                        p.finish(error=exc)
+            together = [(p, e) for p, e in planned if e.batchable and e.apply is not None]
+            edits = [e for _, e in together]
+            if len(edits) > 1 and self._commit_group(edits, generation, design, old):
+                for p, e in together:
+                    p.finish(e.result)
+            alone = [p for p, _ in planned if not p.done]
+        for p in alone:
+            try:
+                p.finish(self._make_one(p.plan_locked))
+            except Exception as exc:  # noqa: B902 (refused: that caller's answer)
+                p.finish(error=exc)
+
+    def _commit_group(self, edits: list, generation: int, design: Design,
+                      old: mujoco.MjModel) -> bool:
+        """Build and commit `edits` as one; False (nothing changed) if anything fails."""
+        group = _grouped(edits)
+        try:
+            nxt, model = design.build(group)
+            if model.nbody > self.config.max_bodies:
+                return False
+            prepared = _prepare(old, model, generation, nxt)
+            with self._locked():
+                if self._generation != generation:
+                    return False
+                self._commit_locked(nxt, model, group.check, prepared)
+        except Exception as exc:  # noqa: B902 (each edit is made alone, and answered, next)
+            log.debug('%d edits could not be made together (%s): one by one', len(edits), exc)
+            return False
+        return True
+
+    def _make_one(self, plan_locked: Callable[[], Edit]):
+        """Make one edit (see :meth:`_change`); ``_edit_lock`` held. Returns its result."""
+        for _ in range(EDIT_ATTEMPTS):
+            with self._locked():
+                generation, design, old = self._generation, self._design, self._model
+                edit = plan_locked()
+            if edit.apply is None:
+                return edit.result
+            nxt, model = design.build(edit)
+            prepared = _prepare(old, model, generation, nxt)
+            with self._locked():
+                if self._generation == generation:
+                    self._commit_locked(nxt, model, edit.check, prepared)
+                    return edit.result
+        with self._locked():  # the world kept changing: do it all under the lock
+            edit = plan_locked()
+            self._edit_locked(edit)
         return edit.result
 
     def _edit_locked(self, edit: Edit) -> None:
@@ -435,7 +505,7 @@ class WorldEdits:
                 return  # changed meanwhile (an edit inside locked()): compact another time
             self._commit_locked(nxt, model, None, prepared)
         del old, prepared, compacted
-        release_free_memory()
+        release_free_memory(at_least=TRIM_AFTER_COMPACTION_BYTES)
 
 
 def _prepare(old: mujoco.MjModel, model: mujoco.MjModel, generation: int,
@@ -448,3 +518,41 @@ def _prepare(old: mujoco.MjModel, model: mujoco.MjModel, generation: int,
     """
     return (model_index.build(model, generation + 1, nxt.spawned), transfer.mapping(old, model),
             mujoco.MjData(model))
+
+
+class _Pending:
+    """An edit waiting for its turn (:meth:`WorldEdits._change`): its plan, then its answer."""
+
+    __slots__ = ('plan_locked', 'done', 'result', 'error')
+
+    def __init__(self, plan_locked: Callable[[], Edit]):
+        self.plan_locked = plan_locked
+        self.done, self.result, self.error = False, None, None
+
+    def finish(self, result=None, error: Optional[BaseException] = None) -> None:
+        self.result, self.error, self.done = result, error, True
+
+    def outcome(self):
+        """Return the edit's result, or raise what refused it."""
+        if self.error is not None:
+            raise self.error
+        return self.result
+
+
+def _grouped(edits: Sequence[Edit]) -> Edit:
+    """Return one edit that makes `edits` in order: applies, checks and tables."""
+    def apply(spec: mujoco.MjSpec) -> list:
+        return [e.apply(spec) for e in edits]
+
+    def check(model: mujoco.MjModel, data: mujoco.MjData, spec: mujoco.MjSpec) -> None:
+        for e in edits:
+            if e.check is not None:
+                e.check(model, data, spec)
+
+    def redesign(design: Design, applied: list) -> Design:
+        for e, a in zip(edits, applied):
+            if e.redesign is not None:
+                design = e.redesign(design, a)
+        return design
+
+    return Edit(apply, check, redesign, [e.result for e in edits])
