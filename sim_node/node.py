@@ -3,12 +3,12 @@ The `sim` rclpy node: a thin layer over the world core.
 
 Callbacks convert the request, call the core, convert the answer (``msg_adapters``). The node
 makes no ``mj_*`` call and never touches MjData. Its threads besides the world's stepping loop:
-the executor's (services, reentrant; the housekeeping timer), ``sim-publisher`` (``/clock``,
-``/tf`` and joint states from the newest snapshot, paced to absolute deadlines), ``sim-model``
-(per model generation: ``/tf_static``, markers, sensor publishers and robot descriptions,
-which take up to hundreds of milliseconds for a mesh-heavy robot and would otherwise hold
-``/clock`` back),
-the command drain's and the perception thread (cameras and scanners). FollowJointTrajectory
+the executor's (services, reentrant; the housekeeping timer), ``sim-publisher`` (``/tf`` and
+joint states from the newest snapshot, paced to absolute deadlines), ``sim-clock`` (``/clock``
+alone, so time flows however long /tf takes to build), ``sim-model`` (per model generation:
+``/tf_static``, markers, sensor publishers and robot descriptions, which take up to hundreds of
+milliseconds for a mesh-heavy robot and would otherwise hold /tf back), the command drain's
+and the perception thread (cameras and scanners). FollowJointTrajectory
 goals (:mod:`.trajectories`) wait on executor threads of their own callback group.
 Publishers that come and go with entities carry no QoS event handlers, so they are never in an
 executor's wait set and may be destroyed from any thread; the action servers that come and go
@@ -86,9 +86,14 @@ class _LogForwarder(logging.Handler):
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
 REFUSAL_SHOWN_SEC = 10.0
-#: How often freed heap goes back to the system (glibc's malloc_trim; under a millisecond): a
-#: reset, a delete or a big request leaves free memory that glibc would otherwise keep.
+#: How often freed heap goes back to the system (glibc's malloc_trim): a reset, a delete or a
+#: big request leaves free memory that glibc would otherwise keep. A trim stalls every thread
+#: that allocates (up to 66 ms under a storm of edits): while the model keeps changing, only
+#: once BUSY_TRIM_BYTES are free; once it has stood still a period, whatever is free.
 TRIM_PERIOD_SEC = 2.0
+BUSY_TRIM_BYTES = 64 << 20
+#: The model has stood still this long: the node is not busy with edits (see TRIM_PERIOD_SEC).
+QUIET_SEC = 0.5
 
 
 class SimNode(SimServices, Node):
@@ -150,11 +155,15 @@ class SimNode(SimServices, Node):
         self._js_period = 1.0 / p('joint_states_rate_hz')
         self._publishing = threading.Event()
         self._publisher_thread: Optional[threading.Thread] = None
+        self._clock_thread: Optional[threading.Thread] = None
         # A new model generation's slow publications, handed from the publisher thread.
         self._model_cv = threading.Condition()
         self._model_due: Optional[tuple] = None
         self._model_thread: Optional[threading.Thread] = None
         self._trimmed = time.monotonic()
+        self._trim_generation: Optional[int] = None  # the model generation last seen, and
+        self._changed = self._trimmed  # when it changed (see _trim_memory)
+        self._trim_owed = False
         self._housekeeping_timer = self.create_timer(0.2, self._housekeeping,
                                                      callback_group=self._pub_group)
         self.perception = Perception(self, params.perception_config(self), self._world_frame,
@@ -217,6 +226,10 @@ class SimNode(SimServices, Node):
         self._publisher_thread = threading.Thread(target=self._publish_loop,
                                                   name='sim-publisher', daemon=True)
         self._publisher_thread.start()
+        if self._clock_pub is not None:
+            self._clock_thread = threading.Thread(target=self._clock_loop, name='sim-clock',
+                                                  daemon=True)
+            self._clock_thread.start()
         self._model_thread = threading.Thread(target=self._model_loop, name='sim-model',
                                               daemon=True)
         self._model_thread.start()
@@ -293,7 +306,7 @@ class SimNode(SimServices, Node):
         self._commands.stop()
         with self._model_cv:
             self._model_cv.notify_all()
-        for thread in (self._publisher_thread, self._model_thread):
+        for thread in (self._publisher_thread, self._clock_thread, self._model_thread):
             if thread is not None:
                 thread.join(2.0)
 
@@ -307,7 +320,7 @@ class SimNode(SimServices, Node):
 
     def _publish_loop(self) -> None:
         """
-        /clock and /tf every tf period, joint_states every joint-states period.
+        /tf every tf period, joint_states every joint-states period (/clock: _clock_loop).
 
         From the newest snapshot; re-syncs after a stall instead of bursting.
         """
@@ -330,6 +343,31 @@ class SimNode(SimServices, Node):
                 self.report_failure('publishing', exc)
                 next_tf, next_js = now + self._tf_period, now + self._js_period
 
+    def _clock_loop(self) -> None:
+        """
+        /clock every tf period from the newest snapshot, on a thread of its own.
+
+        Time flows for every ``use_sim_time`` node however long /tf takes to build: under 8
+        clients spawning and deleting, a publisher cycle with /tf of 400 bodies and a new model
+        took up to 146 ms, and /clock, sent in the same cycle, stood still as long.
+        """
+        deadline = time.perf_counter()
+        while self._publishing.is_set():
+            now = time.perf_counter()
+            if deadline > now:
+                time.sleep(deadline - now)
+                continue
+            try:
+                sim = self._sim
+                if sim is not None:
+                    # /clock goes on while paused (the same time), as Gazebo's does: nodes
+                    # started with use_sim_time then still start their timers, and RViz shows
+                    # the time.
+                    self._clock_pub.publish(convert.clock(sim.loop.latest_snapshot().time))
+            except Exception as exc:  # never die silently: say why, keep publishing
+                self.report_failure('publishing /clock', exc)
+            deadline = _next_deadline(deadline, self._tf_period, now)
+
     def report_failure(self, what: str, exc: Exception) -> None:
         """
         Log that a publishing thread's work failed (at most every 5 s); it goes on.
@@ -351,10 +389,6 @@ class SimNode(SimServices, Node):
         info = snap.info
         if info.generation != self._published_generation:
             self._publish_model(info, snap.time)
-        # /clock goes on while paused (the same time), as Gazebo's does: nodes started with
-        # use_sim_time then still start their timers, and RViz shows the time.
-        if self._clock_pub is not None:
-            self._clock_pub.publish(convert.clock(snap.time))
         if seq == self._published_seq:
             return
         self._published_seq = seq
@@ -456,10 +490,19 @@ class SimNode(SimServices, Node):
         self._sync_paused_parameter()
         self._drain_logs()
         self._publish_diagnostics()
-        now = time.monotonic()
-        if now - self._trimmed >= TRIM_PERIOD_SEC:
+        self._trim_memory(time.monotonic())
+
+    def _trim_memory(self, now: float) -> None:
+        """Give freed heap back every TRIM_PERIOD_SEC; while the model changes, only if a lot."""
+        sim = self._sim
+        generation = None if sim is None else sim.loop.latest_snapshot().info.generation
+        if generation != self._trim_generation:
+            self._trim_generation, self._changed = generation, now
+        quiet = now - self._changed >= QUIET_SEC
+        if now - self._trimmed >= TRIM_PERIOD_SEC or (quiet and self._trim_owed):
             self._trimmed = now
-            release_free_memory()
+            # Skipped while busy: owed, and made as soon as the model stands still.
+            self._trim_owed = not release_free_memory(at_least=0 if quiet else BUSY_TRIM_BYTES)
 
     def _publish_diagnostics(self, force: bool = False) -> None:
         """
