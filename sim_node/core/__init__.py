@@ -49,8 +49,9 @@ Threading contract
   compiled spec holds every processed mesh: copying it took 190 ms with three arms), and MuJoCo
   reads only checked copies of files (:mod:`.assets`).
 * **Snapshots.** ``World.snapshot`` (and ``World.step_batch``, for the loop) is the one
-  producer: it copies what publishers need under the lock and numbers it (``seq``). The loop makes one per batch at ``snapshot_rate_hz``, and
-  services make one after a change; :class:`~.loop.SimLoop` keeps only the newest by ``seq``,
-  so a consumer never sees time go backwards because two threads raced to publish.
+  producer: it copies what publishers need under the lock and numbers it (``seq``). The loop
+  makes one per batch at ``snapshot_rate_hz``, and services make one after a change;
+  :class:`~.loop.SimLoop` keeps only the newest by ``seq``, so a consumer never sees time go
+  backwards because two threads raced to publish.
 * **ROS.** The loop thread never calls rclpy; the node reads snapshots, never MjData.
 """
