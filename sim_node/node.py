@@ -324,24 +324,8 @@ class SimNode(SimServices, Node):
 
         From the newest snapshot; re-syncs after a stall instead of bursting.
         """
-        now = time.perf_counter()
-        next_tf = next_js = now
-        while self._publishing.is_set():
-            now = time.perf_counter()
-            due = min(next_tf, next_js)
-            if due > now:
-                time.sleep(due - now)
-                continue
-            try:
-                if now >= next_tf:
-                    self._publish_state()
-                    next_tf = _next_deadline(next_tf, self._tf_period, now)
-                if now >= next_js:
-                    self._publish_joint_states()
-                    next_js = _next_deadline(next_js, self._js_period, now)
-            except Exception as exc:  # never die silently: say why, keep publishing
-                self.report_failure('publishing', exc)
-                next_tf, next_js = now + self._tf_period, now + self._js_period
+        self._paced('publishing', [(self._tf_period, self._publish_state),
+                                   (self._js_period, self._publish_joint_states)])
 
     def _clock_loop(self) -> None:
         """
@@ -351,22 +335,37 @@ class SimNode(SimServices, Node):
         clients spawning and deleting, a publisher cycle with /tf of 400 bodies and a new model
         took up to 146 ms, and /clock, sent in the same cycle, stood still as long.
         """
-        deadline = time.perf_counter()
+        self._paced('publishing /clock', [(self._tf_period, self._publish_clock)])
+
+    def _paced(self, what: str, jobs: list) -> None:
+        """
+        Run each job ``(period, fn)`` every period, to absolute deadlines, while publishing.
+
+        Re-syncs after a stall instead of bursting. A failure is logged (:meth:`report_failure`)
+        and every job goes on one period later.
+        """
+        deadlines = [time.perf_counter()] * len(jobs)
         while self._publishing.is_set():
             now = time.perf_counter()
-            if deadline > now:
-                time.sleep(deadline - now)
+            due = min(deadlines)
+            if due > now:
+                time.sleep(due - now)
                 continue
             try:
-                sim = self._sim
-                if sim is not None:
-                    # /clock goes on while paused (the same time), as Gazebo's does: nodes
-                    # started with use_sim_time then still start their timers, and RViz shows
-                    # the time.
-                    self._clock_pub.publish(convert.clock(sim.loop.latest_snapshot().time))
+                for k, (period, job) in enumerate(jobs):
+                    if now >= deadlines[k]:
+                        job()
+                        deadlines[k] = _next_deadline(deadlines[k], period, now)
             except Exception as exc:  # never die silently: say why, keep publishing
-                self.report_failure('publishing /clock', exc)
-            deadline = _next_deadline(deadline, self._tf_period, now)
+                self.report_failure(what, exc)
+                deadlines = [now + period for period, _ in jobs]
+
+    def _publish_clock(self) -> None:
+        sim = self._sim
+        if sim is not None:
+            # /clock goes on while paused (the same time), as Gazebo's does: nodes started with
+            # use_sim_time then still start their timers, and RViz shows the time.
+            self._clock_pub.publish(convert.clock(sim.loop.latest_snapshot().time))
 
     def report_failure(self, what: str, exc: Exception) -> None:
         """

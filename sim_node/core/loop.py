@@ -436,7 +436,7 @@ class SimLoop:
         self.world.wait_for_callers()
         t0 = time.perf_counter()
         try:
-            _, snap = self.world.step_batch(n, last_request_batch or (
+            snap = self.world.step_batch(n, last_request_batch or (
                 t0 - self._last_snapshot >= self._snapshot_period))
         except DivergenceError as exc:
             log.error('%s', exc)

@@ -400,17 +400,11 @@ class WorldEdits:
         group = _grouped(edits)
         try:
             nxt, model = design.build(group)
-            if model.nbody > self.config.max_bodies:
-                return False
-            prepared = _prepare(old, model, generation, nxt)
-            with self._locked():
-                if self._generation != generation:
-                    return False
-                self._commit_locked(nxt, model, group.check, prepared)
+            return (model.nbody <= self.config.max_bodies and
+                    self._commit_if_unchanged(generation, old, nxt, model, group.check))
         except Exception as exc:  # noqa: B902 (each edit is made alone, and answered, next)
             log.debug('%d edits could not be made together (%s): one by one', len(edits), exc)
             return False
-        return True
 
     def _make_one(self, plan_locked: Callable[[], Edit]):
         """Make one edit (see :meth:`_change`); ``_edit_lock`` held. Returns its result."""
@@ -421,15 +415,27 @@ class WorldEdits:
             if edit.apply is None:
                 return edit.result
             nxt, model = design.build(edit)
-            prepared = _prepare(old, model, generation, nxt)
-            with self._locked():
-                if self._generation == generation:
-                    self._commit_locked(nxt, model, edit.check, prepared)
-                    return edit.result
+            if self._commit_if_unchanged(generation, old, nxt, model, edit.check):
+                return edit.result
         with self._locked():  # the world kept changing: do it all under the lock
             edit = plan_locked()
             self._edit_locked(edit)
         return edit.result
+
+    def _commit_if_unchanged(self, generation: int, old: mujoco.MjModel, nxt: Design,
+                             model: mujoco.MjModel,
+                             check: Optional[Callable[..., None]]) -> bool:
+        """
+        Prepare `model` with the lock released, then commit it if the world is still `generation`.
+
+        :returns: whether it committed (False: changed meanwhile, nothing done).
+        """
+        prepared = _prepare(old, model, generation, nxt)
+        with self._locked():
+            if self._generation != generation:
+                return False
+            self._commit_locked(nxt, model, check, prepared)
+        return True
 
     def _edit_locked(self, edit: Edit) -> None:
         """
@@ -499,12 +505,9 @@ class WorldEdits:
         if compacted is None:  # keep the spec; try again after the next edit
             return
         nxt, model = compacted
-        prepared = _prepare(old, model, generation, nxt)
-        with self._locked():
-            if self._generation != generation:
-                return  # changed meanwhile (an edit inside locked()): compact another time
-            self._commit_locked(nxt, model, None, prepared)
-        del old, prepared, compacted
+        if not self._commit_if_unchanged(generation, old, nxt, model, None):
+            return  # changed meanwhile (an edit inside locked()): compact another time
+        del old, compacted
         release_free_memory(at_least=TRIM_AFTER_COMPACTION_BYTES)
 
 
