@@ -296,3 +296,25 @@ def test_edits_that_clash_in_a_group_are_made_one_by_one_and_refused_alone(slow_
     assert answers['free'] == 'free'
     names = [e.name for e in w.entities()]
     assert names.count('twin') == 1 and ('here_a' in names) != ('here_b' in names)
+
+
+def test_a_spawn_whose_world_changed_while_it_compiled_is_planned_again(slow_source):
+    """A delete made inside locked() while the spawn compiles: the deleted box stays deleted."""
+    import threading
+
+    from sim_node.core import assets, sources
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('victim', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
+    assets.set_mesh_cache(0)  # compiled before by another test: slow all the same
+    try:
+        spawner = threading.Thread(target=lambda: w.spawn('big', slow_source,
+                                                          position=[0, 2, 1]))
+        spawner.start()
+        time.sleep(0.3)  # compiling, from a design that still holds the victim
+        with w.locked():
+            w.delete('victim')  # made at once, under the lock: a new generation
+        spawner.join()
+    finally:
+        assets.set_mesh_cache(WorldConfig().mesh_cache_mb)
+    names = [e.name for e in w.entities()]
+    assert 'big' in names and 'victim' not in names
