@@ -27,7 +27,7 @@ setup(
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
         ('share/' + PACKAGE + '/rviz', glob('rviz/*.rviz')),
     ] + scene_data_files(),
-    package_data={'sim_node': ['fastdds_profiles.xml']},
+    package_data={'sim_node.ros': ['fastdds_profiles.xml']},
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='sim developers',
@@ -36,10 +36,10 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'node = sim_node.main:main',
+            'node = sim_node.ros.main:main',
         ],
         'gymnasium.envs': [
-            '__root__ = sim_node.gym_env:register_envs',
+            '__root__ = sim_node.gym.env:register_envs',
         ],
     },
 )

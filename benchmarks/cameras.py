@@ -25,10 +25,10 @@ import threading
 import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from sim_node.core.cameras import CameraRig  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
+from sim_node.core.devices.cameras import CameraRig  # noqa: E402
+from sim_node.core.devices.rendering import choose_backend  # noqa: E402
 from sim_node.core.loop import SimLoop  # noqa: E402
-from sim_node.core.rendering import choose_backend  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from verdict import verdict  # noqa: E402, I100
@@ -91,7 +91,7 @@ def node_rate(params: list, seconds: float = 4.0) -> tuple:
     import rclpy
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import Image
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
     proc = subprocess.Popen([str(exe), '--ros-args', '-p', 'real_time_factor:=0',
                              *sum((['-p', p] for p in params), [])],

@@ -43,7 +43,7 @@ def _flood(topic: str, stop: threading.Event, sent: list) -> None:
 def main() -> None:
     import rclpy
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
     proc = subprocess.Popen([str(exe), '--ros-args', '-p', 'real_time_factor:=0'],
                             stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,

@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from sim_node.gym_env import PusherTask, ReacherTask, ReachTask, SimEnv  # noqa: E402
+from sim_node.gym.env import PusherTask, ReacherTask, ReachTask, SimEnv  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from verdict import verdict  # noqa: E402, I100
 

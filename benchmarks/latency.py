@@ -53,7 +53,7 @@ def trivial_server() -> None:
 def client(seconds: float, with_state: bool, namespace: str) -> None:
     """Call at RATE_HZ for `seconds`; print {service: [latency ms, ...]} as JSON."""
     import rclpy
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     from simulation_interfaces import srv
     rclpy.init()
     c = SimClient(namespace=namespace, timeout_sec=30)
@@ -98,7 +98,7 @@ def pct(values: list, q: float) -> float:
 
 def set_paused(paused: bool) -> None:
     import rclpy
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     rclpy.init()
     c = SimClient(namespace=NAMESPACE, timeout_sec=30)
     c.pause() if paused else c.play()

@@ -83,7 +83,7 @@ class Node:
 
     def __init__(self, folder: Path, *params: str):
         import rclpy
-        from sim_node.client import SimClient
+        from sim_node.ros.client import SimClient
         exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
         args = [str(exe), '--ros-args', '-p', f'resource_paths:=["{folder}"]',
                 '-p', 'real_time_factor:=1.0']

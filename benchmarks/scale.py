@@ -66,7 +66,7 @@ class NodeRun:
 
     def __init__(self, scene: str, *params: str):
         import rclpy
-        from sim_node.client import SimClient
+        from sim_node.ros.client import SimClient
         exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
         args = [str(exe), '--ros-args', '-p', f'scene:={scene}']
         for p in params:

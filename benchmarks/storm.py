@@ -40,7 +40,7 @@ def client(k: int, go: str) -> None:
     latency as one line of JSON.
     """
     import rclpy
-    from sim_node.client import SimClient, SimServiceError
+    from sim_node.ros.client import SimClient, SimServiceError
     from simulation_interfaces import srv
     rclpy.init()
     c = SimClient(timeout_sec=60)
@@ -117,7 +117,7 @@ class ClockWatch:
 def peak_physics() -> tuple:
     """Return (seconds per bare mj_step, timestep) of the world at the storm's peak, settled."""
     import mujoco
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     from sim_node.core.world import World
     scenes = Path(__file__).resolve().parent.parent / 'scenes'
     world = World.from_file(str(scenes / 'default.xml'))

@@ -33,7 +33,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-import sim_node.gym_env  # noqa: E402, F401  (registers the sim/ ids)
+import sim_node.gym.env  # noqa: E402, F401  (registers the sim/ ids)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from verdict import summary, verdict  # noqa: E402, I100
 

@@ -37,7 +37,7 @@ def make_worker(ray):
         def __init__(self, env_id: str, num_envs: int, threads: int, seed: int):
             sys.path.insert(0, ROOT)
             import gymnasium as gym
-            import sim_node.gym_env  # noqa: F401  (registers the sim/ ids)
+            import sim_node.gym.env  # noqa: F401  (registers the sim/ ids)
             self.envs = gym.make_vec(env_id, num_envs=num_envs, num_threads=threads)
             self.obs, _ = self.envs.reset(seed=seed)
             self.returns = np.zeros(num_envs)
@@ -117,7 +117,7 @@ def _sizes(env_id: str) -> tuple:
     """Return (observation size, action size) of a task: a linear policy's weight shape."""
     sys.path.insert(0, ROOT)
     import gymnasium as gym
-    import sim_node.gym_env  # noqa: F401
+    import sim_node.gym.env  # noqa: F401
     env = gym.make(env_id)
     try:
         return env.observation_space.shape[0], env.action_space.shape[0]

@@ -15,8 +15,8 @@ import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from sim_node.core import errors, quat
+from sim_node.core.query import Region
 from sim_node.core.records import DYNAMIC, ModelInfo, ROBOT, Snapshot, STATIC
-from sim_node.entity_query import Region
 from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Result, SimulationState
 from tf2_msgs.msg import TFMessage
 
@@ -38,6 +38,10 @@ RESULT_CODES = (
     (errors.UnsupportedElementsError, Result.RESULT_OPERATION_FAILED, 'UNSUPPORTED_ELEMENTS'),
     (errors.InvalidPoseError, Result.RESULT_OPERATION_FAILED, 'INVALID_POSE'),
     (errors.OperationFailedError, Result.RESULT_OPERATION_FAILED, None),
+    (errors.NoWorldError, Result.RESULT_INCORRECT_STATE, 'NO_WORLD_LOADED'),
+    (errors.AlreadyInStateError, Result.RESULT_OPERATION_FAILED, 'ALREADY_IN_TARGET_STATE'),
+    (errors.StateTransitionError, Result.RESULT_OPERATION_FAILED, 'STATE_TRANSITION_ERROR'),
+    (errors.IncorrectTransitionError, Result.RESULT_OPERATION_FAILED, 'INCORRECT_TRANSITION'),
     (errors.IncorrectStateError, Result.RESULT_INCORRECT_STATE, None),
     (errors.CapacityError, Result.RESULT_OPERATION_FAILED, None),
     (errors.InvalidArgumentError, Result.RESULT_OPERATION_FAILED, None),
@@ -131,7 +135,7 @@ MSG_TO_CATEGORY = {v: k for k, v in CATEGORY_TO_MSG.items()}
 
 
 def entity_filters(filters) -> dict:
-    """Return an EntityFilters message as keyword arguments of ``sim_node.entity_query.query``."""
+    """Return an EntityFilters message as keyword arguments of ``sim_node.core.query.query``."""
     out = {'pattern': filters.filter, 'tags': tuple(filters.tags.tags), 'region': None,
            'categories': ({MSG_TO_CATEGORY.get(c.category) for c in filters.categories}
                           if len(filters.categories) else None)}

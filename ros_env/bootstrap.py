@@ -182,7 +182,7 @@ def write_gym_autoload(python: Path) -> None:
     """
     Gymnasium 1.x dropped entry-point plugins: a .pth line registers the sim/...
 
-    ids (see sim_node/gym_autoload.py). It does nothing where sim_node is not importable.
+    ids (see sim_node/gym/autoload.py). It does nothing where sim_node is not importable.
     """
     site = subprocess.run([str(python), '-c', 'import sysconfig; print(sysconfig.get_paths()'
                            '["purelib"])'], capture_output=True, text=True, check=True,
@@ -192,7 +192,7 @@ def write_gym_autoload(python: Path) -> None:
     # at start-up (that would pin sys.modules['sim_node'] to the installed copy).
     line = ('import importlib.util as _u, sys as _y; _s = _u.find_spec("sim_node"); '
             '_p = _s and _u.spec_from_file_location("_sim_gym_autoload", '
-            '_s.submodule_search_locations[0] + "/gym_autoload.py"); '
+            '_s.submodule_search_locations[0] + "/gym/autoload.py"); '
             '_m = _p and _u.module_from_spec(_p); '
             '_m and (_y.modules.__setitem__("_sim_gym_autoload", _m) or _p.loader.exec_module(_m))'
             '\n')

@@ -25,10 +25,10 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .core import sources
 from .core.config import WorldConfig
 from .core.errors import InvalidArgumentError
 from .core.loop import time_reached
+from .core.models import sources
 from .core.records import RESET_STATE, RESET_TIME
 from .core.world import World
 

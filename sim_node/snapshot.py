@@ -4,16 +4,16 @@ Write a PNG picture of a scene: ``python -m sim_node.snapshot SCENE -o out.png``
 SCENE is an MJCF/URDF file or an installed scene name (``default``). Without ``--camera`` the
 picture comes from a free camera that shows the whole scene; ``--settle`` simulates that many
 seconds first (objects come to rest). Needs no ROS and no display (see
-:mod:`sim_node.core.rendering`).
+:mod:`sim_node.core.devices.rendering`).
 """
 
 import argparse
 import sys
 
-from .core.cameras import picture
+from .core.devices.cameras import picture
 from .core.errors import SimError
+from .core.models.resources import installed_scenes_dir, resolve_scene
 from .core.world import World
-from .resources import installed_scenes_dir, resolve_scene
 
 
 def main(argv=None) -> int:

@@ -147,7 +147,7 @@ def start_node():
 @pytest.fixture(scope='module')
 def module_client(node, rclpy_context):
     """One client for a module that starts its own `node`: discovery happens once."""
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     c = SimClient(timeout_sec=30)
     yield c
     c.close()
@@ -165,7 +165,7 @@ def sim(module_client):
 
 @pytest.fixture
 def client(rclpy_context):
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     c = SimClient()
     yield c
     c.close()

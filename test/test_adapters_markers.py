@@ -11,7 +11,7 @@ from msg_adapters import convert, markers
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
-from sim_node.core import sources
+from sim_node.core.models import sources
 from sim_node.core.world import World
 from visualization_msgs.msg import Marker, MarkerArray
 

@@ -14,10 +14,10 @@ import time
 from conftest import DEFAULT_SCENE
 import numpy as np
 import pytest
-from sim_node.core import sources
 from sim_node.core.errors import (MissingAssetsError, NameInvalidError, ResourceParseError,
                                   UnsupportedAssetsError, UnsupportedFormatError)
 from sim_node.core.memory import release_free_memory
+from sim_node.core.models import sources
 from sim_node.core.world import World
 
 BODY = '<worldbody><body name="b"><freejoint/><geom size=".05"/></body></worldbody>'

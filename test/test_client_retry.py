@@ -17,7 +17,7 @@ def slow_server(rclpy_context):
     from rclpy.executors import MultiThreadedExecutor
     from simulation_interfaces import srv
     from simulation_interfaces.msg import Result
-    from sim_node import client
+    from sim_node.ros import client
     node = rclpy.create_node('slow_server', namespace='/slow')
     calls = {'get_entities': 0, 'spawn_entity': 0}
     lock = threading.Lock()
@@ -47,7 +47,7 @@ def slow_server(rclpy_context):
 
 
 def test_a_read_without_an_answer_is_asked_again_and_a_write_is_not(slow_server):
-    from sim_node.client import READ_RETRY_SEC, SimClient
+    from sim_node.ros.client import READ_RETRY_SEC, SimClient
     c = SimClient(namespace='/slow', timeout_sec=20)
     try:
         t0 = time.monotonic()

@@ -15,11 +15,11 @@ from conftest import DEFAULT_SCENE
 import mujoco
 import numpy as np
 import pytest
-from sim_node.core import sources
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (FeatureUnsupportedError, InvalidArgumentError,
                                   InvalidPoseError, NameNotUniqueError, ResourceParseError)
 from sim_node.core.loop import SimLoop
+from sim_node.core.models import sources
 from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
 from sim_node.core.world import World
 from sim_node.simulation import EMPTY_WORLD, Simulation
@@ -87,8 +87,8 @@ def test_a_delete_that_fails_while_switching_models_changes_nothing(stage, monke
     w.command(['arm1/hinge', 'arm2/hinge'], [0.5, -0.5], 'position')
     w.step(10)
     before = (w.entities(), w.joint_names(), w.generation)
-    targets = {'index': (sys.modules['sim_node.core.world'].model_index, 'build'),
-               'commands': (w._control, 'bind'), 'guard': (w._guard, 'bind')}
+    targets = {'index': (sys.modules['sim_node.core.index'], 'build'),
+               'commands': (w._live.control, 'bind'), 'guard': (w._live.guard, 'bind')}
     owner, attr = targets[stage]
     real, calls = getattr(owner, attr), []
 

@@ -14,9 +14,10 @@ import sys
 from msg_adapters import perception as pm
 import numpy as np
 import pytest
-from sim_node.core import quat, sources
-from sim_node.core.cameras import CameraRig
-from sim_node.core.lidar import LaserConfig, LaserScanner
+from sim_node.core import quat
+from sim_node.core.devices.cameras import CameraRig
+from sim_node.core.devices.lidar import LaserConfig, LaserScanner
+from sim_node.core.models import sources
 from sim_node.core.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -386,7 +387,7 @@ def test_snapshot_writes_a_png_of_the_default_scene(tmp_path):
 
 def test_a_missing_gl_backend_says_what_to_install():
     code = ('import ctypes.util; ctypes.util.find_library = lambda name: None\n'
-            'from sim_node.core.rendering import Renderer, RenderingUnavailableError\n'
+            'from sim_node.core.devices.rendering import Renderer, RenderingUnavailableError\n'
             'try:\n    Renderer(8, 8)\nexcept RenderingUnavailableError as e:\n    print(e)')
     out = _python(code, {'MUJOCO_GL': ''})
     assert 'apt-get install libegl1' in out.stdout and 'libosmesa6' in out.stdout, out.stderr

@@ -19,8 +19,8 @@ from msg_adapters import convert
 import mujoco
 import numpy as np
 import pytest
-from sim_node.core import description, sources
 from sim_node.core.errors import InvalidArgumentError
+from sim_node.core.models import description, sources
 from sim_node.core.world import World
 from urdf_fk import urdf_fk
 
@@ -157,8 +157,8 @@ def test_the_urdf_generated_for_a_spawned_urdf_robot_also_matches():
     world = World.from_file(str(DEFAULT_SCENE))
     world.spawn('arm', sources.from_model_text(ARM_URDF.replace('robot name', 'robot x')),
                 position=(2, 0, 0))
-    design = world._design  # forget its URDF text: describe it from the compiled model instead
-    world._design = replace(design, spawned={'arm': replace(design.spawned['arm'], urdf='')})
+    design = world._live.design  # forget its URDF text: describe it from the compiled model
+    world._live.design = replace(design, spawned={'arm': replace(design.spawned['arm'], urdf='')})
     assert check_description_matches_mujoco(world, 'arm', np.random.default_rng(2)) == 5
 
 

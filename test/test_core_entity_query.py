@@ -12,8 +12,8 @@ from msg_adapters import convert
 import numpy as np
 import pytest
 from sim_node.core.errors import InvalidArgumentError
+from sim_node.core.query import query, Region
 from sim_node.core.world import World
-from sim_node.entity_query import query, Region
 from simulation_interfaces.msg import Bounds, EntityCategory, EntityFilters
 
 
@@ -62,7 +62,7 @@ def test_entity_filters_message_becomes_the_same_query(world):
 
 
 def test_a_catastrophic_filter_is_refused_in_bounded_time(world):
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('a' * 40 + '_', sources.primitive('box', [0.05] * 3), position=[2, 2, 1])
     t0 = time.monotonic()

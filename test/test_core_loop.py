@@ -120,7 +120,7 @@ def _wait(predicate, timeout=10.0):
 
 @pytest.mark.parametrize('policy', ['pause', 'remove', 'reset'])
 def test_divergence_names_the_culprit_entity_and_the_policy_acts_on_it(make_loop, policy):
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     loop = make_loop(real_time_factor=0, divergence_policy=policy)
     loop.world.spawn('stiff', sources.from_model_text(STIFF), position=[2, 2, 1])
     assert _wait(lambda: loop.status().divergence is not None)
@@ -189,12 +189,12 @@ def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_l
     """
     loop = make_loop(real_time_factor=0)
     world = loop.world
-    real_step = world.step_batch
+    real_step = world.stepping.batch
 
     def broken(*args, **kwargs):
-        world.step_batch = real_step
+        world.stepping.batch = real_step
         raise RuntimeError('injected fault')
-    world.step_batch = broken
+    world.stepping.batch = broken
     deadline = time.monotonic() + 5
     while not loop.failure and time.monotonic() < deadline:
         time.sleep(0.01)

@@ -34,7 +34,7 @@ def test_the_arena_grows_with_the_bodies_not_with_their_square(caplog):
     with caplog.at_level(logging.WARNING):
         w.step(100)  # 4,000 contacts fit
     assert not [r for r in caplog.records if 'arena' in r.getMessage().lower()]
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     w.spawn('more', sources.primitive('box', [0.05] * 3), position=[0, 0, 5])
     assert arena_mb(w) == pytest.approx(expected + c.arena_bytes_per_body / 2 ** 20)
 
@@ -78,7 +78,7 @@ def test_no_lag_is_reported_when_the_factor_is_kept():
 def slow_source(tmp_path):
     """Return a model whose 150k-face mesh takes about a second or more to compile."""
     from conftest import write_mesh_model
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     model = write_mesh_model(tmp_path, 150_000)
     return sources.from_file(str(model), allowed_roots=[str(tmp_path)])
 
@@ -136,7 +136,7 @@ def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping
 @pytest.mark.parametrize('edit', ['add_body', 'set_default_contact', 'delete'])
 def test_other_edits_compile_outside_the_world_lock_too(slow_source, edit):
     """With MuJoCo's mesh cache off, every compile of this world takes seconds: no stall."""
-    from sim_node.core import assets, sources
+    from sim_node.core.models import assets, sources
     loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
     w = loop.world
     w.spawn('big', slow_source, position=[0, 2, 1])
@@ -158,7 +158,7 @@ def test_an_edit_during_a_slow_spawn_is_kept_and_the_spawn_lands_on_the_new_worl
     """A delete while the spawn compiles: the spawn starts over; nothing deleted comes back."""
     import threading
 
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('victim', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
     w.command(['left_elbow'], [0.5], 'position')
@@ -182,7 +182,7 @@ def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
     as an asset dict holding the GIL (160-330 ms at a stretch) and the world's compiled spec
     was copied under the lock: the loop stood still 0.33-1.1 s per spawn (issue 19).
     """
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'ros_env'))
     import corpus
     folder = corpus.fetch()
@@ -218,7 +218,7 @@ def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
 @pytest.mark.slow  # about 7 s
 def test_a_model_of_5000_bodies_spawns_when_max_bodies_allows_it():
     """The arena (MuJoCo's) is sized for the world after the spawn, not before (it failed)."""
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     bodies = ''.join(f'<body pos="{i % 70 * 0.3} {i // 70 * 0.3} 0.2"><freejoint/>'
                      '<geom type="box" size=".1 .1 .1"/></body>' for i in range(5000))
     source = sources.from_model_text(f'<mujoco model="many"><worldbody>{bodies}</worldbody>'
@@ -234,7 +234,7 @@ def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
     """Run `edits` (name -> callable) on threads of their own while a slow spawn compiles."""
     import threading
 
-    from sim_node.core import assets
+    from sim_node.core.models import assets
     answers: dict = {}
 
     def run(name, edit):
@@ -260,7 +260,7 @@ def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
 
 def test_edits_queued_behind_a_slow_one_are_made_together_each_with_its_own_answer(slow_source):
     """Six spawns and a delete queue while a spawn compiles: one more compile for all seven."""
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     w = World.from_file(str(DEFAULT_SCENE))
     box = sources.primitive('box', [0.05] * 3)
     w.spawn('old', box, position=[1.5, 1.5, 1])
@@ -279,7 +279,7 @@ def test_edits_queued_behind_a_slow_one_are_made_together_each_with_its_own_answ
 
 def test_edits_that_clash_in_a_group_are_made_one_by_one_and_refused_alone(slow_source):
     """Two spawns of one name, two at one place: one of each pair lands, the other is refused."""
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     from sim_node.core.errors import InvalidPoseError, NameNotUniqueError
     w = World.from_file(str(DEFAULT_SCENE))
     box = sources.primitive('box', [0.05] * 3)
@@ -302,7 +302,7 @@ def test_a_spawn_whose_world_changed_while_it_compiled_is_planned_again(slow_sou
     """A delete made inside locked() while the spawn compiles: the deleted box stays deleted."""
     import threading
 
-    from sim_node.core import assets, sources
+    from sim_node.core.models import assets, sources
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('victim', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
     assets.set_mesh_cache(0)  # compiled before by another test: slow all the same

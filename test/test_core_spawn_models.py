@@ -14,7 +14,7 @@ import gymnasium
 import mujoco
 import numpy as np
 import pytest
-from sim_node.core import sources
+from sim_node.core.models import sources
 from sim_node.core.records import RESET_STATE
 from sim_node.core.world import World
 from sim_node.simulation import Simulation

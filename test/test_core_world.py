@@ -11,11 +11,11 @@ from conftest import DEFAULT_SCENE, SCENES
 import mujoco
 import numpy as np
 import pytest
-from sim_node.core import sources
 from sim_node.core.errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
                                   InvalidPoseError, MissingAssetsError, NameNotUniqueError,
                                   NotFoundError, ResourceParseError, UnsupportedAssetsError,
                                   UnsupportedFormatError)
+from sim_node.core.models import sources
 from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
 from sim_node.core.world import World
 
@@ -151,7 +151,7 @@ def test_an_edit_that_fails_at_its_commit_leaves_every_table_as_it_was(
     world.spawn('crate', box(), position=[2, 0, 0.5])
     world.set_friction('crate', 1.5)
     before = (world.entities(), world.spawned_names(), world.generation)
-    guard, calls = world._guard, []  # bound to the new data in the switch
+    guard, calls = world._live.guard, []  # bound to the new data in the switch
     real = guard.bind
 
     def faulty(*args, **kwargs):
@@ -614,6 +614,6 @@ def test_a_value_gone_bad_in_a_batchs_last_integration_is_caught_in_that_batch(h
     with world.locked() as (m, d):
         d.qpos[0], d.qvel[0] = 9.99e9, 9e9
     with pytest.raises(DivergenceError) as info:
-        world.step(1) if how == 'step' else world.step_batch(1, snapshot=False)
+        world.step(1) if how == 'step' else world.stepping.batch(1, snapshot=False)
     assert info.value.step == 1 and 'BADQPOS' in ''.join(info.value.report['warnings'])
     assert world.step_count == 0 and world.get_state().values[1] == 9.99e9

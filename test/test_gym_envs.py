@@ -9,7 +9,7 @@ import gymnasium as gym
 from gymnasium.utils.env_checker import check_env
 import numpy as np
 import pytest
-import sim_node.gym_env  # noqa: F401  (registers the ids here; see the next test for without)
+import sim_node.gym.env  # noqa: F401  (registers the ids here; see the next test for without)
 
 IDS = ['sim/PushBox-v0', 'sim/Reach-v0', 'sim/Pusher-v0', 'sim/Reacher-v0']
 
@@ -108,7 +108,7 @@ def test_async_vector_env():
 
 def test_observations_come_from_the_world_after_a_recompile():
     """A spawn into env.world replaces its model and data: the env reads the new ones."""
-    from sim_node.core import sources
+    from sim_node.core.models import sources
     env = gym.make('sim/PushBox-v0').unwrapped
     env.reset(seed=0)
     env.step(env.action_space.low)  # the model and data of before the spawn are in use here
@@ -222,7 +222,7 @@ def test_bad_render_arguments_are_refused_when_the_env_is_made():
 
 def test_a_machine_that_cannot_render_says_so_when_the_env_is_made():
     code = ('import ctypes.util; ctypes.util.find_library = lambda name: None\n'
-            'import gymnasium, sim_node.gym_env\n'
+            'import gymnasium, sim_node.gym.env\n'
             'e = gymnasium.make("sim/PushBox-v0")\n'  # without render_mode: fine
             'try:\n    gymnasium.make("sim/PushBox-v0", render_mode="rgb_array")\n'
             'except Exception as exc:\n    print(type(exc).__name__, exc)')

@@ -5,9 +5,9 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers import TimeLimit
 import numpy as np
 import pytest
-from sim_node import gym_env
-from sim_node.gym_env import SimEnv
-from sim_node.gym_vector import SimVectorEnv
+from sim_node.gym import env as gym_env
+from sim_node.gym.env import SimEnv
+from sim_node.gym.vector import SimVectorEnv
 
 IDS = list(gym_env.TASKS)
 

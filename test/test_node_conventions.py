@@ -12,7 +12,7 @@ import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from sim_node.client import SimClient
+from sim_node.ros.client import SimClient
 from simulation_interfaces.msg import SimulationState
 
 

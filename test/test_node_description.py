@@ -16,7 +16,7 @@ import defusedxml.ElementTree as SafeET
 import gymnasium
 import numpy as np
 import pytest
-from sim_node.descriptions import DESCRIPTION_QOS
+from sim_node.ros.descriptions import DESCRIPTION_QOS
 from std_msgs.msg import String
 from test_core_description import ARM_URDF
 from urdf_fk import urdf_fk
@@ -193,7 +193,7 @@ def test_meshes_are_files_rviz_can_read_and_the_description_goes_with_its_entity
 def test_the_launch_files_robot_model_display_reads_our_topic_and_frames(sim, watch):
     """``entity:=robot``: RViz's RobotModel reads the description and finds every link's frame."""
     from conftest import installed_prefix
-    from sim_node.rviz_config import with_robot_model
+    from sim_node.ros.rviz_config import with_robot_model
     import yaml
     base = (installed_prefix() / 'share' / 'sim' / 'rviz' / 'sim.rviz').read_text()
     config = yaml.safe_load(with_robot_model(base, 'robot'))

@@ -105,7 +105,7 @@ def _ignore(call) -> None:
 def test_quitting_answers_ok_stops_then_exits_with_status_0(start_node, rclpy_context, watcher):
     """Quitting (SetSimulationState): reset (stop) first, answer, then the process ends."""
     import time
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     from simulation_interfaces.msg import SimulationState
     # A namespace of its own: a node killed earlier may linger in the graph for seconds
     node = start_node(namespace='/quitter')

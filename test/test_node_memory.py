@@ -1,7 +1,7 @@
 """
 The node gives memory back: its RSS after reset cycles, a spawn/delete storm, refused requests.
 
-And the process settings that make it so (:mod:`sim_node.middleware`) yield to the user's own.
+And the process settings that make it so (:mod:`sim_node.ros.middleware`) yield to the user's own.
 """
 
 import os
@@ -26,7 +26,7 @@ def rss_mib(pid: int) -> float:
 @pytest.fixture
 def warm(start_node, rclpy_context):
     """Return (node, client, RSS in MiB) once every path below has run once."""
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     node = start_node()
     client = SimClient(timeout_sec=60)
     try:
@@ -59,7 +59,7 @@ def test_reset_cycles_leave_at_most_20_mib(warm):
 
 def test_refused_large_requests_leave_at_most_20_mib(warm):
     """A 50 MB resource string and six 10 MB names, each refused: their memory comes back."""
-    from sim_node.client import SimServiceError
+    from sim_node.ros.client import SimServiceError
     node, client, before = warm
     with pytest.raises(SimServiceError):
         client.spawn('big', resource_string='<mujoco>' + 'x' * 50_000_000 + '</mujoco>')
@@ -74,7 +74,7 @@ def test_refused_large_requests_leave_at_most_20_mib(warm):
                                    {'RMW_FASTRTPS_USE_QOS_FROM_XML': '0'},
                                    {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}])
 def test_the_node_loads_its_fast_dds_profiles_only_where_the_user_set_none(given, monkeypatch):
-    from sim_node import middleware
+    from sim_node.ros import middleware
     for key in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'RMW_FASTRTPS_USE_QOS_FROM_XML',
                 'RMW_IMPLEMENTATION'):
         monkeypatch.delenv(key, raising=False)
@@ -91,7 +91,7 @@ def test_the_node_loads_its_fast_dds_profiles_only_where_the_user_set_none(given
 
 
 def test_a_storm_of_eight_spawning_and_deleting_clients_leaves_at_most_50_mib(warm):
-    from sim_node.client import SimClient
+    from sim_node.ros.client import SimClient
     node, client, before = warm
     failures = []
 

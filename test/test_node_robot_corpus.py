@@ -70,7 +70,7 @@ def test_builtin_spawnables_stay_readable_beside_resource_paths(node, sim):
 
 
 def test_a_file_outside_the_corpus_is_still_refused_through_dotdot(node, sim, corpus_folder):
-    from sim_node.client import SimServiceError
+    from sim_node.ros.client import SimServiceError
     from simulation_interfaces.srv import SpawnEntity
     outside = f'{corpus_folder}/robosuite/../../../scenes/default.xml'  # the source tree's
     with pytest.raises(SimServiceError) as err:

@@ -12,7 +12,7 @@ import time
 
 from conftest import serve_node, wait_for, Watcher
 import pytest
-from sim_node.client import SimClient, SimServiceError
+from sim_node.ros.client import SimClient, SimServiceError
 from simulation_interfaces.msg import EntityCategory, Result, SimulationState
 from simulation_interfaces.srv import SetEntityState, SetSimulationState, SpawnEntity
 

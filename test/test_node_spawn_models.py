@@ -10,7 +10,7 @@ import os
 from conftest import serve_node, wait_for, Watcher
 import gymnasium
 import pytest
-from sim_node.client import SimClient
+from sim_node.ros.client import SimClient
 
 GYM_ASSETS = os.path.join(os.path.dirname(gymnasium.__file__), 'envs', 'mujoco', 'assets')
 

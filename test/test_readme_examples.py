@@ -1,5 +1,5 @@
 """
-The README's examples, run exactly as written: its shell blocks through bash, its Python blocks.
+The README's and docs' examples, run exactly as written: shell blocks in bash, Python blocks.
 
 Shell blocks that talk to the node run against ``make run`` (the README's own command, started
 here in the background); ``ros2`` is ``test/ros2_shim/ros2`` where ros2cli is not installed.
@@ -18,8 +18,9 @@ import time
 from conftest import ROOT
 import pytest
 
-README = (ROOT / 'README.md').read_text()
-BLOCKS = re.findall(r'```(bash|python)\n(.*?)```', README, re.S)
+DOCUMENTS = [ROOT / 'README.md', *sorted((ROOT / 'docs').glob('*.md'))]
+BLOCKS = [(kind, text) for doc in DOCUMENTS
+          for kind, text in re.findall(r'```(bash|python)\n(.*?)```', doc.read_text(), re.S)]
 SHIM = ROOT / 'test' / 'ros2_shim'
 
 
@@ -117,8 +118,9 @@ def test_readme_python_block_runs_as_written(block):
     assert out.returncode == 0, out.stderr[-3000:]
 
 
-def test_readme_client_block_runs_as_written(tmp_path):
-    (block,) = [b for b in python_blocks() if 'SimClient' in b]
+@pytest.mark.parametrize('block', [b for b in python_blocks() if 'SimClient' in b],
+                         ids=lambda b: b.splitlines()[0][:40])
+def test_readme_client_block_runs_as_written(block, tmp_path):
     session = Session(tmp_path)
     try:
         session.start('make run', 'default_node')

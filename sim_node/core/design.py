@@ -6,7 +6,8 @@ MuJoCo does not: the entities spawned since load (:class:`Spawned`, one typed re
 contact settings of single entities and of the whole world (:class:`Contact`), and how many
 spawned entities were removed since the spec was last compacted. It is never changed in place:
 :meth:`Design.build` applies an :class:`Edit` to a copy and compiles it, giving the next design
-and its model, and the world commits both together or neither (``WorldEdits._change``).
+and its model, and the world commits both together or neither (``Transaction.change``,
+:mod:`.transaction`).
 Rolling a failed commit back is putting the old design back.
 
 No locks here and no live state (MjData): a design is built outside the world lock.

@@ -14,9 +14,10 @@ import warnings
 import mujoco
 import numpy as np
 
-from . import quat, sources
+from . import quat
 from .errors import ResourceParseError
 from .index import ModelIndex
+from .models import sources
 from .records import EntityRecord
 
 log = logging.getLogger(__name__)

@@ -71,6 +71,26 @@ class IncorrectStateError(SimError):
     """A request that the simulation's current state does not allow."""
 
 
+class NoWorldError(IncorrectStateError):
+    """No world is loaded (NO_WORLD_LOADED where the service has that code, else 3)."""
+
+
+class TransitionError(SimError):
+    """A simulation state change the lifecycle refuses (SetSimulationState's own codes)."""
+
+
+class AlreadyInStateError(TransitionError):
+    """The simulation is in the requested state already (ALREADY_IN_TARGET_STATE, 101)."""
+
+
+class StateTransitionError(TransitionError):
+    """The transition was tried and failed (STATE_TRANSITION_ERROR, 102)."""
+
+
+class IncorrectTransitionError(TransitionError):
+    """The transition is not allowed from the current state (INCORRECT_TRANSITION, 103)."""
+
+
 class OperationFailedError(IncorrectStateError):
     """
     A valid request the state does not allow, where the standard answers OPERATION_FAILED (4).

@@ -12,8 +12,8 @@ from typing import Iterable, Mapping
 import mujoco
 import numpy as np
 
-from . import devices
 from .checks import closest_hint
+from .devices import catalog
 from .errors import NotFoundError
 from .records import (DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT,
                       STATIC, VELOCITY)
@@ -130,7 +130,7 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         body_local_pos=m.body_pos.copy(), body_local_quat_wxyz=m.body_quat.copy(),
         body_alias=alias, body_mount=tuple(mount), joint_names=jnames, geoms=_geom_visuals(m),
         entities=entities,
-        cameras=devices.cameras(m), sensors=devices.sensors(m), sites=devices.sites(m),
+        cameras=catalog.cameras(m), sensors=catalog.sensors(m), sites=catalog.sites(m),
         joint_entity=joint_entity)
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),

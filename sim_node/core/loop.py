@@ -388,14 +388,14 @@ class SimLoop:
         The world lock is never taken while ``_cv`` is held (the lock order, docs/threading.md):
         what the batch needs of the world is read before. A batch takes the world lock once:
         the clock comes from the batch before unless something changed the world since
-        (:meth:`World.clock_since_batch`), and the snapshot is made in the batch's hold.
+        (``world.stepping.clock_since_batch``), and the snapshot is made in the batch's hold.
         """
         with self._cv:
             idle = not self._stopping and self._paused and not self._pending_steps
         if idle:
             # Consumers see the state the loop stopped in, not one from before the pause.
             self.refresh_snapshot()
-        clock = self.world.clock_since_batch() or self.world.clock()
+        clock = self.world.stepping.clock_since_batch() or self.world.clock()
         with self._cv:
             if not self._stopping and self._paused and not self._pending_steps:
                 while not self._stopping and self._paused and not self._pending_steps:
@@ -433,10 +433,10 @@ class SimLoop:
                 n = min(n, self._steps_to_limit(clock))
             # A step request's last batch is shown by a snapshot before its caller hears.
             last_request_batch = stepping_request and self._pending_steps <= n
-        self.world.wait_for_callers()
+        self.world.stepping.wait_for_callers()
         t0 = time.perf_counter()
         try:
-            snap = self.world.step_batch(n, last_request_batch or (
+            snap = self.world.stepping.batch(n, last_request_batch or (
                 t0 - self._last_snapshot >= self._snapshot_period))
         except DivergenceError as exc:
             log.error('%s', exc)

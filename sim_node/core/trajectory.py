@@ -204,6 +204,47 @@ def check(joint_names: Sequence[str], times: Sequence[float], positions: Sequenc
     return (t, *arrays)
 
 
+def plan(index, data, entity: str, joint_names: Sequence[str], times: Sequence[float],
+         positions: Sequence[Sequence], velocities: Sequence[Sequence],
+         accelerations: Sequence[Sequence], start_time: float,
+         path_tolerance: Optional[dict], goal_tolerance: Optional[dict],
+         goal_time_tolerance: float) -> 'Trajectory':
+    """
+    Check a goal against a world's joints (:class:`~.index.ModelIndex`, MjData) and plan it.
+
+    Starts from the joints' state now; see :meth:`World.follow_trajectory
+    <sim_node.core.world.World.follow_trajectory>` for the arguments. Call with the world lock.
+
+    :raises TrajectoryError: with FollowJointTrajectory's error code.
+    """
+    known = dict(zip(index.joint_names, index.info.joint_entity))
+    t, q, v, a = check(joint_names, times, positions, velocities, accelerations, known, entity)
+    now = float(data.time)
+    start = now if start_time <= 0 else float(start_time)
+    if start + t[-1] < now:
+        raise TrajectoryError(OLD_HEADER_TIMESTAMP, ERR_OLD.format(end=start + t[-1], now=now))
+    idx = index.joints(joint_names)
+    names = tuple(joint_names)
+    return Trajectory(
+        joints=names, start=start, times=t, positions=q, velocities=v, accelerations=a,
+        start_positions=data.qpos[index.joint_qposadr[idx]].copy(),
+        start_velocities=(data.qvel[index.joint_dofadr[idx]].copy() if v is not None
+                          else np.zeros(len(names))),
+        path_tolerance=_tolerance(names, path_tolerance),
+        goal_tolerance=_tolerance(names, goal_tolerance),
+        goal_time_tolerance=max(0.0, float(goal_time_tolerance)))
+
+
+def _tolerance(names: tuple, given: Optional[dict]) -> Tolerance:
+    """(n,) limits per joint from joint -> (position, velocity, acceleration); 0: unchecked."""
+    tol = Tolerance.none(len(names))
+    for i, name in enumerate(names):
+        p, v, a = (given or {}).get(name, (0.0, 0.0, 0.0))
+        tol.position[i], tol.velocity[i], tol.acceleration[i] = (max(0.0, float(x))
+                                                                 for x in (p, v, a))
+    return tol
+
+
 @dataclass
 class Status:
     """Where a running trajectory stands: its outcome once decided (``code`` not None)."""

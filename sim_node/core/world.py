@@ -1,38 +1,37 @@
 """
-The MuJoCo world while it runs: one MjModel/MjData, its lock, stepping, reading and reset.
+The MuJoCo world while it runs: the facade every user of the core talks to.
 
-This is the run phase: the world keeps the lock, the current model, data, index and generation,
-and its public methods lock, validate and delegate: addresses to :mod:`.index`, joint commands
-to :mod:`.control`, the divergence check to :mod:`.guard`, state reads and writes to
-:mod:`.state` (and :mod:`.world_writes`). The edit phase (spawn, delete, contact, mass, the
-spec and its tables, the one commit path and compaction) is :mod:`.world_edits` over
-:mod:`.design`. The threading contract is in the package docstring (``sim_node.core``).
+Its public methods lock, validate and delegate. What is current (the lock, the model, data,
+index, design and generation) is one :class:`~.live.Live`; the steps and the stepping loop's
+protocol are :mod:`.stepping` (``world.stepping``); structural edits are planned in
+:mod:`.edits` and made by the one commit path, :mod:`.transaction`; state writes are
+:mod:`.writes`; addresses come from :mod:`.index`, joint commands go to :mod:`.control`, reads to
+:mod:`.state`. The threading contract is in the package docstring (``sim_node.core``).
 """
 
 import contextlib
 from pathlib import Path
-import threading
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
 
 import mujoco
 import numpy as np
 
-from . import assets, checks, description, editor, guard
-from . import index as model_index
-from . import sources, state, trajectory
+from . import checks, editor, guard, state, trajectory
 from .checks import check_finite
 from .config import WorldConfig
-from .control import Control
 from .design import Design
-from .errors import (DivergenceError, FeatureUnsupportedError, IncorrectStateError,
-                     InvalidArgumentError, InvalidPoseError, ResourceParseError)
-from .guard import clean, DivergenceGuard
-from .index import ModelIndex, STATE_SPEC
-from .lock import WorldLock
+from .edits import Edits
+from .errors import (FeatureUnsupportedError, IncorrectStateError, InvalidArgumentError,
+                     ResourceParseError)
+from .guard import clean
+from .index import STATE_SPEC
+from .live import Live
+from .models import assets, description, sources
 from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
                       RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
-from .world_edits import WorldEdits
-from .world_writes import StateWrites
+from .stepping import ERR_STEPS, Stepping
+from .transaction import Transaction
+from .writes import Writes
 
 T = TypeVar('T')
 
@@ -40,40 +39,24 @@ ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the w
                         'generation {now} (an entity was spawned or deleted since)')
 ERR_SCOPE = ('reset scope {scope} has bits no simulator defines: use 0 (all), 255 (all) or a '
              'combination of 1 (time), 2 (state) and 4 (spawned)')
-ERR_STEPS = 'steps must be >= 1, got {n}'
 ERR_NO_DESCRIPTION = ('entity {name!r} has no hinge or slide joints: only robots have a robot '
                       'description')
-#: How long the loop lets callers waiting for the world lock go first, at most, per batch. It
-#: is time the world does not step: under a storm of edits there are always callers waiting,
-#: and 50 ms here stalled /clock by 50-77 ms at a time (make bench-storm).
-CALLERS_FIRST_SEC = 0.01
-ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the world frame '
-             "('' or 'world') or the name of an entity")
 
 _SCOPE_BITS = RESET_TIME | RESET_STATE | RESET_SPAWNED
 _NO_AUTORESET = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
 
 
-class World(StateWrites, WorldEdits):
+class World:
     """
     A MuJoCo world that can change while it runs.
 
-    Thread-safe; see ``sim_node.core``.
-
-    Build with :meth:`from_file` or :meth:`from_string`.
+    Thread-safe; see ``sim_node.core``. Build with :meth:`from_file` or :meth:`from_string`.
     """
 
     def __init__(self, spec: mujoco.MjSpec, config: WorldConfig = WorldConfig(),
                  source: str = ''):
         self.config = config
         self.source = source
-        self._lock_cm = WorldLock()
-        self._edit_lock = threading.Lock()  # structural edits take turns (see _change)
-        self._queue_lock = threading.Lock()  # a leaf: the edits waiting for _edit_lock
-        self._queued: list = []
-        self._lock = self._lock_cm.lock
-        self._control = Control(config.kp, config.kd)
-        self._guard = DivergenceGuard()
         # Disable MuJoCo's whole-world auto-reset on NaN: divergence is ours to report.
         spec.option.disableflags |= _NO_AUTORESET
         if config.timestep > 0:
@@ -85,13 +68,13 @@ class World(StateWrites, WorldEdits):
         arena = ((config.arena_base_bytes, config.arena_bytes_per_body)
                  if spec.memory == -1 else None)  # the scene left it to MuJoCo's default
         # The edit phase's state, replaced whole by each structural edit (.design).
-        self._design, model = Design.start(spec, arena)
-        self._generation = 0
-        self._step_count = 0
-        self._snapshot_seq = 0
-        self._batch_clock: Optional[Clock] = None  # see clock_since_batch
-        self._adopt_locked(model, mujoco.MjData(model))
-        self._reset_state_locked(keep_time=False)
+        design, model = Design.start(spec, arena)
+        self._live = live = Live(config, design, model)
+        #: The stepping loop's way in (:class:`~.stepping.Stepping`).
+        self.stepping = Stepping(live)
+        self._transaction = Transaction(live)
+        self._edits = Edits(live, self._transaction)
+        self._writes = Writes(live, self._transaction)
 
     @classmethod
     def from_file(cls, path: str, config: WorldConfig = WorldConfig()) -> 'World':
@@ -114,17 +97,9 @@ class World(StateWrites, WorldEdits):
 
     # ---------------------------------------------------------------- locking
 
-    def _locked(self) -> WorldLock:
-        """Return the world lock, counting waiters so the loop can step aside for them."""
-        return self._lock_cm
-
     def holds_lock(self) -> bool:
         """Whether the calling thread holds the world lock (is inside :meth:`locked`)."""
-        return self._lock._is_owned()
-
-    def wait_for_callers(self, timeout: float = CALLERS_FIRST_SEC) -> None:
-        """Use by the loop: let callers waiting for the lock go first."""
-        self._lock_cm.wait_for_callers(timeout)
+        return self._live.holds_lock()
 
     @contextlib.contextmanager
     def locked(self) -> Iterator[tuple]:
@@ -133,22 +108,25 @@ class World(StateWrites, WorldEdits):
 
         Anything changed here is the caller's responsibility; the loop is held off meanwhile.
         """
-        with self._locked():
-            self._cached = None  # the caller may change anything
+        live = self._live
+        with live.lock:
+            live.cached = None  # the caller may change anything
             try:
-                yield self._model, self._data
+                yield live.model, live.data
             finally:  # even when the caller's block raised, after changing something
-                self._stale_kinematics = self._stale_dynamics = True
+                live.changed_locked()
 
     def read(self, read: Callable[[mujoco.MjModel, mujoco.MjData], T]) -> T:
         """
         Return what `read` returns, called with (model, data) under the world lock.
 
         The current model and data as they are (after a step, body poses are a step behind:
-        see :meth:`_kinematics_locked`); `read` must change nothing and keep neither.
+        see :meth:`Live.kinematics_locked <.live.Live.kinematics_locked>`); `read` must change
+        nothing and keep neither.
         """
-        with self._locked():
-            return read(self._model, self._data)
+        live = self._live
+        with live.lock:
+            return read(live.model, live.data)
 
     def observe(self, read: Callable[[mujoco.MjModel, mujoco.MjData, int], T]) -> T:
         """
@@ -158,65 +136,72 @@ class World(StateWrites, WorldEdits):
         poses describe the current state. `read` must change nothing and be quick: the loop
         waits meanwhile.
         """
-        with self._locked():
-            self._kinematics_locked()
-            mujoco.mj_camlight(self._model, self._data)
-            return read(self._model, self._data, self._index.generation)
+        live = self._live
+        with live.lock:
+            live.kinematics_locked()
+            mujoco.mj_camlight(live.model, live.data)
+            return read(live.model, live.data, live.index.generation)
+
+    def wait_new_model(self, after: int, timeout: float) -> int:
+        """Block until the model generation is no longer `after` (or `timeout` s); return it."""
+        return self._live.wait_new_model(after, timeout)
 
     # ---------------------------------------------------------------- introspection
 
     @property
     def generation(self) -> int:
-        with self._locked():
-            return self._index.generation
+        with self._live.lock:
+            return self._live.index.generation
 
     @property
     def model_info(self) -> ModelInfo:
-        with self._locked():
-            return self._index.info
+        with self._live.lock:
+            return self._live.index.info
 
     @property
     def timestep(self) -> float:
-        with self._locked():
-            return float(self._model.opt.timestep)
+        with self._live.lock:
+            return float(self._live.model.opt.timestep)
 
     @property
     def time(self) -> float:
-        with self._locked():
-            return float(self._data.time)
+        with self._live.lock:
+            return float(self._live.data.time)
 
     def clock(self) -> Clock:
         """Return the time, step count and timestep, read together."""
-        with self._locked():
-            return self._clock_locked()
-
-    def _clock_locked(self) -> Clock:
-        return Clock(float(self._data.time), self._step_count, float(self._model.opt.timestep))
+        with self._live.lock:
+            return self._live.clock_locked()
 
     @property
     def step_count(self) -> int:
         """Step since the last time reset."""
-        with self._locked():
-            return self._step_count
+        with self._live.lock:
+            return self._live.step_count
 
     def entities(self) -> list:
         """Every entity (:class:`EntityRecord`), in model order."""
-        with self._locked():
-            return list(self._index.entities)
+        with self._live.lock:
+            return list(self._live.index.entities)
 
     def entity(self, name: str) -> EntityRecord:
-        with self._locked():
-            return self._index.entity(name)
+        with self._live.lock:
+            return self._live.index.entity(name)
 
     def spawned_names(self) -> list:
         """Return the entities spawned since load (the ones that can be deleted)."""
-        with self._locked():
-            return list(self._design.spawned)
+        with self._live.lock:
+            return list(self._live.design.spawned)
+
+    def spawned_record(self, name: str):
+        """Return what the edit phase keeps of a spawned entity (:class:`~.design.Spawned`)."""
+        with self._live.lock:
+            return self._live.design.spawned.get(name)
 
     def joint_names(self) -> list:
         """Hinge and slide joints, the ones joint commands and joint_states cover."""
-        with self._locked():
-            return list(self._index.joint_names)
+        with self._live.lock:
+            return list(self._live.index.joint_names)
 
     def robot_description(self, name: str, mesh_dir: Optional[str] = None) -> str:
         """
@@ -226,10 +211,11 @@ class World(StateWrites, WorldEdits):
         in place, by edits). :param mesh_dir: where mesh geometry is written as STL (None: meshes
         are left out).
         """
-        with self._locked():
-            rec = self._index.entity(name)
-            spawned = self._design.spawned.get(name)
-            model, info = self._model, self._index.info
+        live = self._live
+        with live.lock:
+            rec = live.index.entity(name)
+            spawned = live.design.spawned.get(name)
+            model, info = live.model, live.index.info
         if spawned is not None and spawned.urdf:
             return description.renamed_urdf(spawned.urdf, name)
         if not info.body_alias[rec.root_body]:
@@ -244,50 +230,40 @@ class World(StateWrites, WorldEdits):
 
         In the world frame, or with `local` in the entity's own (root body) frame.
         """
-        with self._locked():
-            rec = self._index.entity(name)
-            self._kinematics_locked()
-            return state.bounds(self._model, self._data, rec, local)
+        live = self._live
+        with live.lock:
+            rec = live.index.entity(name)
+            live.kinematics_locked()
+            return state.bounds(live.model, live.data, rec, local)
 
     # ---------------------------------------------------------------- snapshots and state
 
     def snapshot(self) -> Snapshot:
         """Return an immutable copy for publishers, with the model info of its generation."""
-        with self._locked():
-            return self._snapshot_locked()
-
-    def _snapshot_locked(self) -> Snapshot:
-        if self._stale_kinematics:
-            # Body poses only: a third of _kinematics_locked's cost (1,000 bodies at 200 Hz),
-            # which stays due for readers of velocities.
-            mujoco.mj_kinematics(self._model, self._data)
-        self._snapshot_seq += 1
-        return state.snapshot(self._data, self._index, self._step_count, self._snapshot_seq)
+        with self._live.lock:
+            return self._live.snapshot_locked()
 
     def get_state(self) -> PhysicsState:
         """Return the full integration state, like the older systems' ``getState``."""
-        with self._locked():
-            values = np.empty(self._index.state_size)
-            mujoco.mj_getState(self._model, self._data, values, STATE_SPEC)
-            return PhysicsState(generation=self._index.generation, step=self._step_count,
+        live = self._live
+        with live.lock:
+            values = np.empty(live.index.state_size)
+            mujoco.mj_getState(live.model, live.data, values, STATE_SPEC)
+            return PhysicsState(generation=live.index.generation, step=live.step_count,
                                 values=values)
 
     def set_state(self, physics_state: PhysicsState) -> None:
         """Overwrite the full state with one from :meth:`get_state` of the same generation."""
-        with self._locked():
-            if physics_state.generation != self._index.generation:
+        live = self._live
+        with live.lock:
+            if physics_state.generation != live.index.generation:
                 raise IncorrectStateError(ERR_STATE_GENERATION.format(
-                    got=physics_state.generation, now=self._index.generation))
+                    got=physics_state.generation, now=live.index.generation))
             values = np.asarray(physics_state.values, dtype=float)
-            if values.shape != (self._index.state_size,) or not clean(values):
+            if values.shape != (live.index.state_size,) or not clean(values):
                 raise InvalidArgumentError(checks.ERR_NOT_FINITE.format(
                     what='state values', value=f'{values.size} values'))
-            self._set_state_locked(values, physics_state.step)
-
-    def _set_state_locked(self, values: np.ndarray, step: int) -> None:
-        mujoco.mj_setState(self._model, self._data, values, STATE_SPEC)
-        self._step_count = step
-        self._forward_locked()
+            live.set_state_locked(values, physics_state.step)
 
     def get_entity_state(self, name: str, reference: str = '') -> EntityState:
         """
@@ -295,22 +271,12 @@ class World(StateWrites, WorldEdits):
 
         In the world or `reference`'s frame (see :func:`state.entity_state`).
         """
-        with self._locked():
-            rec = self._index.entity(name)
-            self._dynamics_locked()
-            frame = self._frame_locked(reference) if reference else None
-            return state.entity_state(self._model, self._data, rec, frame)
-
-    def _frame_locked(self, name: str) -> tuple:
-        rec = self._index.entity(name)
-        self._kinematics_locked()
-        return state.body_pose(self._data, rec.root_body)
-
-    def _pose_frame_locked(self, name: str) -> tuple:
-        """Return the pose of the frame a written pose is given in; unknown: an invalid pose."""
-        if name not in self._index.entity_by_name:
-            raise InvalidPoseError(ERR_FRAME.format(frame=name[:200]))
-        return self._frame_locked(name)
+        live = self._live
+        with live.lock:
+            rec = live.index.entity(name)
+            live.dynamics_locked()
+            frame = live.frame_locked(reference) if reference else None
+            return state.entity_state(live.model, live.data, rec, frame)
 
     def get_joint_states(self) -> dict:
         """Name -> (position, velocity, effort) for every hinge and slide joint."""
@@ -318,6 +284,29 @@ class World(StateWrites, WorldEdits):
         return {n: (float(p), float(v), float(e)) for n, p, v, e in zip(
             snap.info.joint_names, snap.joint_position, snap.joint_velocity,
             snap.joint_effort)}
+
+    def set_entity_state(self, name: str, position: Optional[Sequence[float]] = None,
+                         quat_wxyz: Optional[Sequence[float]] = None,
+                         linear_velocity: Optional[Sequence[float]] = None,
+                         angular_velocity: Optional[Sequence[float]] = None,
+                         reference: str = '',
+                         acceleration: Optional[Sequence[float]] = None) -> None:
+        """Set the pose and/or twist of an entity's root body (see :mod:`.writes`)."""
+        self._writes.set_entity_state(name, position, quat_wxyz, linear_velocity,
+                                      angular_velocity, reference, acceleration)
+
+    def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
+                  joint_positions: Optional[dict] = None,
+                  joint_velocities: Optional[dict] = None) -> None:
+        """Overwrite any parts of the state at once, in the world frame (see :mod:`.writes`)."""
+        self._writes.overwrite(poses, twists, joint_positions, joint_velocities)
+
+    def set_joint_positions(self, positions: dict) -> None:
+        """Set hinge/slide joint positions by name (velocities are kept)."""
+        self._writes.set_joint_positions(positions)
+
+    def set_joint_velocities(self, velocities: dict) -> None:
+        self._writes.set_joint_velocities(velocities)
 
     # ---------------------------------------------------------------- control
 
@@ -331,9 +320,9 @@ class World(StateWrites, WorldEdits):
         :raises NotFoundError: an unknown joint; nothing is staged.
         :raises InvalidArgumentError: a non-finite value, a length mismatch or a bad mode.
         """
-        with self._locked():
-            index = self._index
-        self._control.stage(index, names, values, mode)
+        with self._live.lock:
+            index = self._live.index
+        self._live.control.stage(index, names, values, mode)
 
     def follow_trajectory(self, entity: str, joint_names: Sequence[str],
                           times: Sequence[float], positions: Sequence[Sequence[float]],
@@ -356,43 +345,30 @@ class World(StateWrites, WorldEdits):
             met (0: no limit).
         :raises TrajectoryError: with FollowJointTrajectory's error code.
         """
-        with self._locked():
-            index, d = self._index, self._data
-            known = dict(zip(index.joint_names, index.info.joint_entity))
-            t, q, v, a = trajectory.check(joint_names, times, positions, velocities,
-                                          accelerations, known, entity)
-            now = float(d.time)
-            start = now if start_time <= 0 else float(start_time)
-            if start + t[-1] < now:
-                raise trajectory.TrajectoryError(trajectory.OLD_HEADER_TIMESTAMP,
-                                                 trajectory.ERR_OLD.format(end=start + t[-1],
-                                                                           now=now))
-            idx = index.joints(joint_names)
-            names = tuple(joint_names)
-            traj = trajectory.Trajectory(
-                joints=names, start=start, times=t, positions=q, velocities=v,
-                accelerations=a, start_positions=d.qpos[index.joint_qposadr[idx]].copy(),
-                start_velocities=(d.qvel[index.joint_dofadr[idx]].copy() if v is not None
-                                  else np.zeros(len(names))),
-                path_tolerance=_tolerance(names, path_tolerance),
-                goal_tolerance=_tolerance(names, goal_tolerance),
-                goal_time_tolerance=max(0.0, float(goal_time_tolerance)))
-            tracker = trajectory.Tracker(traj)
-            self._control.start_run(entity, tracker, index, self._model, d)
-            self._cached = None
-            return TrajectoryHandle(self, entity, self._control.run_of(entity))
+        live = self._live
+        with live.lock:
+            traj = trajectory.plan(live.index, live.data, entity, joint_names, times,
+                                   positions, velocities, accelerations, start_time,
+                                   path_tolerance, goal_tolerance, goal_time_tolerance)
+            live.control.start_run(entity, trajectory.Tracker(traj), live.index, live.model,
+                                   live.data)
+            live.cached = None
+            return TrajectoryHandle(self, entity, live.control.run_of(entity))
 
-    def _cancel_trajectory(self, handle: 'TrajectoryHandle') -> None:
-        with self._locked():
-            self._control.cancel_run(handle.entity, handle.run, self._data, self._index,
-                                     self._model)
-            self._cached = None
+    def cancel_trajectory(self, handle: 'TrajectoryHandle') -> None:
+        """End a trajectory now; the joints hold where they are (see TrajectoryHandle)."""
+        live = self._live
+        with live.lock:
+            live.control.cancel_run(handle.entity, handle.run, live.data, live.index,
+                                    live.model)
+            live.cached = None
 
     def set_gains(self, kp: float, kd: float) -> None:
         """PD gains for joints commanded without a matching actuator."""
-        with self._locked():
-            self._control.set_gains(kp, kd, self._index, self._model, self._data)
-            self._cached = None
+        live = self._live
+        with live.lock:
+            live.control.set_gains(kp, kd, live.index, live.model, live.data)
+            live.cached = None
 
     # ---------------------------------------------------------------- stepping
 
@@ -408,133 +384,7 @@ class World(StateWrites, WorldEdits):
         :raises DivergenceError: the physics diverged; the world is back at the state before
             the bad step and ``error.step`` names it.
         """
-        if n < 1:
-            raise InvalidArgumentError(ERR_STEPS.format(n=n))
-        # Once per Gym step and per loop batch: take a free lock directly. It is WorldLock's
-        # own fast path without the context-manager calls, 0.25 us a step (1% of a
-        # Reacher-v5 step); a contended lock goes through WorldLock as usual.
-        if self._lock.acquire(blocking=False):
-            try:
-                return self._step_locked(int(n), ctrl, then)
-            finally:
-                self._lock.release()
-        with self._lock_cm:
-            return self._step_locked(int(n), ctrl, then)
-
-    def step_batch(self, n: int, snapshot: bool) -> Optional[Snapshot]:
-        """
-        For the loop: `n` steps, then the clock and, if asked, a snapshot, in one hold.
-
-        One acquisition of the world lock per batch instead of three (clock, step, snapshot):
-        under a storm of edits each acquisition can wait behind other callers, and the waits
-        added up to stalls of 60-110 ms (``make bench-storm``). The clock after the steps is
-        kept for :meth:`clock_since_batch`. Returns the snapshot, or None; raises as
-        :meth:`step` does.
-        """
-        with self._lock_cm:
-            self._step_locked(int(n), None, None, quiet=True)
-            self._batch_clock = self._clock_locked()
-            return self._snapshot_locked() if snapshot else None
-
-    def clock_since_batch(self) -> Optional[Clock]:
-        """
-        Return the clock :meth:`step_batch` gave, if nothing changed the world since; else None.
-
-        Without the lock: every write of the state (resets, set_state, ``locked()``, a new
-        model) clears ``_cached`` under the lock before it changes time, step count or timestep,
-        and only the loop, which asks, steps. A read racing a write is one from just before it,
-        as a locked read made a moment earlier would be.
-        """
-        return self._batch_clock if self._cached is not None else None
-
-    def _step_locked(self, n: int, ctrl: Optional[np.ndarray],
-                     then: Optional[Callable[[mujoco.MjModel, mujoco.MjData], None]],
-                     quiet: bool = False) -> int:
-        """
-        Step under the lock; see :meth:`step`.
-
-        :param quiet: make no MuJoCo call but the steps themselves on a clean batch (the loop:
-            each call gives the GIL away, and other threads kept it for up to 5 ms each time
-            under a storm of edits, with the world lock held meanwhile). Same results.
-        """
-        # The state after the last clean batch, if untouched since: it holds the previous
-        # controls, so a replay writes `ctrl` again.
-        before = self._cached
-        self._batch_clock = None  # set again by step_batch, the loop's way to step
-        if ctrl is not None:
-            self._ctrl[:] = ctrl
-        m, d, control = self._model, self._data, self._control
-        if control.has_staged:
-            control.apply_staged(self._index, m, d)
-            before = None
-        if before is None:
-            before = np.empty(self._index.state_size)
-            mujoco.mj_getState(m, d, before, STATE_SPEC)
-            ctrl = None  # already in `before`
-        if control.per_step:
-            for _ in range(n):
-                control.apply(m, d)
-                mujoco.mj_step(m, d)
-        else:
-            mujoco.mj_step(m, d, n)
-        if self._guard.diverged(m, d, quiet):
-            self._diverged_locked(before, n, ctrl)
-        self._step_count += n
-        # The state after a clean batch: the next batch's starting point (unless something
-        # changes it), and the fallback for divergence caused by values put in between steps
-        # (e.g. through locked()). One buffer, overwritten in place: `before` is spent by now.
-        if quiet and self._copy_state is not None:
-            self._copy_state(self._good_buf)
-        else:
-            mujoco.mj_getState(m, d, self._good_buf, STATE_SPEC)
-        self._last_good = self._cached = self._good_buf
-        self._stale_kinematics = self._stale_dynamics = True
-        if then is not None:
-            then(m, d)
-        return self._step_count
-
-    def _diverged_locked(self, before: np.ndarray, n: int, ctrl: Optional[np.ndarray]) -> None:
-        m, d, control = self._model, self._data, self._control
-        k, good, report = self._guard.locate(
-            m, d, before, n, ctrl, (lambda: control.apply(m, d)) if control.per_step else None)
-        bad_step = self._step_count + k + 1
-        report['step'] = bad_step
-        self._step_count += k
-        if not clean(good):
-            # The bad values were put in between steps (e.g. through locked()): go back to
-            # the state after the last clean batch.
-            good = self._last_good if self._last_good is not None else good
-        self._set_state_locked(good, self._step_count)
-        report['entity'], report['body'] = self._culprit_locked(report['warnings'])
-        where = (f' in entity {report["entity"]!r} (body {report["body"]!r})'
-                 if report['entity'] else '')
-        raise DivergenceError(f'physics diverged at step {bad_step} (t={report["time"]:.4f} s)'
-                              f'{where}: {report["warnings"] or "non-finite state"}; restored '
-                              'the state before it', bad_step, report)
-
-    def _culprit_locked(self, warnings: dict) -> tuple:
-        """
-        Return (entity, body) that MuJoCo's bad-state warning points at, or ('', '').
-
-        The warning's ``lastinfo`` is the bad dof (qacc, qvel) or qpos entry: dof -> body, or
-        qpos entry -> joint -> body, then the body's entity.
-        """
-        m, idx = self._model, self._index
-        body = -1
-        for name in ('mjWARN_BADQACC', 'mjWARN_BADQVEL', 'mjWARN_BADQPOS'):
-            i = warnings.get(name)
-            if i is None:
-                continue
-            if name != 'mjWARN_BADQPOS' and 0 <= i < m.nv:
-                body = int(m.dof_bodyid[i])
-            elif name == 'mjWARN_BADQPOS' and 0 <= i < m.nq and m.njnt:
-                joint = int(np.searchsorted(m.jnt_qposadr, i, side='right')) - 1
-                body = int(m.jnt_bodyid[max(joint, 0)])
-            if body > 0:
-                break
-        if body <= 0:
-            return '', ''
-        return idx.body_names[int(idx.info.body_root[body])], idx.body_names[body]
+        return self.stepping.step(n, ctrl, then)
 
     def step_kinematic(self, positions: dict, n: int = 1) -> int:
         """
@@ -545,51 +395,17 @@ class World(StateWrites, WorldEdits):
         """
         if n < 1:
             raise InvalidArgumentError(ERR_STEPS.format(n=n))
-        with self._locked():
-            i = self._index.joints(positions.keys())
+        live = self._live
+        with live.lock:
+            i = live.index.joints(positions.keys())
             targets = check_finite('joint positions', list(positions.values()))
-            qadr, dadr = self._index.joint_qposadr[i], self._index.joint_dofadr[i]
+            qadr, dadr = live.index.joint_qposadr[i], live.index.joint_dofadr[i]
             for _ in range(n):
-                state.kinematic_step(self._model, self._data, qadr, dadr, targets)
-            self._step_count += n
-            self._cached = None
-            self._stale_kinematics, self._stale_dynamics = False, True
-            return self._step_count
-
-    def _kinematics_locked(self) -> None:
-        """
-        Bring body poses and velocities up to the current state before reading them.
-
-        mj_step computes them before integrating, so afterwards they describe the state one
-        step earlier than qpos, qvel and time (MuJoCo's convention, kept for the Gym
-        environment's observations as in Gymnasium). Recomputing them changes no state.
-        """
-        if self._stale_kinematics:
-            m, d = self._model, self._data
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_comVel(m, d)
-            self._stale_kinematics = False
-
-    def _dynamics_locked(self) -> None:
-        """
-        Bring accelerations up to date too, as :meth:`_kinematics_locked` does poses.
-
-        mj_forward, then the body accelerations mj_objectAcceleration reads. Changes no state
-        either.
-        """
-        m, d = self._model, self._data
-        if self._stale_dynamics:
-            mujoco.mj_forward(m, d)
-            self._stale_kinematics = self._stale_dynamics = False
-        mujoco.mj_rnePostConstraint(m, d)
-
-    def _forward_locked(self) -> None:
-        """After writing state: derived quantities now, warnings taken as seen."""
-        self._cached = None
-        mujoco.mj_forward(self._model, self._data)
-        self._stale_kinematics = self._stale_dynamics = False
-        self._guard.note()
+                state.kinematic_step(live.model, live.data, qadr, dadr, targets)
+            live.step_count += n
+            live.cached = None
+            live.stale_kinematics, live.stale_dynamics = False, True
+            return live.step_count
 
     # ---------------------------------------------------------------- reset
 
@@ -604,64 +420,72 @@ class World(StateWrites, WorldEdits):
         if scope != RESET_ALL and not 0 <= scope <= _SCOPE_BITS:
             raise FeatureUnsupportedError(ERR_SCOPE.format(scope=scope))
         scope = _SCOPE_BITS if scope in (0, RESET_ALL) else scope
-        if scope & RESET_SPAWNED:
-            with self._locked():
-                anything = bool(self._design.spawned)
-            if anything:  # built outside the lock like every removal; the state below
-                self._change(lambda: self._plan_removal_locked(list(self._design.spawned)))
-        with self._locked():
+        if scope & RESET_SPAWNED:  # built outside the lock like every removal; the state below
+            self._edits.remove_spawned()
+        live = self._live
+        with live.lock:
             if scope & RESET_STATE:
-                self._reset_state_locked(keep_time=not scope & RESET_TIME)
+                live.reset_state_locked(keep_time=not scope & RESET_TIME)
             elif scope & RESET_TIME:
-                self._data.time = 0.0
-                self._step_count = 0
-                self._cached = None
+                live.data.time = 0.0
+                live.step_count = 0
+                live.cached = None
 
-    def _reset_state_locked(self, keep_time: bool) -> None:
-        m, d = self._model, self._data
-        t, steps = d.time, self._step_count
-        self._control.clear(self._index, m, d)
-        key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, 'home')
-        if key >= 0:
-            mujoco.mj_resetDataKeyframe(m, d, key)
-        else:
-            mujoco.mj_resetData(m, d)
-        if keep_time:
-            d.time, self._step_count = t, steps
-        else:
-            self._step_count = 0
-        self._forward_locked()
+    # ---------------------------------------------------------------- edits (see .edits)
 
-    def _adopt_locked(self, model: mujoco.MjModel, data: mujoco.MjData,
-                      index: Optional[ModelIndex] = None) -> None:
+    def unique_name(self, base: str) -> str:
+        """Return `base`, or `base_<n>` with the smallest n not taken by an entity or body."""
+        return self._edits.unique_name(base)
+
+    def spawn(self, name: str, source: sources.SpawnSource,
+              position: Sequence[float] = (0.0, 0.0, 0.0),
+              quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), reference: str = '',
+              allow_renaming: bool = False, namespace: str = '',
+              allow_interpenetration: Optional[bool] = None) -> str:
         """
-        Switch everything to a new model and data together (index, control, guard).
+        Add an entity at a pose (world frame, or `reference` entity's frame) while running.
 
-        :param index: the model's index if it was built beforehand (outside the lock) for
-            this generation and spawned table.
+        All or nothing; returns its name (see :meth:`Edits.spawn <.edits.Edits.spawn>`).
         """
-        self._model, self._data = model, data
-        if index is None or index.generation != self._generation:
-            index = model_index.build(model, self._generation, self._design.spawned)
-        self._index: ModelIndex = index
-        self._ctrl = data.ctrl
-        self._good_buf = np.empty(self._index.state_size)
-        self._copy_state = state.state_copier(model, data, STATE_SPEC)
-        self._last_good = None  # its layout belongs to the old model
-        self._control.bind(self._index, model, data, new_model=True)
-        # Derived quantities (xpos, contacts) are zero until mj_forward runs.
-        self._guard.bind(data)
-        self._forward_locked()
+        return self._edits.spawn(name, source, position, quat_wxyz, reference, allow_renaming,
+                                 namespace, allow_interpenetration)
 
+    def add_body(self, name: str, parent: str, shape: str, size: Sequence[float],
+                 position: Sequence[float] = (0.0, 0.0, 0.0),
+                 quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), mass: float = 0.0,
+                 joint: Optional[str] = None, axis: Sequence[float] = (0.0, 0.0, 1.0),
+                 rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> str:
+        """Add a body under a spawned entity's body (see :meth:`.edits.Edits.add_body`)."""
+        return self._edits.add_body(name, parent, shape, size, position, quat_wxyz, mass,
+                                    joint, axis, rgba)
 
-def _tolerance(names: tuple, given: Optional[dict]) -> trajectory.Tolerance:
-    """(n,) limits per joint from joint -> (position, velocity, acceleration); 0: unchecked."""
-    tol = trajectory.Tolerance.none(len(names))
-    for i, name in enumerate(names):
-        p, v, a = (given or {}).get(name, (0.0, 0.0, 0.0))
-        tol.position[i], tol.velocity[i], tol.acceleration[i] = (max(0.0, float(x))
-                                                                 for x in (p, v, a))
-    return tol
+    def delete(self, name: str) -> None:
+        """Remove a spawned entity and everything that came with it; all else keeps its state."""
+        self._edits.delete(name)
+
+    def set_gravity(self, gravity: Sequence[float]) -> None:
+        self._edits.set_gravity(gravity)
+
+    def set_timestep(self, timestep: float) -> None:
+        self._edits.set_timestep(timestep)
+
+    def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
+                     rolling: Optional[float] = None) -> None:
+        """Friction of every geom of an entity (see :meth:`.edits.Edits.set_friction`)."""
+        self._edits.set_friction(name, sliding, torsional, rolling)
+
+    def set_restitution(self, name: str, restitution: float) -> None:
+        """Bounciness in [0, 0.8] of an entity's geoms (:meth:`.edits.Edits.set_restitution`)."""
+        self._edits.set_restitution(name, restitution)
+
+    def set_default_contact(self, friction: Optional[Sequence[float]] = None,
+                            restitution: Optional[float] = None) -> None:
+        """Global friction (3 values) and/or restitution for every geom without its own."""
+        self._edits.set_default_contact(friction, restitution)
+
+    def set_mass(self, name: str, mass: float) -> None:
+        """Total mass of an entity (kg); 0 welds a free one where it is (:mod:`.edits`)."""
+        self._edits.set_mass(name, mass)
 
 
 class TrajectoryHandle:
@@ -689,4 +513,4 @@ class TrajectoryHandle:
 
     def cancel(self) -> None:
         """End it now; the joints hold where they are (nothing if it has ended already)."""
-        self.world._cancel_trajectory(self)
+        self.world.cancel_trajectory(self)

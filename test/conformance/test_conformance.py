@@ -120,7 +120,7 @@ import time
 from conftest import NodeProcess
 from geometry_msgs.msg import Vector3
 import pytest
-from sim_node.client import SimClient, SimServiceError
+from sim_node.ros.client import SimClient, SimServiceError
 from simulation_interfaces import srv
 from simulation_interfaces.msg import (Bounds, EntityCategory, EntityState, Result,
                                        SimulationState, SimulatorFeatures as F)

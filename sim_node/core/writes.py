@@ -1,8 +1,8 @@
 """
 Writing the state of a world: entity poses and twists, joint positions and velocities.
 
-A mixin of :class:`~sim_node.core.world.World`, split out only to keep one file per job: each
-method locks, checks everything, then writes (see :mod:`.state`).
+Each method of :class:`Writes` locks the :class:`~.live.Live` world, checks everything, then
+writes (see :mod:`.state`): an error changes nothing. :class:`~.world.World` delegates to it.
 """
 
 from typing import Optional, Sequence
@@ -13,7 +13,9 @@ from . import checks, editor, quat, state
 from .checks import check_finite, check_pose
 from .design import Edit
 from .errors import OperationFailedError
+from .live import Live
 from .records import EntityRecord
+from .transaction import Transaction
 
 ERR_STATIC_ACCELERATION = ('{name!r} is a {category} entity welded to the world: it cannot '
                            'have an acceleration (only its pose can be set)')
@@ -21,8 +23,12 @@ ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it can
                     'velocity (only its pose can be set)')
 
 
-class StateWrites:
-    """State overwrite of a :class:`World` (see its docstring)."""
+class Writes:
+    """State overwrite of a :class:`~.live.Live` world."""
+
+    def __init__(self, live: Live, transaction: Transaction):
+        self.live = live
+        self.transaction = transaction
 
     def set_entity_state(self, name: str, position: Optional[Sequence[float]] = None,
                          quat_wxyz: Optional[Sequence[float]] = None,
@@ -40,8 +46,8 @@ class StateWrites:
         ignoring it).
         """
         acc = None if acceleration is None else check_finite('acceleration', acceleration, 6)
-        with self._locked():
-            rec = self._index.entity(name)
+        with self.live.lock:
+            rec = self.live.index.entity(name)
             if acc is not None and np.any(acc != 0) and not rec.has_free_joint:
                 raise OperationFailedError(ERR_STATIC_ACCELERATION.format(
                     name=rec.name, category=rec.category))
@@ -63,15 +69,15 @@ class StateWrites:
         another pose it is moved (model rebuilt, state kept), and a non-zero twist for it is
         refused.
         """
-        with self._locked():
+        with self.live.lock:
             self._overwrite_locked(poses or {}, twists or {}, joint_positions or {},
                                    joint_velocities or {}, '')
 
     def _overwrite_locked(self, poses: dict, twists: dict, joint_positions: dict,
                           joint_velocities: dict, reference: str) -> None:
-        idx, d = self._index, self._data
-        self._kinematics_locked()
-        frame = self._pose_frame_locked(reference) if reference else None
+        idx, d = self.live.index, self.live.data
+        self.live.kinematics_locked()
+        frame = self.live.pose_frame_locked(reference) if reference else None
         targets = {}  # entity -> (record, pos, quat, lin, ang), checked, in the world frame
         for n in (*poses, *twists):
             rec = idx.entity(n)
@@ -92,17 +98,17 @@ class StateWrites:
                     and abs(abs(float(np.dot(q, d.xquat[root]))) - 1.0) < 1e-12):
                 welded_moves.append((rec, pos, q))
         if welded_moves:  # all moves in one rebuild, before the direct writes
-            m = self._model
-            self._edit_locked(Edit(lambda spec: [editor.move_group(
-                spec, self._design.frame_of(rec.name), rec.name,
+            m = self.live.model
+            self.transaction.edit_locked(Edit(lambda spec: [editor.move_group(
+                spec, self.live.design.frame_of(rec.name), rec.name,
                 (m.body_pos[rec.root_body], m.body_quat[rec.root_body]), pos, q)
                 for rec, pos, q in welded_moves]))
         for rec, pos, q, lin, ang in targets.values():
             if rec.has_free_joint:
-                state.write_free_body(self._model, self._data, rec, pos, q, lin, ang)
-        self._data.qpos[q_adr] = q_values
-        self._data.qvel[v_adr] = v_values
-        self._forward_locked()
+                state.write_free_body(self.live.model, self.live.data, rec, pos, q, lin, ang)
+        self.live.data.qpos[q_adr] = q_values
+        self.live.data.qvel[v_adr] = v_values
+        self.live.forward_locked()
 
     def _check_target_locked(self, rec: EntityRecord, position, quat_wxyz, linear, angular,
                              frame: Optional[tuple]) -> tuple:
@@ -113,14 +119,14 @@ class StateWrites:
         """
         pos = q = lin = ang = None
         if position is not None or quat_wxyz is not None:
-            cur_pos, cur_q = state.body_pose(self._data, rec.root_body)
+            cur_pos, cur_q = state.body_pose(self.live.data, rec.root_body)
             if frame is not None:
                 cur_pos, cur_q = quat.to_frame(*frame, cur_pos, cur_q)
             pos, q = check_pose(cur_pos if position is None else position,
                                 cur_q if quat_wxyz is None else quat_wxyz)
             if frame is not None:
                 pos, q = quat.from_frame(*frame, pos, q)
-            checks.check_extent(pos, self.config.world_extent)
+            checks.check_extent(pos, self.live.config.world_extent)
         if linear is not None:
             lin = check_finite('linear velocity', linear, 3)
         if angular is not None:
@@ -132,15 +138,16 @@ class StateWrites:
 
     def set_joint_positions(self, positions: dict) -> None:
         """Set hinge/slide joint positions by name (velocities are kept)."""
-        with self._locked():
+        with self.live.lock:
             self._overwrite_locked({}, {}, positions, {}, '')
 
     def set_joint_velocities(self, velocities: dict) -> None:
-        with self._locked():
+        with self.live.lock:
             self._overwrite_locked({}, {}, {}, velocities, '')
 
     def _joint_targets_locked(self, what: str, values: dict, use_qpos: bool) -> tuple:
         """Check (qpos or qvel addresses, values) for {joint: value}."""
-        i = self._index.joints(values.keys())
+        i = self.live.index.joints(values.keys())
         vals = check_finite(f'joint {what}s', list(values.values()))
-        return (self._index.joint_qposadr if use_qpos else self._index.joint_dofadr)[i], vals
+        index = self.live.index
+        return (index.joint_qposadr if use_qpos else index.joint_dofadr)[i], vals

@@ -14,8 +14,32 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from .core.checks import closest_hint
-from .core.config import PerceptionConfig, WorldConfig
+from ..core.checks import closest_hint
+from ..core.config import PerceptionConfig, WorldConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class Frames:
+    """The node's frame names: the world body's (`world_frame`) and the prefix of every frame."""
+
+    world: str = 'world'
+    prefix: str = ''
+
+    @property
+    def out_world(self) -> str:
+        """Return the world frame as published (after the prefix)."""
+        return self.prefix + self.world
+
+    def reference(self, frame_id: str) -> str:
+        """'' for the world frame, else the entity whose frame a request's pose is given in."""
+        if frame_id in ('', self.world, '/' + self.world, self.out_world):
+            return ''
+        return frame_id
+
+
+def frames(node: Node) -> Frames:
+    return Frames(node.get_parameter('world_frame').value,
+                  node.get_parameter('frame_prefix').value)
 
 
 def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
@@ -148,7 +172,7 @@ def declare(node: Node, scenes_dir: str) -> None:
     _declare_perception(node)
     unknown = sorted(n for n in overrides if not node.has_parameter(n))
     if unknown:  # rclpy drops them silently: a typo would go unnoticed
-        names = list(node._parameters)  # every declared name
+        names = list(node.get_parameters_by_prefix(''))  # every declared name
         node.get_logger().warning('; '.join(
             f'unknown parameter {n!r} ignored{closest_hint(n, names)}' for n in unknown))
 

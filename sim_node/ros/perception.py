@@ -23,11 +23,12 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Rang
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
-from .core.cameras import CameraRig, select
-from .core.config import PerceptionConfig
-from .core.lidar import LaserConfig, LaserScanner, scanner_sites
-from .core.records import ModelInfo, Snapshot
-from .core.rendering import RenderingUnavailableError
+from ..core.config import PerceptionConfig
+from ..core.devices.cameras import CameraRig, select
+from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites
+from ..core.devices.rendering import RenderingUnavailableError
+from ..core.records import ModelInfo, Snapshot
+from ..session import Loaded, Session
 
 SENSOR_TYPES = {'imu': (Imu, 'imu'), 'wrench': (WrenchStamped, 'wrench'),
                 'range': (Range, 'range'), 'generic': (Float64MultiArray, 'values')}
@@ -71,18 +72,18 @@ class _ThreadState:
 
 class Perception:
     """
-    Publishers and the perception thread of a :class:`~sim_node.node.SimNode`.
+    Publishers and the perception thread of a :class:`~sim_node.ros.node.SimNode`.
 
-    :param current_sim: returns the node's loaded world (``Sim``) or None.
+    :param session: the loaded simulation; :meth:`on_model` is its listener.
     """
 
     def __init__(self, node: Node, config: PerceptionConfig, world_frame: str,
-                 frame_prefix: str, current_sim: Callable):
+                 frame_prefix: str, session: Session):
         self._node = node
         self.config = config
         self._world_frame = frame_prefix + world_frame
         self._prefix = frame_prefix
-        self._current_sim = current_sim
+        self._session = session
         self._laser_config = LaserConfig(
             angle_min=config.lidar_angle_min, angle_max=config.lidar_angle_max,
             samples=config.lidar_samples, range_min=config.lidar_range_min,
@@ -148,15 +149,20 @@ class Perception:
                 else:
                     pub.publish(pm.generic(sensor, data))
 
-    def sync_sensors(self, info: ModelInfo) -> None:
+    def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
+        """Listen to the session's new models: the sensor publishers of the model."""
+        self.sync_sensors(snap.info if snap is not None else None)
+
+    def sync_sensors(self, info: Optional[ModelInfo]) -> None:
         """
         Make the sensor publishers of a model generation (from the node's model thread).
 
         Publishers are made before the lock and destroyed after it, so the publisher thread
         waits for neither (92 touch sensors: 92 publishers).
         """
+        sensors = () if info is None else info.sensors
         frames = {}
-        for s in info.sensors:
+        for s in sensors:
             if s.kind == 'range':
                 frames[(s.kind, s.name)] = pm.range_frame(info, s, self._prefix)
             elif s.site is not None:
@@ -166,7 +172,7 @@ class Perception:
             msg_type, leaf = SENSOR_TYPES[key[0]]
             return self._create_publisher(
                 msg_type, f'sensors/{pm.topic_token(key[1])}/{leaf}', qos_profile_sensor_data)
-        keys = [(s.kind, s.name) for s in info.sensors]
+        keys = [(s.kind, s.name) for s in sensors]
         pubs = dict(self._sensor_pubs)
         for key in keys:
             if key not in pubs:
@@ -175,7 +181,7 @@ class Perception:
         with self._sensor_lock:
             self._sensor_pubs = pubs
             self._sensor_frames = frames
-            self._sensor_generation = info.generation
+            self._sensor_generation = None if info is None else info.generation
         for pub in gone:
             self._node.destroy_publisher(pub)
 
@@ -235,7 +241,7 @@ class Perception:
 
     def _iterate(self, st: '_ThreadState') -> None:
         """Wait for a newer snapshot; render and scan what is due at its simulated time."""
-        sim = self._current_sim()
+        sim = self._session.loaded
         if sim is None:
             self._running.wait(0.1)
             return
@@ -315,5 +321,5 @@ class Perception:
                                   pm.site_frame(info, site, self._prefix), period))
 
     def _current_info(self) -> Optional[ModelInfo]:
-        sim = self._current_sim()
+        sim = self._session.loaded
         return None if sim is None else sim.world.model_info

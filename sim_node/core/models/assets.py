@@ -37,8 +37,8 @@ import defusedxml
 import defusedxml.ElementTree as SafeET
 import mujoco
 
-from .errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
-                     UnsupportedFormatError)
+from ..errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
+                      UnsupportedFormatError)
 
 #: Deepest element nesting accepted (a real robot is a few dozen deep).
 MAX_DEPTH = 200

@@ -12,15 +12,16 @@ node's model thread, never on the physics'.
 import os
 from pathlib import Path
 import threading
-from typing import Callable
+from typing import Optional
 
 from msg_adapters.perception import interface_base
 from rclpy.event_handler import PublisherEventCallbacks
 from std_msgs.msg import String
 
-from .core.errors import SimError
-from .core.records import ModelInfo
 from .qos import LATCHED_QOS
+from ..core.errors import SimError
+from ..core.records import ModelInfo, Snapshot
+from ..session import Loaded, Session
 
 DESCRIPTION_QOS = LATCHED_QOS
 
@@ -40,24 +41,26 @@ class RobotDescriptions:
     """
     The robot_description publishers of a node's entities.
 
-    :param current_sim: returns the node's loaded world (``Sim``) or None.
+    :param session: the loaded simulation; :meth:`on_model` is its listener.
     :param mesh_dir: where mesh geometry is written.
     """
 
-    def __init__(self, node, current_sim: Callable, mesh_dir: Path):
+    def __init__(self, node, session: Session, mesh_dir: Path):
         self._node = node
-        self._current_sim = current_sim
+        self._session = session
         self._mesh_dir = mesh_dir
         self._pubs: dict = {}  # entity -> (publisher, the text last sent, its namespace)
         self._lock = threading.Lock()
 
-    def sync(self, info: ModelInfo) -> None:
+    def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
+        """Listen to the session's new models: describe its robots, drop those gone."""
+        self.sync(None if snap is None else snap.info, loaded)
+
+    def sync(self, info: Optional[ModelInfo], sim: Optional[Loaded]) -> None:
         """Describe a model generation's robots: new ones, and those whose text changed."""
-        sim = self._current_sim()
-        if sim is None:
-            return
-        entities = described_entities(info)
-        bases = {e.name: interface_base(e) for e in info.entities if e.name in entities}
+        entities = [] if info is None or sim is None else described_entities(info)
+        bases = {e.name: interface_base(e) for e in info.entities
+                 if e.name in entities} if entities else {}
         with self._lock:
             for entity in [e for e, v in self._pubs.items() if bases.get(e) != v[2]]:
                 self._node.destroy_publisher(self._pubs.pop(entity)[0])

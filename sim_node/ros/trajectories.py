@@ -11,7 +11,7 @@ preemption, CANCELED for a cancel (the joints then hold where they are).
 """
 
 import threading
-from typing import Callable
+from typing import Callable, Optional
 
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory
@@ -25,9 +25,10 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.waitable import NumberOfEntities
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from .core import trajectory
-from .core.errors import SimError
-from .core.records import ModelInfo
+from ..core import trajectory
+from ..core.errors import SimError
+from ..core.records import ModelInfo, Snapshot
+from ..session import Loaded, Session
 
 ERR_MULTI_DOF = 'multi-DOF trajectories are not supported: send joint trajectories'
 ERR_GONE = 'entity {entity!r} is not in the world (any more)'
@@ -104,22 +105,27 @@ class TrajectoryServers:
     """
     The action servers and controller-state publishers of a node's entities.
 
-    :param current_sim: returns the node's loaded world (``Sim``) or None.
+    :param session: the loaded simulation; :meth:`on_model` is its listener.
     :param params: returns (path tolerance, goal tolerance, goal time tolerance, feedback Hz).
     """
 
-    def __init__(self, node, callback_group, current_sim: Callable, params: Callable):
+    def __init__(self, node, callback_group, session: Session, params: Callable):
         self._node = node
         self._group = callback_group
-        self._current_sim = current_sim
+        self._session = session
         self._params = params
         self._servers: dict = {}  # entity -> (action server, controller_state pub, base)
         self._lock = threading.Lock()
 
-    def sync(self, info: ModelInfo) -> None:
+    def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
+        """Listen to the session's new models: the servers of the model's entities."""
+        self.sync(None if snap is None else snap.info)
+
+    def sync(self, info: Optional[ModelInfo]) -> None:
         """Make the servers of a model generation's entities with joints; drop the others."""
-        moving = set(info.joint_entity)
-        bases = {e.name: interface_base(e) for e in info.entities if e.name in moving}
+        moving = set() if info is None else set(info.joint_entity)
+        bases = {e.name: interface_base(e) for e in info.entities
+                 if e.name in moving} if info is not None else {}
         with self._lock:
             for entity in [e for e, v in self._servers.items() if bases.get(e) != v[2]]:
                 server, pub, _ = self._servers.pop(entity)
@@ -154,7 +160,7 @@ class TrajectoryServers:
         goal = goal_handle.request
         jt = goal.trajectory
         result = FollowJointTrajectory.Result()
-        sim = self._current_sim()
+        sim = self._session.loaded
         path_tol, goal_tol, goal_time, feedback_hz = self._params()
         try:
             if goal.multi_dof_trajectory.joint_names:

@@ -13,8 +13,8 @@ import importlib.abc
 import sys
 
 _TARGET = 'gymnasium.envs.registration'
-#: (id, name, episode length): ``make_<name>`` in sim_node.gym_env (one env) and in
-#: sim_node.gym_vector (``gymnasium.make_vec``).
+#: (id, name, episode length): ``make_<name>`` in sim_node.gym.env (one env) and in
+#: sim_node.gym.vector (``gymnasium.make_vec``).
 IDS = (('sim/PushBox-v0', 'push_box', 200),
        ('sim/Reach-v0', 'reach', 200),
        ('sim/Pusher-v0', 'pusher', 100),    # Gymnasium's Pusher-v5 lengths
@@ -24,8 +24,8 @@ IDS = (('sim/PushBox-v0', 'push_box', 200),
 def register_ids(registration) -> None:
     for env_id, name, steps in IDS:
         if env_id not in registration.registry:
-            registration.register(id=env_id, entry_point=f'sim_node.gym_env:make_{name}',
-                                  vector_entry_point=f'sim_node.gym_vector:make_{name}',
+            registration.register(id=env_id, entry_point=f'sim_node.gym.env:make_{name}',
+                                  vector_entry_point=f'sim_node.gym.vector:make_{name}',
                                   max_episode_steps=steps)
 
 

@@ -1,12 +1,12 @@
 """
 Many worlds stepped at once, from one process: Gymnasium's ``make_vec`` for the sim/ ids.
 
-    import gymnasium, sim_node.gym_env
+    import gymnasium, sim_node.gym.env
     envs = gymnasium.make_vec('sim/Pusher-v0', num_envs=8)      # a SimVectorEnv
     obs, info = envs.reset(seed=0)                              # env i is seeded with 0 + i
     obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
 
-A :class:`SimVectorEnv` holds N :class:`~sim_node.gym_env.SimEnv` (each its own world) and steps
+A :class:`SimVectorEnv` holds N :class:`~sim_node.gym.env.SimEnv` (each its own world) and steps
 them on a few threads (one per core by default). MuJoCo's ``mj_step`` releases the GIL, so the
 physics of different worlds runs on all cores at once while Python computes observations. Each
 sub-env does exactly what a SimEnv does, so N of them give the same observations, rewards and
@@ -33,10 +33,10 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 import numpy as np
 
-from . import gym_env
-from .core.checks import MAX_ABS_VALUE as MAX_CONTROL
-from .core.errors import DivergenceError
-from .gym_env import Batch, SimEnv, Task
+from . import env as gym_env
+from .env import Batch, SimEnv, Task
+from ..core.checks import MAX_ABS_VALUE as MAX_CONTROL
+from ..core.errors import DivergenceError
 
 ERR_AUTORESET = 'autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}'
 
@@ -106,11 +106,11 @@ class SimVectorEnv(gym.vector.VectorEnv):
     """
     N sub-envs of one task, stepped together on `num_threads` threads.
 
-    :param task_factory: makes one :class:`~sim_node.gym_env.Task` per sub-env (tasks keep
+    :param task_factory: makes one :class:`~sim_node.gym.env.Task` per sub-env (tasks keep
         per-episode state such as a goal, so each env has its own).
     :param max_episode_steps: episode length (``truncated``); None: no limit.
     :param num_threads: threads that step the worlds (default: the cores, at most N).
-    :param env_kwargs: passed to every :class:`~sim_node.gym_env.SimEnv` (``render_mode``,
+    :param env_kwargs: passed to every :class:`~sim_node.gym.env.SimEnv` (``render_mode``,
         ``width``, ``height``, ``camera_name``, ``camera_id``).
     """
 
@@ -266,7 +266,7 @@ class SimVectorEnv(gym.vector.VectorEnv):
                     env.world.step(skip, ctrl=actions[i], then=partial(batch.gather, i))
                 else:
                     env.world.step(skip, ctrl=actions[i])
-                    self._results[i] = env.world.read(env._outcome_row)
+                    self._results[i] = env.world.read(env.outcome_row)
             except DivergenceError as exc:
                 exc.env_index = i
                 exc.add_note(f'in world {i} of the vector env; reset() to go on')

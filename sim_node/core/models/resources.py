@@ -12,17 +12,42 @@ Files outside the resource paths (judged once ``..`` and links are resolved) are
 before anything opens them.
 """
 
+from dataclasses import dataclass
 import os
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 from urllib.parse import unquote, urlparse
 
-from .core import sources
-from .core.errors import (MissingAssetsError, NoResourceError, NotFoundError,
-                          UnsupportedFormatError)
+from . import sources
+from ..errors import MissingAssetsError, NoResourceError, NotFoundError, UnsupportedFormatError
 
 SPAWNABLE_SUFFIXES = sources.MODEL_SUFFIXES + sources.MESH_SUFFIXES
 PACKAGE = 'sim'
+
+
+@dataclass(frozen=True)
+class Readable:
+    """
+    The folders requests may read files from.
+
+    :param roots: resolved folders: the installed scenes (unless left out) and resource paths.
+    :param scenes_dir: the installed scenes folder (``package://sim/...`` reads its parent).
+    """
+
+    roots: Tuple[str, ...]
+    scenes_dir: Path
+
+    @classmethod
+    def of(cls, resource_paths: Sequence[str], scenes_dir: Path,
+           builtin: bool = True) -> 'Readable':
+        """`resource_paths` added to the installed scenes and objects (`builtin`: kept)."""
+        own = [str(scenes_dir)] if builtin else []
+        return cls(tuple(str(Path(r).resolve()) for r in own + list(resource_paths) if r),
+                   Path(scenes_dir))
+
+    def redact(self, text: str) -> str:
+        """Say `text` without where the server keeps its files (see :func:`redact`)."""
+        return redact(text, self.roots, self.scenes_dir)
 
 
 def source_scenes_dir() -> Path:

@@ -9,8 +9,8 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
 from . import middleware
-from .core.errors import SimError
 from .params import parameter_error
+from ..core.errors import SimError
 
 
 def main(args=None) -> int:

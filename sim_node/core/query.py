@@ -13,8 +13,8 @@ from typing import Optional
 import numpy as np
 import regex
 
-from .core.errors import InvalidArgumentError
-from .core.world import World
+from .errors import InvalidArgumentError
+from .world import World
 
 ERR_REGEX = 'invalid filter regex {pattern!r}: {err}'
 ERR_REGEX_TIME = ('the filter regex took longer than {sec:g} s over the entity names; simplify '

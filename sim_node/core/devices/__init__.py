@@ -1,0 +1,7 @@
+"""
+What a model carries that looks at the world: cameras, laser scanners, sensor groups.
+
+:mod:`.catalog` (a model's cameras, sites and sensor groups), :mod:`.rendering` (the headless
+OpenGL backend and renderer), :mod:`.cameras` (camera rigs, intrinsics, pictures),
+:mod:`.lidar` (planar laser scanners by ray casting).
+"""

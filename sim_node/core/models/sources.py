@@ -1,0 +1,492 @@
+"""
+What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
+
+Each builder returns a :class:`SpawnSource`: an MjSpec (one or more top-level bodies: a
+standalone model file works as it is) whose files are checked copies.
+Parsing, file checks and mesh loading all happen here, outside the world lock. Nothing here
+touches a live world.
+"""
+
+from dataclasses import dataclass, field
+import functools
+import logging
+import math
+from pathlib import Path
+import re
+from typing import Optional, Sequence
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+
+from . import assets
+from .assets import inside_roots  # noqa: F401 (part of this module's interface)
+from ..config import WorldConfig
+from ..errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
+                      NoResourceError, ResourceParseError, UnsupportedAssetsError,
+                      UnsupportedElementsError, UnsupportedFormatError)
+
+MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
+MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf')
+PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
+
+#: Elements MuJoCo's XML reader expands before it checks its schema, which does not list them.
+_EXPANDED_FIRST = frozenset({'include', 'mujocoinclude', 'frame', 'replicate', 'composite'})
+ERR_UNKNOWN_ELEMENTS = ('the world uses elements MuJoCo does not know: {tags} (asked to fail on '
+                        'unsupported elements; without fail_on_unsupported_element they are '
+                        'left out)')
+ERR_IGNORE_ASSETS = ('loading a world without its missing or unsupported assets is not supported '
+                     '(ignore_missing_or_unsupported_assets): {err}')
+ERR_EMPTY = 'the resource is empty: give MJCF or URDF text, a file, a primitive or a mesh'
+ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
+ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
+                '<robot> (URDF)')
+ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
+ERR_NOT_XML = ('unsupported format: the text is not XML (it starts {start!r}); give MJCF '
+               '(<mujoco>) or URDF (<robot>)')
+ERR_COMPILE = 'the model does not compile: {err}'
+ERR_FILE_MISSING = 'file not found: {path}'
+ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
+ERR_FILE_OUTSIDE = ('{path} is not inside the directories this node may read (its resource_paths '
+                    'parameter); put the file there or add its directory to resource_paths')
+ERR_MESH_SUFFIX = 'unsupported mesh format {suffix!r}; supported: ' + ', '.join(MESH_SUFFIXES)
+ERR_MESH_LOAD = 'the mesh {path} could not be loaded: {err}'
+ERR_MESH_FACES = 'the mesh has {n} faces, over the limit of {limit}; simplify it'
+ERR_PRIMITIVE = 'unknown primitive {shape!r}; supported: ' + ', '.join(PRIMITIVES)
+ERR_SIZE = '{shape} needs {n} positive finite size values, got {size}'
+ERR_MASS = 'mass must be finite and >= 0, got {mass}'
+ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
+# Default budgets: the configuration's (the node passes its own WorldConfig's).
+_LIMITS = WorldConfig()
+
+
+log = logging.getLogger(__name__)
+
+ERR_DEGREE_RANGES = ("{what} reads joint angles in degrees (MJCF's default), but these hinge "
+                     'ranges look like radians: {joints}. Add <compiler angle="radian"/> if '
+                     'you meant radians.')
+
+
+def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
+    """
+    Log hinge ranges of a degree-reading model that look like radians.
+
+    All within +-pi and not empty. ``range="-1.57 1.57"`` without ``<compiler angle="radian"/>`` is
+    +-1.57 degrees, a joint that barely moves.
+    """
+    if not spec.compiler.degree:
+        return
+    joints = []
+    for j in spec.joints:
+        lo, hi = (float(v) for v in j.range)
+        if (int(j.type) == int(mujoco.mjtJoint.mjJNT_HINGE) and (lo, hi) != (0.0, 0.0)
+                and max(abs(lo), abs(hi)) <= math.pi + 1e-3):
+            joints.append(f'{j.name or "(unnamed)"} [{lo:g}, {hi:g}]')
+    if joints:
+        log.warning(ERR_DEGREE_RANGES.format(what=what, joints=', '.join(joints)))
+
+
+@dataclass
+class SpawnSource:
+    """
+    A parsed description of one entity, ready to attach to a world.
+
+    :param spec: MjSpec with at least one top-level body or worldbody geom; the files it names
+        are checked copies (:class:`.assets.AssetStore`).
+    :param assets: file name -> bytes for meshes given in memory (a spec built in code).
+    :param kind: 'mjcf', 'urdf', 'primitive' or 'mesh'.
+    :param description: short text for entity info.
+    """
+
+    spec: mujoco.MjSpec
+    assets: dict = field(default_factory=dict)
+    kind: str = 'mjcf'
+    description: str = ''
+    #: Its default classes, outermost first (attached as ``<entity>/<class>``).
+    default_classes: tuple = ()
+    #: The MJCF or URDF text it was parsed from ('' for primitives, meshes and specs).
+    text: str = ''
+    #: The name the resource gives itself (MJCF ``model``, URDF ``robot name``; '' if none):
+    #: a spawn without a name takes it.
+    name: str = ''
+
+    def __post_init__(self):
+        if self.kind == 'mjcf':
+            warn_radian_like_ranges(self.spec, self.description or 'the model')
+
+
+def check_path(path: str, allowed_roots: Optional[Sequence[str]],
+               max_bytes: int = _LIMITS.max_resource_bytes) -> Path:
+    """
+    Check that `path` is a readable regular file inside `allowed_roots` (None: anywhere).
+
+    The path is judged by where it really is (``..`` and symbolic links resolved): a FIFO or
+    device would block MuJoCo forever, and a path outside the roots would let a caller read any
+    file; both are refused before anything opens the file. Returns the resolved path.
+    """
+    budget = _budget(max_bytes, _LIMITS.max_mesh_faces)
+    real, _ = assets.Reader(allowed_roots, budget).resolve(str(path), [Path(path)], {
+        'outside': ERR_FILE_OUTSIDE.format(path=path),
+        'missing': ERR_FILE_MISSING.format(path=path),
+        'not_regular': ERR_FILE_NOT_REGULAR.format(path=path), 'too_large': ERR_TOO_LARGE})
+    return Path(real)
+
+
+def _check_size(n_bytes: int, limit: int) -> None:
+    if n_bytes > limit:
+        raise UnsupportedAssetsError(ERR_TOO_LARGE.format(size=n_bytes, limit=limit))
+
+
+def _compile_error(exc: Exception) -> Exception:
+    text = str(exc).strip()
+    low = text.lower()
+    if 'could not open' in low or 'error opening file' in low or 'resource not found' in low:
+        return MissingAssetsError(ERR_COMPILE.format(err=text))
+    return ResourceParseError(ERR_COMPILE.format(err=text))
+
+
+def _finish(spec: mujoco.MjSpec, kind: str, description: str,
+            compile_alone: bool = True) -> SpawnSource:
+    """
+    Return the source of a spec that has something to spawn.
+
+    :param compile_alone: compile it on its own first, so an error names this model alone.
+        Model files skip it: the world's compile reports the same errors, and compiling twice
+        would double the cost of a mesh-heavy robot (MuJoCo's cold load of the meshes).
+    """
+    if not len(spec.worldbody.bodies) and not len(spec.worldbody.geoms):
+        raise ResourceParseError(ERR_NO_BODY)
+    if compile_alone:
+        try:
+            spec.compile()
+        except ValueError as exc:
+            raise _compile_error(exc) from None
+    return SpawnSource(spec=spec, kind=kind, description=description)
+
+
+def check_model_text(text: str, base_dir: Optional[str] = None,
+                     allowed_roots: Optional[Sequence[str]] = None,
+                     max_bytes: int = _LIMITS.max_resource_bytes) -> ET.Element:
+    """
+    Check MJCF/URDF text before MuJoCo sees it: size, safe XML, root tag.
+
+    Returns the parsed root element; :func:`assets.sandbox` then reads the files it names.
+    """
+    if not text or not text.strip():
+        raise NoResourceError(ERR_EMPTY)
+    _check_size(len(text.encode()), max_bytes)
+    if not text.lstrip('\ufeff \t\r\n').startswith('<'):  # JSON, YAML, USD ascii, OBJ, ...
+        raise UnsupportedFormatError(ERR_NOT_XML.format(start=text.strip()[:20]))
+    root = assets.parse(text)  # no DOCTYPE or entities, nesting bounded
+    if root.tag not in ('mujoco', 'robot'):
+        raise UnsupportedFormatError(ERR_ROOT_TAG.format(tag=root.tag[:100]))
+    return root
+
+
+def _budget(max_bytes: int, max_faces: int) -> assets.Budget:
+    return assets.Budget(max_file_bytes=max_bytes, max_total_bytes=4 * max_bytes,
+                         max_mesh_faces=max_faces)
+
+
+def _spec_from(root: ET.Element) -> mujoco.MjSpec:
+    """Return the spec of a sandboxed document: it names only checked copies of files."""
+    try:
+        return mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'))
+    except ValueError as exc:
+        raise _compile_error(exc) from None
+
+
+@functools.lru_cache(maxsize=1)
+def mjcf_elements() -> frozenset:
+    """Every element name MuJoCo's MJCF reader knows: its schema's, and those it expands first."""
+    names = re.findall(r'^\s*(?:\(world\))?(\w+) \(.\)', mujoco.mj_printSchema(False, False),
+                       re.M)
+    return frozenset(names) | {'worldbody'} | _EXPANDED_FIRST
+
+
+def element_list(tags: Sequence[str]) -> str:
+    """Name up to ten element tags as ``<a>, <b>``, each cut to 50 characters."""
+    return ', '.join(f'<{t[:50]}>' for t in tags[:10])
+
+
+def drop_unknown_elements(root: ET.Element, fail: bool) -> list:
+    """
+    Remove the elements of an MJCF document MuJoCo knows nowhere; return their names.
+
+    With `fail`, refuse the document instead (:class:`UnsupportedElementsError`). A known
+    element in the wrong place is left for MuJoCo to refuse (RESOURCE_PARSE_ERROR).
+    """
+    known = mjcf_elements()
+    found = sorted({e.tag for e in root.iter() if e.tag not in known})
+    if found and fail:
+        raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(tags=element_list(found)))
+    for parent in list(root.iter()):
+        for child in [c for c in parent if c.tag not in known]:
+            parent.remove(child)
+    return found
+
+
+def world_spec(text: str, base_dir: Optional[str] = None,
+               allowed_roots: Optional[Sequence[str]] = None,
+               max_bytes: int = _LIMITS.max_resource_bytes,
+               max_faces: int = _LIMITS.max_mesh_faces,
+               fail_on_unsupported_element: bool = False,
+               ignore_missing_assets: bool = False) -> tuple:
+    """
+    Return (spec of a whole world (load_world), unknown elements dropped) from untrusted text.
+
+    Files are read here. Elements MuJoCo does not know are dropped, or with
+    `fail_on_unsupported_element` refused (LoadWorld's two modes). Missing or unusable assets
+    always fail: `ignore_missing_assets` (loading without them) is not supported and says so.
+    """
+    root = check_model_text(text, base_dir, allowed_roots, max_bytes)
+    try:
+        assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                       _budget(max_bytes, max_faces))
+    except (MissingAssetsError, UnsupportedAssetsError) as exc:
+        if ignore_missing_assets:
+            raise FeatureUnsupportedError(ERR_IGNORE_ASSETS.format(err=exc)) from None
+        raise
+    dropped = drop_unknown_elements(root, fail_on_unsupported_element) \
+        if root.tag == 'mujoco' else []
+    return _spec_from(root), dropped
+
+
+def from_model_text(text: str, base_dir: Optional[str] = None,
+                    allowed_roots: Optional[Sequence[str]] = None,
+                    max_bytes: int = _LIMITS.max_resource_bytes,
+                    max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
+    """
+    Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
+
+    :param base_dir: directory relative file names resolve against (None: only absolute).
+    :param allowed_roots: directories files may be read from (None: anywhere).
+    """
+    root = check_model_text(text, base_dir, allowed_roots, max_bytes)
+    is_urdf = root.tag == 'robot'
+    assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                   _budget(max_bytes, max_faces))
+    if is_urdf:
+        _urdf_keep_root_link(root)
+    else:
+        _mjcf_gather_world_geoms(root)
+    spec = _spec_from(root)
+    _inline_skin_files(spec)
+    kind = 'urdf' if is_urdf else 'mjcf'
+    name = root.attrib.get('name') or root.attrib.get('model') or ''
+    source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(),
+                     compile_alone=False)
+    source.default_classes = tuple(d.attrib['class'] for d in root.iter('default')
+                                   if 'class' in d.attrib)
+    source.text, source.name = text, name
+    return source
+
+
+def _inline_skin_files(spec: mujoco.MjSpec) -> None:
+    """
+    Put the content of skin files (``.skn``) into the spec itself.
+
+    A skin file names its bones' bodies inside the file, read only at compile: attached under a
+    prefix, with its root body renamed to the entity's name, the skin would look for a body
+    that no longer exists. Inlined, the bone names are spec data that the attach prefixes and
+    the rename repoints like every other reference. Costs one compile of the model alone, only
+    for models with skin files (dm_control's dog).
+    """
+    skins = [sk for sk in spec.skins if sk.file]
+    if not skins:
+        return
+    try:  # a copy: a compiled spec holds its processed meshes, slow to copy when attached
+        m = spec.copy().compile()
+    except ValueError as exc:
+        raise _compile_error(exc) from None
+    for sk in skins:
+        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SKIN, sk.name) if sk.name else -1
+        k = k if k >= 0 else list(spec.skins).index(sk)
+        va, vn = m.skin_vertadr[k], m.skin_vertnum[k]
+        fa, fn = m.skin_faceadr[k], m.skin_facenum[k]
+        ta = m.skin_texcoordadr[k]
+        ba, bn = m.skin_boneadr[k], m.skin_bonenum[k]
+        sk.file = ''
+        sk.vert = m.skin_vert[va:va + vn].reshape(-1).tolist()
+        sk.face = m.skin_face[fa:fa + fn].reshape(-1).tolist()
+        sk.texcoord = (m.skin_texcoord[ta:ta + vn].reshape(-1).tolist() if ta >= 0 else [])
+        sk.bodyname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(b))
+                       for b in m.skin_bonebodyid[ba:ba + bn]]
+        sk.bindpos = m.skin_bonebindpos[ba:ba + bn].reshape(-1).tolist()
+        sk.bindquat = m.skin_bonebindquat[ba:ba + bn].reshape(-1).tolist()
+        vertid, vertweight = [], []
+        for b in range(ba, ba + bn):
+            adr, num = m.skin_bonevertadr[b], m.skin_bonevertnum[b]
+            vertid.append(m.skin_bonevertid[adr:adr + num].tolist())
+            vertweight.append(m.skin_bonevertweight[adr:adr + num].tolist())
+        sk.vertid, sk.vertweight = vertid, vertweight
+
+
+#: The body that a standalone model's static <worldbody> geoms and sites are gathered into.
+WORLD_GEOMS_BODY = 'world_geoms'
+
+
+def _mjcf_gather_world_geoms(root: ET.Element) -> None:
+    """
+    Gather a standalone model's static geometry into one welded body of the model.
+
+    Geoms and sites directly in <worldbody> (not ground planes, which the world drops when it
+    attaches the model) move into one welded body, appended after the model's own top-level
+    bodies, so they become part of the entity. Nothing changes when there is nothing to gather.
+    """
+    wb = root.find('worldbody')
+    loose = [] if wb is None else [e for e in wb if e.tag in ('geom', 'site')
+                                   and e.get('type') != 'plane']
+    if not loose:
+        return
+    taken = {e.get('name') for e in root.iter('body')}
+    name, i = WORLD_GEOMS_BODY, 0
+    while name in taken:
+        i += 1
+        name = f'{WORLD_GEOMS_BODY}_{i}'
+    holder = ET.SubElement(wb, 'body', name=name)
+    for e in loose:
+        wb.remove(e)
+        holder.append(e)
+
+
+def _urdf_keep_root_link(root: ET.Element) -> None:
+    """
+    Keep a URDF's root link: MuJoCo's import fuses links welded to the world (fusestatic).
+
+    Which would leave a fixed-base robot without a root body to be the entity: keep them.
+    """
+    ext = root.find('mujoco')
+    if ext is None:
+        ext = ET.SubElement(root, 'mujoco')
+    compiler = ext.find('compiler')
+    if compiler is None:
+        compiler = ET.SubElement(ext, 'compiler')
+    compiler.set('fusestatic', 'false')
+
+
+def read_model_text(path: Path) -> str:
+    """Read an MJCF/URDF file as text; a file that is not UTF-8 is a parse error."""
+    try:
+        return Path(path).read_text(encoding='utf-8')
+    except UnicodeDecodeError:
+        raise ResourceParseError(f'{Path(path).name} is not UTF-8 text') from None
+
+
+def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
+              max_bytes: int = _LIMITS.max_resource_bytes,
+              max_faces: int = _LIMITS.max_mesh_faces, **mesh_options) -> SpawnSource:
+    """Load an MJCF/URDF file or a mesh file (STL, OBJ, PLY, GLB, DAE) as one entity."""
+    p = check_path(path, allowed_roots, max_bytes)
+    suffix = p.suffix.lower()
+    if suffix in MESH_SUFFIXES:
+        return from_mesh(str(p), allowed_roots=allowed_roots, max_bytes=max_bytes,
+                         max_faces=max_faces, **mesh_options)
+    if suffix not in MODEL_SUFFIXES:
+        raise UnsupportedFormatError(
+            f'unsupported file type {suffix!r}; supported: '
+            + ', '.join(MODEL_SUFFIXES + MESH_SUFFIXES))
+    text = read_model_text(p)
+    # Relative names resolve against the folder the caller named the file in, as MuJoCo's
+    # own loader does (a link to a model file keeps its folder's meaning).
+    return from_model_text(text, base_dir=str(Path(path).parent), allowed_roots=allowed_roots,
+                           max_bytes=max_bytes, max_faces=max_faces)
+
+
+def check_rgba(rgba: Sequence[float]) -> list:
+    vals = [float(v) for v in rgba]
+    if len(vals) != 4 or not all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in vals):
+        raise InvalidArgumentError(ERR_RGBA.format(rgba=list(rgba)))
+    return vals
+
+
+def check_mass(mass: Optional[float]) -> None:
+    if mass is not None and not (math.isfinite(mass) and mass >= 0):
+        raise InvalidArgumentError(ERR_MASS.format(mass=mass))
+
+
+def _new_body_spec(static: bool) -> tuple:
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name='body')
+    if not static:
+        body.add_freejoint(name='free')
+    return spec, body
+
+
+_PRIMITIVE_SIZES = {'box': 3, 'sphere': 1, 'cylinder': 2, 'capsule': 2}
+
+
+def primitive_size(shape: str, size: Sequence[float]) -> list:
+    """
+    Return MuJoCo's (3,) geom size for a primitive: box half-sizes x, y, z; sphere radius.
+
+    Cylinder or capsule radius and half-length. Refuses unknown shapes and bad sizes.
+    """
+    n_size = _PRIMITIVE_SIZES.get(shape)
+    if n_size is None:
+        raise UnsupportedFormatError(ERR_PRIMITIVE.format(shape=shape))
+    vals = [float(s) for s in size]
+    if len(vals) != n_size or not all(math.isfinite(s) and s > 0 for s in vals):
+        raise InvalidArgumentError(ERR_SIZE.format(shape=shape, n=n_size, size=list(size)))
+    return vals + [0.0] * (3 - n_size)
+
+
+def primitive(shape: str, size: Sequence[float], mass: Optional[float] = 1.0,
+              rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), static: bool = False,
+              friction: Optional[Sequence[float]] = None) -> SpawnSource:
+    """
+    Build a box (half-sizes x, y, z), sphere (radius), cylinder or capsule (radius, half-length).
+
+    :param mass: kg; a body without mass (0 or None) is welded to the world (static).
+    :param static: weld to the world regardless of mass.
+    """
+    full_size = primitive_size(shape, size)
+    check_mass(mass)
+    static = static or not mass
+    spec, body = _new_body_spec(static)
+    geom = body.add_geom(name='geom', type=getattr(mujoco.mjtGeom, f'mjGEOM_{shape.upper()}'),
+                         size=full_size, rgba=check_rgba(rgba))
+    if mass:
+        geom.mass = float(mass)
+    if friction is not None:
+        geom.friction = [float(f) for f in friction]
+    return _finish(spec, 'primitive', f'{shape} {[float(v) for v in size]}')
+
+
+def from_mesh(path: str, mass: Optional[float] = 1.0,
+              rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), scale: float = 1.0,
+              static: bool = False, allowed_roots: Optional[Sequence[str]] = None,
+              max_bytes: int = _LIMITS.max_resource_bytes,
+              max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
+    """Load a mesh file with trimesh (scenes are merged into one mesh) as one body."""
+    import trimesh  # heavy import, only needed here
+
+    p = check_path(path, allowed_roots, max_bytes)
+    suffix = p.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise UnsupportedAssetsError(ERR_MESH_SUFFIX.format(suffix=suffix))
+    check_mass(mass)
+    if not (math.isfinite(scale) and scale > 0):
+        raise InvalidArgumentError(f'scale must be positive and finite, got {scale}')
+    try:
+        mesh = trimesh.load(str(p), force='mesh')
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err=exc)) from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='no triangles'))
+    if len(mesh.faces) > max_faces:
+        raise UnsupportedAssetsError(ERR_MESH_FACES.format(n=len(mesh.faces), limit=max_faces))
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='non-finite vertices'))
+    if scale != 1.0:
+        mesh.apply_scale(scale)
+    # A mesh file is cached across recompiles; raw vertex arrays would be reprocessed.
+    stored = assets.store().put(None, 'mesh.stl', mesh.export(file_type='stl'))
+    static = static or not mass
+    spec, body = _new_body_spec(static)
+    spec.add_mesh(name='mesh', file=stored.path)
+    geom = body.add_geom(name='geom', type=mujoco.mjtGeom.mjGEOM_MESH, meshname='mesh',
+                         rgba=check_rgba(rgba))
+    if mass:
+        geom.mass = float(mass)
+    return _finish(spec, 'mesh', f'mesh {p.name}')

@@ -1,0 +1,1 @@
+"""Gymnasium environments over the core world: one (:mod:`.env`), N at once (:mod:`.vector`)."""

@@ -1,0 +1,189 @@
+"""
+The `sim` rclpy node: a ROS front-end over a :class:`~sim_node.session.Session`.
+
+The session owns the loaded world, its stepping loop and the lifecycle; the node declares the
+parameters, makes the publishers, services and actions, and attaches to the session as its
+listeners (/tf_static and markers, sensor publishers, trajectory servers, robot descriptions,
+each called with every new model on the session's ``sim-model`` thread). It makes no ``mj_*``
+call and never touches MjData.
+
+Its threads besides the session's (``sim-loop``, ``sim-model``): the executor's (services,
+reentrant; the housekeeping timer), ``sim-publisher`` and ``sim-clock``
+(:mod:`.publishing`), the command drain's (:mod:`.command_drain`) and the perception thread
+(cameras and scanners, :mod:`.perception`). FollowJointTrajectory goals (:mod:`.trajectories`)
+wait on executor threads of their own callback group. Publishers that come and go with entities
+carry no QoS event handlers, so they are never in an executor's wait set and may be destroyed
+from any thread. ``docs/threading.md`` has the whole picture.
+"""
+
+import os
+from pathlib import Path
+import signal
+import sys
+import threading
+import time
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from . import instances, params
+from .command_drain import CommandDrain
+from .descriptions import default_mesh_dir, RobotDescriptions
+from .perception import Perception
+from .publishing import ModelTopics, StatePublisher
+from .services import Services
+from .status import Status
+from .trajectories import TrajectoryServers
+from ..core.config import WorldConfig
+from ..core.errors import InvalidArgumentError, SimError
+from ..core.models import resources
+from ..core.records import EFFORT, POSITION, VELOCITY
+from ..session import Session
+
+NODE_NAME = 'sim'
+#: How often the housekeeping timer runs: the `paused` parameter, log lines, /diagnostics.
+HOUSEKEEPING_SEC = 0.2
+
+
+class SimNode(Node):
+    """
+    Publishes /clock, /tf, /tf_static, markers and joint_states; serves simulation_interfaces.
+
+    Call :meth:`start` after adding it to an executor, :meth:`shutdown` before destroying it.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        scenes_dir = resources.installed_scenes_dir()
+        params.declare(self, str(scenes_dir))
+        p = self.param
+        self.frames = params.frames(self)
+        # resource_paths adds to the installed scenes and objects (builtin_resources: false
+        # leaves only resource_paths).
+        self.readable = resources.Readable.of(params.string_list(self, 'resource_paths'),
+                                              scenes_dir, p('builtin_resources'))
+        self.session = Session()
+        self.exit_code = 0  # main's exit status; 2 when another simulator had this name
+        self._events = MutuallyExclusiveCallbackGroup()
+        self.status = Status(self, self.session)
+        self.perception = Perception(self, params.perception_config(self), self.frames.world,
+                                     self.frames.prefix, self.session)
+        self.publisher = StatePublisher(
+            self, self.session, self.frames, 1.0 / p('tf_rate_hz'),
+            1.0 / p('joint_states_rate_hz'), p('publish_clock'), self.perception.publish_sensors,
+            self.report_failure)
+        self.model_topics = ModelTopics(self, self.frames, self.perception.static_transforms)
+        self.trajectories = TrajectoryServers(
+            self, ReentrantCallbackGroup(), self.session,
+            lambda: tuple(p(n) for n in ('trajectory_path_tolerance',
+                                         'trajectory_goal_tolerance',
+                                         'trajectory_goal_time_tolerance',
+                                         'trajectory_feedback_hz')))
+        self.descriptions = RobotDescriptions(
+            self, self.session,
+            Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())
+        # Taken in batches on a thread, not by the executor (see command_drain).
+        self._commands = CommandDrain(self, 'joint_commands', self._on_joint_command)
+        self.sim_services = Services(self, self.session, self.frames, self.readable, p,
+                                     self.world_config, self.status.sync_paused_parameter,
+                                     self.end_process)
+        self.create_timer(HOUSEKEEPING_SEC, self.status.housekeeping,
+                          callback_group=self._events)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+    def param(self, name: str):
+        """Return a parameter's value."""
+        return self.get_parameter(name).value
+
+    def world_config(self) -> WorldConfig:
+        return params.world_config(self)
+
+    def _on_set_parameters(self, changed) -> SetParametersResult:
+        if self.status.syncing_thread == threading.get_ident():
+            return SetParametersResult(successful=True)  # our own mirror of the loop state
+        loaded = self.session.loaded
+        try:
+            for prm in changed if loaded is not None else ():
+                if prm.name == 'real_time_factor':
+                    loaded.loop.set_real_time_factor(float(prm.value))
+                elif prm.name == 'paused':
+                    self.session.pause() if prm.value else self.session.play()
+                elif prm.name == 'timestep' and prm.value > 0:
+                    loaded.world.set_timestep(float(prm.value))
+                elif prm.name in ('max_steps', 'max_sim_time'):
+                    limits = {'max_steps': self.param('max_steps'),
+                              'max_sim_time': self.param('max_sim_time'), prm.name: prm.value}
+                    loaded.loop.set_limits(int(limits['max_steps']),
+                                           float(limits['max_sim_time']))
+                elif prm.name in ('kp', 'kd'):
+                    gains = {'kp': self.param('kp'), 'kd': self.param('kd'),
+                             prm.name: prm.value}
+                    loaded.world.set_gains(float(gains['kp']), float(gains['kd']))
+        except SimError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> None:
+        """Load the `scene` parameter's world; start its loop, the publishers and listeners."""
+        path = resources.resolve_scene(self.param('scene'), self.readable.scenes_dir)
+        for listener in (self.model_topics, self.perception.on_model,
+                         self.trajectories.on_model, self.descriptions.on_model):
+            self.session.add_listener(listener)
+        self.session.load_file(str(path), self.world_config())
+        self.publisher.start()
+        self._commands.start()
+        self.perception.start()
+        instances.announce(self, self._events, self._leave,
+                           listen=not self.param('allow_second_simulator'))
+
+    def _leave(self, why: str) -> None:
+        if self.exit_code == 0:
+            self.exit_code = 2
+            print(f'[sim] cannot start: {why}', file=sys.stderr, flush=True)
+            self.end_process()
+
+    def end_process(self, delay_sec: float = 0.0) -> None:
+        """After `delay_sec`, stop the node's threads and end as on Ctrl-C (main exits)."""
+        time.sleep(delay_sec)
+        self.shutdown()
+        os.kill(os.getpid(), signal.SIGINT)
+
+    def shutdown(self) -> None:
+        """Stop the loop, the session's thread and the publishers (before the executor)."""
+        self.session.close()
+        self.publisher.stop()
+        self.perception.stop()
+        self._commands.stop()
+        self.status.close()
+
+    def report_failure(self, what: str, exc: Exception) -> None:
+        """
+        Log that a publishing thread's work failed (at most every 5 s); it goes on.
+
+        Once ROS is shutting down (Ctrl-C, SIGTERM: rclpy's signal handler ends the context
+        before the node's threads stop) every publication fails: that is the end, not an
+        error, so the threads stop quietly instead (a log line would fail too).
+        """
+        if not self.context.ok():
+            self.publisher.running.clear()
+            return
+        self.get_logger().error(f'{what} failed: {exc!r}', throttle_duration_sec=5.0)
+
+    # ------------------------------------------------------------------ joint commands
+
+    def _on_joint_command(self, msg: JointState) -> None:
+        filled = [(mode, vals) for mode, vals in ((POSITION, msg.position),
+                                                  (VELOCITY, msg.velocity),
+                                                  (EFFORT, msg.effort)) if len(vals)]
+        try:
+            if len(filled) != 1:
+                raise InvalidArgumentError('fill exactly one of position, velocity, effort '
+                                           f'(got {len(filled)})')
+            mode, vals = filled[0]
+            self.session.require().world.command(list(msg.name), list(vals), mode)
+        except SimError as exc:
+            self.status.refused_command(str(exc), list(msg.name))

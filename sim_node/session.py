@@ -1,0 +1,416 @@
+"""
+The simulation that is loaded now: one owner for the world, its loop and its lifecycle. No ROS.
+
+A :class:`Session` holds the loaded :class:`~sim_node.core.world.World` and its stepping
+:class:`~sim_node.core.loop.SimLoop`, and swaps them as one (:meth:`Session.load`,
+:meth:`Session.unload`). Its state is one machine, the single source of what
+``get_simulation_state`` answers::
+
+    NO_WORLD --load--> STOPPED or PLAYING/PAUSED      (LOADING_WORLD while a load reads)
+    STOPPED  --play--> PLAYING    --pause--> PAUSED   --play--> PLAYING
+    PLAYING/PAUSED --stop--> STOPPED (paused, and reset: time, state, spawned entities)
+    any world --unload--> NO_WORLD
+
+A loop that failed (an internal error) shows as STOPPED with the reason until a reset, a stop
+or a load brings it back, paused. :meth:`Session.set_state` applies the standard's rules for a
+requested state (already there, not allowed, tried and failed); :meth:`play` and :meth:`pause`
+are the lenient forms a parameter or a script uses.
+
+Front-ends attach to a session instead of keeping their own copy of what is loaded: the ROS node,
+a viewer window, a browser view and a recorder register listeners (:meth:`add_listener`), which
+the session's ``sim-model`` thread calls with each new model: a load, a spawn, a delete, a reset
+of the spawned entities, and ``None`` on unload. A listener sees the model that is current when
+its turn comes: under a burst of edits the models replaced before that are skipped, as a
+publisher would skip them; :meth:`sync` waits until every listener has seen the current one. The
+same thread gives freed heap back to the system (:mod:`~sim_node.core.memory`), only when it is
+cheap enough: a trim stalls every thread that allocates.
+
+Threads: the session's lock (which world, the lifecycle flags) is taken before any world or
+loop lock and never held while calling a listener.
+"""
+
+import contextlib
+import logging
+from pathlib import Path
+import threading
+import time
+from typing import Callable, Iterator, NamedTuple, Optional
+
+from .core.config import WorldConfig
+from .core.errors import (AlreadyInStateError, IncorrectTransitionError, InvalidArgumentError,
+                          NoWorldError, StateTransitionError)
+from .core.loop import SimLoop
+from .core.memory import release_free_memory
+from .core.records import RESET_ALL, Snapshot
+from .core.world import World
+
+log = logging.getLogger(__name__)
+
+NO_WORLD = 'no_world'
+LOADING_WORLD = 'loading_world'
+STOPPED = 'stopped'
+PAUSED = 'paused'
+PLAYING = 'playing'
+#: The states a caller may ask for (:meth:`Session.set_state`).
+REQUESTABLE = (PLAYING, PAUSED, STOPPED)
+
+ERR_NO_WORLD = 'no world is loaded; call load_world first'
+ERR_LOADING = 'a world is loading (LOADING_WORLD): ask again when load_world has answered'
+ERR_NOT_REQUESTABLE = ('cannot set state {target!r}: ask for playing, paused or stopped (or '
+                       'quit the simulator)')
+ERR_ALREADY = 'already in that state'
+
+#: Freed heap goes back to the system every TRIM_PERIOD_SEC; while the model keeps changing, only
+#: once BUSY_TRIM_BYTES are free (a trim stalled every allocating thread for up to 66 ms under a
+#: storm of edits); once the model has stood still QUIET_SEC, whatever is free.
+TRIM_PERIOD_SEC = 2.0
+BUSY_TRIM_BYTES = 64 << 20
+QUIET_SEC = 0.5
+#: How often the session's thread looks for a new world or model when nothing wakes it.
+WATCH_SEC = 0.05
+
+Listener = Callable[[Optional['Loaded'], Optional[Snapshot]], None]
+
+
+class Loaded(NamedTuple):
+    """A loaded world, its loop, and where it came from."""
+
+    world: World
+    loop: SimLoop
+    name: str
+    uri: str
+
+
+class Session:
+    """
+    The loaded simulation (see the module docstring); usable as a context manager.
+
+    :param trim_memory: give freed heap back to the system from the session's thread.
+    """
+
+    def __init__(self, trim_memory: bool = True):
+        self._lock = threading.RLock()
+        self._loaded: Optional[Loaded] = None
+        self._stopped = False
+        self._loading = 0
+        self._listeners: list = []  # _Registered, in the order they were added
+        self._seen_cv = threading.Condition()  # notified when listeners have seen a model
+        self._wake = threading.Event()  # a load, an unload or a new listener
+        self._closing = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._trim_memory = trim_memory
+        self._trim = _TrimPolicy()
+
+    def __enter__(self) -> 'Session':
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---------------------------------------------------------------- what is loaded
+
+    @property
+    def loaded(self) -> Optional[Loaded]:
+        """Return the loaded world and loop, or None."""
+        return self._loaded
+
+    def require(self) -> Loaded:
+        """Return what is loaded; :raises NoWorldError: nothing is."""
+        loaded = self._loaded
+        if loaded is None:
+            raise NoWorldError(ERR_NO_WORLD)
+        return loaded
+
+    @property
+    def world(self) -> World:
+        return self.require().world
+
+    @property
+    def loop(self) -> SimLoop:
+        return self.require().loop
+
+    def load(self, world: World, name: str = '', uri: str = '', stopped: bool = False,
+             config: Optional[WorldConfig] = None) -> Loaded:
+        """
+        Make `world` the loaded one, stepping on a loop of its own; the old loop is stopped.
+
+        :param stopped: load it STOPPED (paused at its initial state), as ``load_world`` does;
+            else playing or paused as its configuration (or `config`) says.
+        """
+        loop = SimLoop(world, config)
+        if stopped:
+            loop.pause()
+        with self._lock:
+            old, self._loaded = self._loaded, Loaded(world, loop, name, uri)
+            self._stopped = stopped
+        if old is not None:
+            old.loop.stop()
+        loop.start()
+        self._wake.set()
+        self._start_thread()
+        log.info('world %r loaded from %s: %d entities, dt=%g s, %s', name, uri or '(text)',
+                 len(world.entities()), world.timestep, self.state)
+        return self._loaded
+
+    def load_file(self, path: str, config: WorldConfig = WorldConfig(),
+                  stopped: bool = False) -> Loaded:
+        """Load an MJCF or URDF scene file (see :meth:`load`)."""
+        p = Path(path)
+        return self.load(World.from_file(str(p), config), p.stem, p.resolve().as_uri(),
+                         stopped)
+
+    @contextlib.contextmanager
+    def loading(self) -> Iterator[None]:
+        """While inside, the state is LOADING_WORLD (a load reads and compiles meanwhile)."""
+        with self._lock:
+            self._loading += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._loading -= 1
+
+    def unload(self) -> Loaded:
+        """Stop and drop the loaded world (NO_WORLD); :raises NoWorldError: none is loaded."""
+        with self._lock:
+            old, self._loaded = self._loaded, None
+            self._stopped = False
+        if old is None:
+            raise NoWorldError(ERR_NO_WORLD)
+        old.loop.stop()
+        self._wake.set()
+        return old
+
+    def close(self) -> None:
+        """Stop the loop and the session's thread (a world stays loaded, not stepping)."""
+        self._closing.set()
+        loaded = self._loaded
+        if loaded is not None:
+            # Short: a spawn still compiling holds the world lock and the loop waits for it.
+            loaded.loop.stop(timeout=0.5)
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(2.0)
+
+    # ---------------------------------------------------------------- the lifecycle
+
+    @property
+    def state(self) -> str:
+        """One of NO_WORLD, LOADING_WORLD, STOPPED, PAUSED, PLAYING."""
+        with self._lock:
+            if self._loading:
+                return LOADING_WORLD
+            loaded = self._loaded
+            if loaded is None:
+                return NO_WORLD
+            if self._stopped or loaded.loop.failure:
+                return STOPPED
+            return PAUSED if loaded.loop.paused else PLAYING
+
+    def status_message(self) -> str:
+        """Why the simulation stopped or paused by itself, or a word when it lags; else ''."""
+        loaded = self._loaded
+        if loaded is None:
+            return ''
+        status = loaded.loop.status()
+        return status.stop_reason or status.lag
+
+    def set_state(self, target: str) -> None:
+        """
+        Go to `target` (PLAYING, PAUSED or STOPPED) by the standard's rules.
+
+        A step request in progress ends first (it is never left holding the simulation).
+
+        :raises IncorrectTransitionError: another target, or a world is loading.
+        :raises NoWorldError: no world is loaded.
+        :raises AlreadyInStateError: the simulation is in `target` already.
+        :raises StateTransitionError: the loop failed; only STOPPED brings it back.
+        """
+        if target not in REQUESTABLE:
+            raise IncorrectTransitionError(ERR_NOT_REQUESTABLE.format(target=target))
+        with self._lock:
+            if self._loading:  # the standard: not until the world has loaded
+                raise IncorrectTransitionError(ERR_LOADING)
+            loaded = self.require()
+            loaded.loop.cancel_steps()
+            failure = loaded.loop.failure
+            if self.state == target and not failure:  # STOPPED after a failure: reset
+                raise AlreadyInStateError(ERR_ALREADY)
+            if failure and target != STOPPED:
+                raise StateTransitionError(failure)
+        # Outside the lock: a stop resets, which may compile (the spawned entities go).
+        {PLAYING: self.play, PAUSED: self.pause, STOPPED: self.stop}[target]()
+
+    def play(self) -> None:
+        """Play (from STOPPED too); :raises IncorrectStateError: the loop failed."""
+        with self._lock:
+            loop = self.require().loop
+            loop.play()
+            self._stopped = False
+
+    def pause(self) -> None:
+        with self._lock:
+            loop = self.require().loop
+            loop.pause()
+            self._stopped = False
+
+    def stop(self) -> None:
+        """Stop: pause and reset everything (time, state, spawned); a failed loop recovers."""
+        with self._lock:
+            loaded = self.require()
+            loaded.loop.pause()
+            loaded.loop.cancel_steps()
+        loaded.world.reset(RESET_ALL)
+        loaded.loop.recover()
+        with self._lock:
+            self._stopped = True
+        loaded.loop.refresh_snapshot()
+
+    def step(self, n: int, feedback: Optional[Callable[[int, int], None]] = None) -> int:
+        """
+        Run `n` steps while paused (or stopped: the simulation is then paused); block until done.
+
+        Returns the steps taken; raises as :meth:`SimLoop.step <sim_node.core.loop.SimLoop.step>`.
+        """
+        loop = self.require().loop
+        done = loop.step(n, feedback=feedback)
+        with self._lock:
+            self._stopped = False  # no longer at the reset state
+        return done
+
+    def reset(self, scope: int = RESET_ALL) -> None:
+        """Reset by scope bits (:meth:`World.reset`); a failed loop comes back, paused."""
+        loaded = self.require()
+        loaded.world.reset(scope)
+        loaded.loop.recover()
+        loaded.loop.refresh_snapshot()
+
+    def changed(self) -> None:
+        """Say the world was written outside the loop: consumers get a fresh snapshot now."""
+        loaded = self._loaded
+        if loaded is not None:
+            loaded.loop.refresh_snapshot()
+
+    def set_real_time_factor(self, rtf: float) -> None:
+        if not rtf >= 0:
+            raise InvalidArgumentError(f'real_time_factor must be >= 0, got {rtf}')
+        self.require().loop.set_real_time_factor(rtf)
+
+    # ---------------------------------------------------------------- listeners
+
+    def add_listener(self, listener: Listener) -> None:
+        """
+        Call ``listener(loaded, snapshot)`` with every new model, from the session's thread.
+
+        ``loaded`` and ``snapshot`` (of the new model) are None when nothing is loaded. A
+        listener added while a world is loaded is called with it first. It must not block for
+        long (it holds back the others); an exception is logged and the next model still comes.
+        """
+        with self._lock:
+            self._listeners.append(_Registered(listener))
+        self._wake.set()
+        self._start_thread()
+
+    def remove_listener(self, listener: Listener) -> None:
+        with self._lock:
+            self._listeners = [r for r in self._listeners if r.listener is not listener]
+
+    def sync(self, timeout: float = 10.0) -> bool:
+        """Wait until every listener has seen the model that is current now; False on timeout."""
+        deadline = time.monotonic() + timeout
+        while True:
+            key = _key(self._loaded)
+            with self._seen_cv:
+                with self._lock:
+                    behind = [r for r in self._listeners if r.seen != key]
+                if not behind:
+                    return True
+                left = deadline - time.monotonic()
+                if left <= 0 or self._thread is None:
+                    return False
+                self._seen_cv.wait(min(left, WATCH_SEC))
+
+    # ---------------------------------------------------------------- the session's thread
+
+    def _start_thread(self) -> None:
+        with self._lock:
+            if self._thread is not None or self._closing.is_set():
+                return
+            self._thread = threading.Thread(target=self._watch, name='sim-model', daemon=True)
+            self._thread.start()
+
+    def _watch(self) -> None:
+        """Call the listeners with each new model; give freed memory back when it is cheap."""
+        while not self._closing.is_set():
+            try:
+                self._watch_once()
+            except Exception:  # noqa: B902 (never die silently: say why, go on)
+                log.exception('the session thread failed; it goes on')
+                self._closing.wait(0.5)
+
+    def _watch_once(self) -> None:
+        loaded = self._loaded
+        key = _key(loaded)
+        with self._lock:
+            behind = [r for r in self._listeners if r.seen != key]
+        if not behind:  # wait for a new model, a load or an unload
+            if loaded is None:
+                self._wake.wait(WATCH_SEC)
+            else:
+                loaded.world.wait_new_model(key[1], WATCH_SEC)
+            self._wake.clear()
+            self._maybe_trim(key[1])
+            return
+        snap = None
+        if loaded is not None:
+            # The consumers of snapshots (the publishers) see the new model now, not at the
+            # next batch of a paused loop.
+            loaded.loop.refresh_snapshot()
+            snap = loaded.loop.latest_snapshot()
+            key = (loaded.world, snap.info.generation)
+        for registered in behind:
+            try:
+                registered.listener(loaded, snap)
+            except Exception:  # noqa: B902 (one listener must not stop the others)
+                log.exception('a listener of new models failed: %r', registered.listener)
+            registered.seen = key
+        with self._seen_cv:
+            self._seen_cv.notify_all()
+        self._maybe_trim(key[1])
+
+    def _maybe_trim(self, generation: Optional[int]) -> None:
+        if self._trim_memory:
+            self._trim.tick(generation, time.monotonic())
+
+
+def _key(loaded: Optional[Loaded]) -> tuple:
+    """Return what a listener sees of a world: (world, generation); (None, None): none."""
+    return (None, None) if loaded is None else (loaded.world, loaded.world.generation)
+
+
+class _Registered:
+    """A listener and the model it last saw."""
+
+    __slots__ = ('listener', 'seen')
+
+    def __init__(self, listener: Listener):
+        self.listener = listener
+        self.seen: tuple = ('never', None)
+
+
+class _TrimPolicy:
+    """When to give freed heap back (see TRIM_PERIOD_SEC): a trim stalls allocating threads."""
+
+    def __init__(self):
+        self.trimmed = self.changed = time.monotonic()
+        self.generation: Optional[int] = None
+        self.owed = False
+
+    def tick(self, generation: Optional[int], now: float) -> None:
+        if generation != self.generation:
+            self.generation, self.changed = generation, now
+        quiet = now - self.changed >= QUIET_SEC
+        if now - self.trimmed >= TRIM_PERIOD_SEC or (quiet and self.owed):
+            self.trimmed = now
+            # Skipped while busy: owed, and made as soon as the model stands still.
+            self.owed = not release_free_memory(at_least=0 if quiet else BUSY_TRIM_BYTES)

@@ -1,0 +1,209 @@
+"""
+The Session: one owner of the loaded simulation, its lifecycle and its listeners, with no ROS.
+
+The lifecycle's transitions and the refusals simulation_interfaces names are checked here at
+core speed; the node's tests keep what needs the wire (the codes on it).
+"""
+
+import subprocess
+import sys
+import time
+
+from conftest import DEFAULT_SCENE, ROOT, wait_for
+import pytest
+from sim_node import session as lifecycle
+from sim_node.core.config import WorldConfig
+from sim_node.core.errors import (AlreadyInStateError, IncorrectStateError,
+                                  IncorrectTransitionError, NoWorldError, OperationFailedError,
+                                  StateTransitionError)
+from sim_node.core.models import sources
+from sim_node.core.world import World
+from sim_node.session import Session
+
+FAST = WorldConfig(real_time_factor=0)
+
+
+def box():
+    return sources.primitive('box', [0.05] * 3, mass=0.5)
+
+
+@pytest.fixture
+def session():
+    s = Session(trim_memory=False)
+    yield s
+    s.close()
+
+
+def test_with_no_world_every_request_says_so(session):
+    assert session.state == lifecycle.NO_WORLD
+    for request in (session.play, session.pause, session.stop, lambda: session.step(1),
+                    lambda: session.set_state(lifecycle.PLAYING), session.unload,
+                    lambda: session.reset(255)):
+        with pytest.raises(NoWorldError, match='no world is loaded'):
+            request()
+    assert session.state == lifecycle.NO_WORLD
+
+
+def test_a_world_loaded_stopped_plays_pauses_steps_and_stops_as_the_standard_says(session):
+    session.load_file(str(DEFAULT_SCENE), FAST, stopped=True)
+    assert session.state == lifecycle.STOPPED and session.world.time == 0
+    with pytest.raises(AlreadyInStateError):
+        session.set_state(lifecycle.STOPPED)
+    session.set_state(lifecycle.PLAYING)
+    assert session.state == lifecycle.PLAYING
+    with pytest.raises(AlreadyInStateError):
+        session.set_state(lifecycle.PLAYING)
+    with pytest.raises(OperationFailedError):  # the standard: stepping while playing is 4
+        session.step(1)
+    session.set_state(lifecycle.PAUSED)
+    assert session.state == lifecycle.PAUSED
+    t0, dt = session.world.time, session.world.timestep
+    assert session.step(25) == 25
+    assert session.world.time == pytest.approx(t0 + 25 * dt)
+    session.world.spawn('crate', box(), position=[2, 0, 0.5])
+    session.set_state(lifecycle.STOPPED)  # pause plus a full reset
+    assert session.state == lifecycle.STOPPED
+    assert session.world.time == 0 and session.world.spawned_names() == []
+
+
+def test_stepping_from_stopped_leaves_it_paused(session):
+    session.load_file(str(DEFAULT_SCENE), FAST, stopped=True)
+    session.step(3)
+    assert session.state == lifecycle.PAUSED and session.world.step_count == 3
+
+
+@pytest.mark.parametrize('target', ['quitting', 'no_world', 'loading_world', 'dancing'])
+def test_a_state_nobody_may_ask_for_is_an_incorrect_transition(session, target):
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    with pytest.raises(IncorrectTransitionError):
+        session.set_state(target)
+
+
+def test_while_a_world_loads_no_state_may_be_set(session):
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    with session.loading():
+        assert session.state == lifecycle.LOADING_WORLD
+        with pytest.raises(IncorrectTransitionError, match='loading'):
+            session.set_state(lifecycle.PAUSED)
+    assert session.state == lifecycle.PLAYING
+
+
+def test_a_failed_loop_shows_stopped_until_a_stop_brings_it_back(session):
+    loaded = session.load_file(str(DEFAULT_SCENE), FAST)
+    real = loaded.world.stepping.batch
+
+    def broken(*args, **kwargs):
+        loaded.world.stepping.batch = real
+        raise RuntimeError('injected fault')
+    loaded.world.stepping.batch = broken
+    wait_for(lambda: loaded.loop.failure, timeout=5)
+    assert session.state == lifecycle.STOPPED
+    assert 'injected fault' in session.status_message()
+    with pytest.raises(StateTransitionError, match='injected fault'):
+        session.set_state(lifecycle.PLAYING)
+    session.set_state(lifecycle.STOPPED)  # allowed although STOPPED: it recovers
+    assert session.state == lifecycle.STOPPED and not loaded.loop.failure
+    session.set_state(lifecycle.PLAYING)
+    t0 = session.world.time
+    wait_for(lambda: session.world.time > t0 + 0.1, timeout=5)
+
+
+def test_a_reset_keeps_playing_or_paused(session):
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    session.pause()
+    session.reset(255)
+    assert session.state == lifecycle.PAUSED
+    session.play()
+    session.reset(1)
+    assert session.state == lifecycle.PLAYING
+
+
+def test_loading_another_world_stops_the_old_loop_and_unloading_leaves_no_world(session):
+    first = session.load_file(str(DEFAULT_SCENE), FAST)
+    second = session.load(World.from_file(str(DEFAULT_SCENE), FAST), 'again', '', stopped=True)
+    assert not first.loop.running and second.loop.running
+    assert session.loaded is second and session.state == lifecycle.STOPPED
+    assert session.unload() is second
+    assert not second.loop.running and session.state == lifecycle.NO_WORLD
+
+
+def test_a_listener_sees_every_new_model_once(session):
+    seen = []
+    session.add_listener(lambda loaded, snap: seen.append(
+        None if snap is None else (loaded.name, snap.info.generation,
+                                   [e.name for e in snap.info.entities if e.spawned])))
+    assert session.sync()
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    assert session.sync()
+    session.world.spawn('crate', box(), position=[2, 0, 0.5])
+    assert session.sync()
+    session.world.spawn('ball', box(), position=[-2, 0, 0.5])
+    assert session.sync()
+    session.world.delete('crate')
+    assert session.sync()
+    session.reset(4)  # the spawned entities go: a new model
+    assert session.sync()
+    session.reset(2)  # the state only: the same model
+    session.load(World.from_file(str(DEFAULT_SCENE), FAST), 'second', '')
+    assert session.sync()
+    session.unload()
+    assert session.sync()
+    time.sleep(0.2)  # nothing more comes while nothing changes
+    assert seen == [None, ('default', 0, []), ('default', 1, ['crate']),
+                    ('default', 2, ['crate', 'ball']), ('default', 3, ['ball']),
+                    ('default', 4, []), ('second', 0, []), None]
+
+
+def test_a_late_listener_hears_the_current_model_and_the_others_nothing_twice(session):
+    first, late = [], []
+    session.add_listener(lambda loaded, snap: first.append(snap.info.generation))
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    assert session.sync()
+    session.add_listener(lambda loaded, snap: late.append(snap.info.generation))
+    assert session.sync()
+    assert first == [0] and late == [0]
+
+
+def test_a_listener_that_fails_does_not_stop_the_others(session):
+    calls = []
+
+    def failing(loaded, snap):
+        raise RuntimeError('listener bug')
+    session.add_listener(failing)
+    session.add_listener(lambda loaded, snap: calls.append(snap and snap.info.generation))
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    assert session.sync()
+    session.world.spawn('crate', box(), position=[2, 0, 0.5])
+    assert session.sync()
+    assert calls[-2:] == [0, 1]
+
+
+def test_a_session_runs_and_notifies_with_no_rclpy_in_the_process():
+    code = '\n'.join([
+        'import sys',
+        'from sim_node.session import Session',
+        'from sim_node.core.config import WorldConfig',
+        'from sim_node.core.models import sources',
+        'seen = []',
+        'with Session() as s:',
+        '    s.add_listener(lambda loaded, snap: seen.append(snap and snap.info.generation))',
+        f'    s.load_file({str(DEFAULT_SCENE)!r}, WorldConfig(real_time_factor=0))',
+        "    s.world.spawn('crate', sources.primitive('box', [.05] * 3, mass=.5),",
+        '                  position=[2, 0, .5])',
+        '    assert s.sync()',
+        '    s.pause(); s.step(10)',
+        "    assert s.state == 'paused'",
+        'print(seen, sorted(m for m in sys.modules if m.split(".")[0] == "rclpy"))',
+    ])
+    out = subprocess.run([sys.executable, '-c', code], cwd=ROOT, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == '[None, 0, 1] []'
+
+
+def test_step_inside_the_world_lock_is_refused_not_a_deadlock(session):
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    session.pause()
+    with session.world.locked():
+        with pytest.raises(IncorrectStateError):
+            session.step(1)

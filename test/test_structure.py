@@ -1,0 +1,141 @@
+"""
+The shape of the code, as a new maintainer meets it (issue 31).
+
+No module reads a private name that another file defines (one class lives in one file; objects
+talk through public methods), no module is over 600 lines and the node's is at most 350, and the
+README is a door of at most 200 lines whose map names exactly the package's folders.
+"""
+
+import ast
+from pathlib import Path
+import re
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ('sim_node', 'msg_adapters')
+#: Private names of libraries that the project's classes use as their subclasses or callers:
+#: (name, why).
+LIBRARY_PRIVATES = {
+    '_is_owned': "threading.RLock's: whether the calling thread holds it",
+    '_exit': 'os._exit: leave at once when a callback still works at shutdown',
+    '_add_info': "gymnasium.vector.VectorEnv's, for the vector env's infos",
+}
+MAX_MODULE_LINES = 600
+MAX_NODE_LINES = 350
+MAX_README_LINES = 200
+
+
+def modules() -> list:
+    return sorted(p for pkg in PACKAGES for p in (ROOT / pkg).rglob('*.py'))
+
+
+def _defined_names(tree: ast.AST) -> set:
+    """Every name a file defines: functions, classes, arguments, assigned names and attributes."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            names.add(node.attr)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            names.add(node.id)
+        elif isinstance(node, ast.alias):
+            names.add(node.asname or node.name.split('.')[-1])
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            names.add(node.value)  # __slots__ entries
+    return names
+
+
+def borrowed_privates(path: Path) -> list:
+    """Return (line, name) of private names `path` reads that it does not define itself."""
+    tree = ast.parse(path.read_text())
+    own = _defined_names(tree)
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute):
+            name = node.attr
+            if (name.startswith('_') and not name.startswith('__') and name not in own
+                    and name not in LIBRARY_PRIVATES):
+                out.append((node.lineno, name))
+        elif isinstance(node, ast.ImportFrom):
+            out += [(node.lineno, a.name) for a in node.names
+                    if a.name.startswith('_') and not a.name.startswith('__')]
+    return out
+
+
+def test_no_module_reads_a_private_name_another_file_defines():
+    found = [f'{p.relative_to(ROOT)}:{line}: {name}' for p in modules()
+             for line, name in borrowed_privates(p)]
+    assert not found, '\n'.join(found)
+
+
+def test_the_check_sees_a_borrowed_private_name(tmp_path):
+    """The checker itself: a mixin reading its host's private attribute is found."""
+    mixin = tmp_path / 'mixin.py'
+    mixin.write_text('class Mixin:\n    def f(self):\n        return self._model\n')
+    host = tmp_path / 'host.py'
+    host.write_text('class Host:\n    def __init__(self):\n        self._model = 1\n')
+    assert borrowed_privates(mixin) == [(3, '_model')]
+    assert borrowed_privates(host) == []
+
+
+def test_no_module_is_over_600_lines_and_the_node_is_at_most_350():
+    sizes = {p.relative_to(ROOT).as_posix(): len(p.read_text().splitlines()) for p in modules()}
+    assert {p: n for p, n in sizes.items() if n > MAX_MODULE_LINES} == {}
+    assert sizes['sim_node/ros/node.py'] <= MAX_NODE_LINES
+
+
+def test_only_the_ros_folder_and_the_adapters_import_rclpy():
+    """The core, the session, the Gym envs, the viewer and the recorder run without ROS."""
+    ros_free = [p for p in modules() if p.parts[len(ROOT.parts)] == 'sim_node'
+                and p.parts[len(ROOT.parts) + 1] != 'ros']
+    bad = [str(p.relative_to(ROOT)) for p in ros_free
+           if re.search(r'^\s*(from|import) (rclpy|rosgraph_msgs|std_msgs|sensor_msgs|'
+                        r'geometry_msgs|simulation_interfaces|tf2_msgs)\b', p.read_text(),
+                        re.M)]
+    assert not bad
+
+
+def _readme_map() -> set:
+    """Return the folders the README's map names (lines of its map block: `path/`)."""
+    text = (ROOT / 'README.md').read_text()
+    block = re.search(r'<!-- map -->\n```text\n(.*?)```', text, re.S)
+    assert block, 'the README has no map block (<!-- map --> then a ```text block)'
+    return {m.group(1).rstrip('/') for m in re.finditer(r'^\s*([\w./-]+/)\s', block.group(1),
+                                                        re.M)}
+
+
+def test_the_readme_is_a_door_and_its_map_matches_the_folders():
+    text = (ROOT / 'README.md').read_text()
+    assert len(text.splitlines()) <= MAX_README_LINES
+    folders = {p.relative_to(ROOT).as_posix() for pkg in PACKAGES
+               for p in [ROOT / pkg, *(ROOT / pkg).rglob('*')]
+               if p.is_dir() and (p / '__init__.py').is_file()}
+    named = _readme_map()
+    assert folders <= named, f'folders the map leaves out: {sorted(folders - named)}'
+    missing = sorted(n for n in named if not (ROOT / n).is_dir())
+    assert not missing, f'the map names folders that do not exist: {missing}'
+
+
+@pytest.mark.parametrize('doc', sorted(p.name for p in (ROOT / 'docs').glob('*.md')))
+def test_every_link_of_the_readme_and_docs_leads_somewhere(doc):
+    for source in (ROOT / 'README.md', ROOT / 'docs' / doc):
+        for target in re.findall(r'\]\(([^)#:]+)(?:#[^)]*)?\)', source.read_text()):
+            assert (source.parent / target).exists(), f'{source.name} links to {target}'
+
+
+@pytest.mark.parametrize('old, new, name', [
+    ('sim_node.core.sources', 'sim_node.core.models.sources', 'primitive'),
+    ('sim_node.core.cameras', 'sim_node.core.devices.cameras', 'CameraRig'),
+    ('sim_node.core.lidar', 'sim_node.core.devices.lidar', 'LaserScanner'),
+    ('sim_node.gym_env', 'sim_node.gym.env', 'Task'),
+    ('sim_node.client', 'sim_node.ros.client', 'SimClient'),
+    ('sim_node.qos', 'sim_node.ros.qos', 'SERVICE_QOS'),
+])
+def test_the_import_paths_older_code_uses_still_work(old, new, name):
+    import importlib
+    assert getattr(importlib.import_module(old), name) is \
+        getattr(importlib.import_module(new), name)
