@@ -20,6 +20,7 @@ LIBRARY_PRIVATES = {
     '_is_owned': "threading.RLock's: whether the calling thread holds it",
     '_exit': 'os._exit: leave at once when a callback still works at shutdown',
     '_add_info': "gymnasium.vector.VectorEnv's, for the vector env's infos",
+    '_eval_dict': "xacro's table of $(eval) names, whose find() the isolated xacro replaces",
 }
 MAX_MODULE_LINES = 600
 MAX_NODE_LINES = 350

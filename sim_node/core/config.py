@@ -32,8 +32,13 @@ class WorldConfig:
     interpenetration_tolerance: float = 1e-3
     #: Allow spawning into overlapping geometry (off by default: deep overlap explodes).
     allow_interpenetration: bool = False
-    #: Largest resource (MJCF/URDF text or mesh file) a spawn may read, in bytes.
+    #: Largest model file (MJCF or URDF text) or other file a spawn may read, in bytes.
     max_resource_bytes: int = 20_000_000
+    #: Largest mesh file, in bytes: the largest mesh of 69 URDFs of ROS description packages is
+    #: a 28.8 MB Collada file (Unitree Go1's trunk).
+    max_mesh_bytes: int = 64_000_000
+    #: Most bytes one model's files may add up to: the most of those 69 URDFs read 64 MB.
+    max_model_bytes: int = 256_000_000
     #: Largest mesh, in faces, a spawn may load.
     max_mesh_faces: int = 200_000
     #: MuJoCo's cache of processed meshes, in MiB (process-wide; MuJoCo's default is 512). A

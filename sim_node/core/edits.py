@@ -80,17 +80,23 @@ class Edits:
 
         :returns: the entity's name (differs from `name` only when renaming was allowed).
         """
-        pos, q = check_pose(position, quat_wxyz)
-        checks.check_namespace(namespace)
-        name = name or source.name  # the standard: else the name the resource gives itself
-        if not allow_renaming:
-            checks.check_name(name)
-        overlap_ok = (self.live.config.allow_interpenetration if allow_interpenetration is None
-                      else allow_interpenetration)
-        # The compile, the slow part, runs outside the world lock (_change): the loop
-        # steps and /clock goes on meanwhile.
-        return self.transaction.change(lambda: self._plan_spawn_locked(
-            name, source, pos, q, reference, allow_renaming, overlap_ok, namespace))
+        try:
+            pos, q = check_pose(position, quat_wxyz)
+            checks.check_namespace(namespace)
+            name = name or source.name  # the standard: else the name the resource gives itself
+            if not allow_renaming:
+                checks.check_name(name)
+            overlap_ok = (self.live.config.allow_interpenetration
+                          if allow_interpenetration is None else allow_interpenetration)
+            # The compile, the slow part, runs outside the world lock (Transaction.change):
+            # the loop steps and /clock goes on meanwhile.
+            result = self.transaction.change(lambda: self._plan_spawn_locked(
+                name, source, pos, q, reference, allow_renaming, overlap_ok, namespace))
+        except BaseException:
+            source.settle(spawned=False)  # its copied files go, unless others use them
+            raise
+        source.settle(spawned=True)
+        return result
 
     def _plan_spawn_locked(self, name: str, source: sources.SpawnSource, pos: np.ndarray,
                            q: np.ndarray, reference: str, allow_renaming: bool,

@@ -11,6 +11,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from . import middleware
 from .params import parameter_error
 from ..core.errors import SimError
+from ..core.models import assets
 
 
 def main(args=None) -> int:
@@ -65,6 +66,7 @@ def _exit_if_busy(code: int) -> None:
     if busy:
         sys.stdout.flush()
         sys.stderr.flush()
+        assets.store().remove()  # os._exit runs no atexit: the copies of model files go here
         os._exit(code)
 
 

@@ -146,19 +146,24 @@ class Services:
 
     # ---- spawning
 
-    def _source_for(self, uri: str, resource_string: str) -> sources.SpawnSource:
+    def _source_for(self, uri: str, resource_string: str,
+                    max_bodies: int) -> sources.SpawnSource:
         roots = list(self._readable.roots)
         if resource_string and not uri:  # the standard: a uri, when given, wins
             # from_model_text refuses text over max_bytes (UNSUPPORTED_ASSETS) before parsing.
             return sources.from_model_text(resource_string, base_dir=None,
                                            allowed_roots=roots,
-                                           max_bytes=MAX_RESOURCE_STRING_BYTES)
+                                           max_bytes=MAX_RESOURCE_STRING_BYTES,
+                                           max_bodies=max_bodies)
+        uri, options = resources.split_options(uri)  # ?static=true, xacro name:=value
         path = resources.resolve_uri(uri, roots, self._readable.scenes_dir)
-        return sources.from_file(str(path), allowed_roots=roots)
+        return sources.from_file(str(path), allowed_roots=roots, fixed=options.fixed,
+                                 xacro_args=options.xacro_args, max_bodies=max_bodies)
 
     def _spawn_one(self, world: World, name: str, allow_renaming: bool, uri: str,
                    resource_string: str, namespace: str, initial_pose) -> str:
-        src = self._source_for(uri, resource_string)  # parse outside the world lock
+        # parsed (meshes converted, xacro expanded) outside the world lock
+        src = self._source_for(uri, resource_string, world.config.max_bodies)
         pos, quat = convert.pose_from_msg(initial_pose.pose)
         return world.spawn(name, src, pos, quat,
                            reference=self._frames.reference(initial_pose.header.frame_id),

@@ -79,11 +79,16 @@ ERR_SUBMODEL = ('<model> assets (a model file inside a model) are not supported:
 
 @dataclass(frozen=True)
 class Budget:
-    """What one model may read: bytes per file, bytes in all, faces per mesh."""
+    """What one model may read: bytes per file (a mesh's may differ), bytes in all, faces."""
 
     max_file_bytes: int
     max_total_bytes: int
     max_mesh_faces: int
+    max_mesh_bytes: int = 0  # 0: as max_file_bytes
+
+    @property
+    def mesh_bytes(self) -> int:
+        return self.max_mesh_bytes or self.max_file_bytes
 
 
 def parse(text: str) -> ET.Element:
@@ -132,6 +137,7 @@ class StoredFile:
 
 
 _SAFE_NAME = re.compile(r'[^A-Za-z0-9._-]')
+_MTLLIB = re.compile(rb'(?m)^[ \t]*mtllib\b[^\n]*')
 
 
 class AssetStore:
@@ -148,13 +154,61 @@ class AssetStore:
         self._lock = threading.Lock()
         self._by_file: dict = {}  # (real path, dev, inode, size, mtime_ns) -> StoredFile
         self._by_digest: dict = {}  # content digest -> StoredFile
+        self._pending: dict = {}  # path -> models being read or spawned that use it
+        self._kept: set = set()  # paths an entity or a world was made with
+
+    def hold(self, path: str) -> None:
+        """Count a model being made that uses the copy at `path` (see :meth:`settle`)."""
+        with self._lock:
+            self._pending[path] = self._pending.get(path, 0) + 1
+
+    def settle(self, paths: Sequence[str], keep: bool) -> list:
+        """
+        Release `paths` held by a model that was made (`keep`) or refused; refused copies go.
+
+        A copy goes when no model being made holds it and nothing made was made with it: a
+        refused spawn leaves no file behind. Returns the paths removed.
+        """
+        gone = []
+        with self._lock:
+            for path in paths:
+                left = self._pending.get(path, 0) - 1
+                if left > 0:
+                    self._pending[path] = left
+                else:
+                    self._pending.pop(path, None)
+                if keep:
+                    self._kept.add(path)
+                elif left <= 0 and path not in self._kept:
+                    gone.append(path)
+            if gone:
+                dead = set(gone)
+                self._by_file = {k: v for k, v in self._by_file.items() if v.path not in dead}
+                self._by_digest = {k: v for k, v in self._by_digest.items()
+                                   if v.path not in dead}
+        for path in gone:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+        return gone
+
+    def remove(self) -> None:
+        """Remove the folder and everything in it (at exit)."""
+        with self._lock:
+            folder, self._folder = self._folder, None
+            self._by_file.clear()
+            self._by_digest.clear()
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
 
     @property
     def folder(self) -> str:
         with self._lock:
             if self._folder is None:
-                self._folder = tempfile.mkdtemp(prefix='sim_assets_')
-                atexit.register(shutil.rmtree, self._folder, True)
+                _sweep_dead_folders()
+                self._folder = tempfile.mkdtemp(prefix=f'{FOLDER_PREFIX}{os.getpid()}_')
+                atexit.register(self.remove)
             return self._folder
 
     def cached(self, key: tuple) -> Optional[StoredFile]:
@@ -163,7 +217,14 @@ class AssetStore:
             return self._by_file.get(key)
 
     def put(self, key: Optional[tuple], name: str, data: bytes) -> StoredFile:
-        """Store `data` (the bytes of a file called `name`) and return its copy."""
+        """
+        Store `data` (the bytes of a file called `name`) and return its copy.
+
+        An OBJ's ``mtllib`` lines are left out of its copy: MuJoCo would open the material
+        library beside it (a FIFO put there would block it forever), and draws none of it.
+        """
+        if Path(name).suffix.lower() == '.obj':
+            data = _MTLLIB.sub(b'', data)
         digest = hashlib.blake2b(data, digest_size=16).hexdigest()
         with self._lock:
             found = self._by_digest.get(digest)
@@ -186,6 +247,27 @@ class AssetStore:
         return found
 
 
+#: The store's folder is ``<tmp>/sim_assets_<pid>_<random>``.
+FOLDER_PREFIX = 'sim_assets_'
+
+
+def _sweep_dead_folders() -> None:
+    """Remove store folders left by processes of ours that are gone (a node killed with -9)."""
+    tmp = Path(tempfile.gettempdir())
+    for folder in tmp.glob(f'{FOLDER_PREFIX}*_*'):
+        pid = folder.name[len(FOLDER_PREFIX):].split('_')[0]
+        if not pid.isdigit() or folder.is_symlink() or not folder.is_dir():
+            continue
+        try:
+            if folder.stat().st_uid != os.getuid():
+                continue
+            os.kill(int(pid), 0)  # alive: its folder stays
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except OSError:
+            continue
+
+
 _STORE = AssetStore()
 
 
@@ -203,18 +285,25 @@ def store() -> AssetStore:
 
 
 def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[Sequence[str]],
-            budget: Budget) -> None:
+            budget: Budget, reader: Optional['Reader'] = None) -> list:
     """
     Expand includes and check every file the document names; rewrite it to use the copies.
 
+    In MJCF every attribute whose name starts with ``file`` names a file; in URDF only a
+    ``<mesh filename>`` of a visual or a collision does (extensions are taken out first, see
+    :mod:`.urdf`), and its mesh may be of any kind (:mod:`.meshes` converts it).
+
     :param base_dir: where relative names resolve (None: text from a client, absolute only).
     :param allowed_roots: directories files may be read from (None: anywhere).
+    :param reader: the reader to read with (it holds the copies it returns; see
+        :meth:`AssetStore.settle`); None: a new one.
+    :returns: ``(element, value, stored)`` of each URDF mesh read (empty for MJCF).
     :raises MissingAssetsError: a file missing, outside the allowed directories, or relative
         in text without a folder.
     :raises UnsupportedAssetsError: not a regular file, or over a budget.
     """
     is_urdf = root.tag == 'robot'
-    reader = Reader(allowed_roots, budget)
+    reader = reader or Reader(allowed_roots, budget)
     if not is_urdf:
         _expand_includes(root, base_dir, reader, 0, [0])
         if root.find('asset/model') is not None:
@@ -224,25 +313,37 @@ def sandbox(root: ET.Element, base_dir: Optional[Path], allowed_roots: Optional[
         for key in _DIR_ATTRIBUTES:  # as in MuJoCo's parser
             if key in c.attrib:
                 dirs[key] = c.attrib.pop(key)  # the copies have absolute paths
-    for elem in root.iter():
-        for attr in [a for a in elem.attrib if a.startswith('file')]:
-            value = elem.attrib[attr]
-            candidates = _candidates(value, elem.tag, dirs, base_dir, is_urdf, allowed_roots)
-            path = reader.read(value, candidates, elem.tag)
-            kind = Path(value).suffix.lower()
-            if elem.tag == 'mesh' and 'content_type' not in elem.attrib \
-                    and kind not in MUJOCO_MESH_SUFFIXES:
-                raise UnsupportedAssetsError(ERR_MESH_KIND.format(value=value, kind=kind))
-            elem.set(attr, path)
+    if is_urdf:
+        named = [(mesh, 'filename') for kind in ('visual', 'collision') for part in root.iter(kind)
+                 for mesh in part.iter('mesh') if 'filename' in mesh.attrib]
+    else:
+        named = [(elem, attr) for elem in root.iter() for attr in elem.attrib
+                 if attr.startswith('file')]
+    meshes = []
+    for elem, attr in named:
+        value = elem.attrib[attr]
+        candidates = _candidates(value, elem.tag, dirs, base_dir, is_urdf, allowed_roots)
+        stored = reader.read(value, candidates, elem.tag, urdf_mesh=is_urdf)
+        kind = Path(value).suffix.lower()
+        if is_urdf:
+            meshes.append((elem, value, stored))
+        elif elem.tag == 'mesh' and 'content_type' not in elem.attrib \
+                and kind not in MUJOCO_MESH_SUFFIXES:
+            raise UnsupportedAssetsError(ERR_MESH_KIND.format(value=value, kind=kind))
+        elem.set(attr, stored.path)
+    return meshes
 
 
 def _candidates(value: str, tag: str, dirs: dict, base: Optional[Path], is_urdf: bool,
                 roots: Optional[Sequence[str]] = None) -> list:
     """Where a file name may be, first match wins."""
     if is_urdf and value.startswith('package://'):
-        package, _, rel = value[len('package://'):].partition('/')
+        # package:///pkg/... (three slashes) is read as package://pkg/..., as meant
+        package, _, rel = value[len('package://'):].lstrip('/').partition('/')
         out = [share / rel for share in package_folders(package, roots or ())]
-        return out + ([base / Path(rel).name] if base is not None else [])
+        # then beside the file: the package's path under the URDF's folder, or just the name
+        return out + ([base / package / rel, base / Path(rel).name] if base is not None
+                      else [])
     if value.startswith('file://'):
         value = value[len('file://'):]
     if os.path.isabs(value):
@@ -317,17 +418,36 @@ class Reader:
         self.roots = allowed_roots
         self.budget = budget
         self._total = 0
+        #: The copies this reader returned, each held in the store until :meth:`settle`.
+        self.held: list = []
 
-    def read(self, value: str, candidates: list, tag: str) -> str:
-        """Return the path of the checked copy of a file the model names."""
-        real, st = self.resolve(value, candidates)
+    def read(self, value: str, candidates: list, tag: str,
+             urdf_mesh: bool = False) -> StoredFile:
+        """Return the checked copy of a file the model names (held until :meth:`settle`)."""
+        limit = self.budget.mesh_bytes if tag in _MESH_TAGS else self.budget.max_file_bytes
+        real, st = self.resolve(value, candidates, limit=limit)
         key = (real, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
         stored = _STORE.cached(key)
         if stored is None:
-            stored = _STORE.put(key, real, self._read_bytes(value, real, st))
+            stored = _STORE.put(key, real, self._read_bytes(value, real, st, limit))
+        self.hold(stored.path)
         self._count(stored.size)
         self._check_content(value, tag, stored)
-        return stored.path
+        return stored
+
+    def hold(self, path: str) -> None:
+        """Hold a file made for this model (a copy, a conversion) until :meth:`settle`."""
+        _STORE.hold(path)
+        self.held.append(path)
+
+    def settle(self, keep: bool) -> list:
+        """Release the files held: the model was made (`keep`) or refused (AssetStore.settle)."""
+        held, self.held = self.held, []
+        gone = _STORE.settle(held, keep)
+        if gone:
+            from . import meshes  # the conversions of gone files are gone too
+            meshes.forget(gone)
+        return gone
 
     def load(self, value: str, candidates: list) -> bytes:
         """Return the bytes of a file the model names (an included file), checked."""
@@ -336,7 +456,8 @@ class Reader:
         self._count(len(data))
         return data
 
-    def resolve(self, value: str, candidates: list, messages: Optional[dict] = None) -> tuple:
+    def resolve(self, value: str, candidates: list, messages: Optional[dict] = None,
+                limit: Optional[int] = None) -> tuple:
         """
         Return (real path, stat) of the first candidate that exists, inside the roots.
 
@@ -344,6 +465,7 @@ class Reader:
             with ``size`` and ``limit``) instead of the ones about a file a model names.
         """
         msg = messages or {}
+        limit = self.budget.max_file_bytes if limit is None else limit
         for path in candidates:
             try:
                 real = os.path.realpath(path)
@@ -359,15 +481,16 @@ class Reader:
             if not stat.S_ISREG(st.st_mode):
                 raise UnsupportedAssetsError(msg.get('not_regular')
                                              or ERR_NOT_REGULAR.format(value=value))
-            if st.st_size > self.budget.max_file_bytes:
+            if st.st_size > limit:
                 raise UnsupportedAssetsError(
                     msg.get('too_large', ERR_TOO_LARGE).format(
-                        value=value, size=st.st_size, limit=self.budget.max_file_bytes))
+                        value=value, size=st.st_size, limit=limit))
             return real, st
         raise MissingAssetsError(msg.get('missing') or ERR_NOT_FOUND.format(value=value))
 
-    def _read_bytes(self, value: str, real: str, st: os.stat_result) -> bytes:
-        limit = self.budget.max_file_bytes
+    def _read_bytes(self, value: str, real: str, st: os.stat_result,
+                    limit: Optional[int] = None) -> bytes:
+        limit = self.budget.max_file_bytes if limit is None else limit
         try:  # O_NONBLOCK: a FIFO put there meanwhile cannot block the open
             fd = os.open(real, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
         except OSError:

@@ -19,7 +19,8 @@ from typing import Optional, Sequence, Tuple
 from urllib.parse import unquote, urlparse
 
 from . import sources
-from ..errors import MissingAssetsError, NoResourceError, NotFoundError, UnsupportedFormatError
+from ..errors import (FeatureUnsupportedError, MissingAssetsError, NoResourceError,
+                      NotFoundError, UnsupportedFormatError)
 
 SPAWNABLE_SUFFIXES = sources.MODEL_SUFFIXES + sources.MESH_SUFFIXES
 PACKAGE = 'sim'
@@ -48,6 +49,42 @@ class Readable:
     def redact(self, text: str) -> str:
         """Say `text` without where the server keeps its files (see :func:`redact`)."""
         return redact(text, self.roots, self.scenes_dir)
+
+
+@dataclass(frozen=True)
+class SpawnOptions:
+    """
+    What a spawn URI's query asks for: ``?static=true&name:=value&...``.
+
+    :param fixed: ``static=true``: a URDF's root stays where it is spawned, as Gazebo's
+        ``<static>`` makes a model static.
+    :param xacro_args: every ``name:=value``: the arguments of a xacro file.
+    """
+
+    fixed: bool = False
+    xacro_args: Optional[dict] = None
+
+
+ERR_OPTION = ('spawn option {item!r} is not supported: a uri may end in ?static=true (a URDF '
+              'that stays where it is spawned) and name:=value xacro arguments, joined by &')
+
+
+def split_options(uri: str) -> Tuple[str, SpawnOptions]:
+    """Return the uri without its query, and the spawn options the query gives."""
+    base, sep, query = uri.strip().partition('?')
+    if not sep:
+        return uri, SpawnOptions()
+    fixed, args = False, {}
+    for item in filter(None, query.split('&')):
+        item = unquote(item)
+        name, is_arg, value = item.partition(':=')
+        if is_arg:
+            args[name] = value
+        elif item.lower() in ('static=true', 'static=1', 'static'):
+            fixed = True
+        elif item.lower() not in ('static=false', 'static=0'):
+            raise FeatureUnsupportedError(ERR_OPTION.format(item=item[:100]))
+    return base, SpawnOptions(fixed, args or None)
 
 
 def source_scenes_dir() -> Path:

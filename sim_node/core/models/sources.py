@@ -17,17 +17,17 @@ from typing import Optional, Sequence
 import xml.etree.ElementTree as ET
 
 import mujoco
-import numpy as np
 
-from . import assets
-from .assets import inside_roots  # noqa: F401 (part of this module's interface)
+from . import assets, meshes, urdf, xacro_files
+from .assets import inside_roots, Reader  # noqa: F401 (inside_roots: this module's too)
+from .urdf import Prepared
 from ..config import WorldConfig
 from ..errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
                       NoResourceError, ResourceParseError, UnsupportedAssetsError,
                       UnsupportedElementsError, UnsupportedFormatError)
 
 MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
-MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf')
+MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf', '.xacro')
 PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
 
 #: Elements MuJoCo's XML reader expands before it checks its schema, which does not list them.
@@ -58,6 +58,8 @@ ERR_MASS = 'mass must be finite and >= 0, got {mass}'
 ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
 # Default budgets: the configuration's (the node passes its own WorldConfig's).
 _LIMITS = WorldConfig()
+#: Most faces a URDF mesh may have as it comes (over MuJoCo's limit it is decimated).
+URDF_MAX_INPUT_FACES = 4_000_000
 
 
 log = logging.getLogger(__name__)
@@ -109,10 +111,19 @@ class SpawnSource:
     #: The name the resource gives itself (MJCF ``model``, URDF ``robot name``; '' if none):
     #: a spawn without a name takes it.
     name: str = ''
+    #: What reading the files held in the asset store (see :meth:`settle`).
+    reader: Optional[Reader] = None
+    #: A URDF's root, extensions and repairs (:class:`.urdf.Prepared`), else None.
+    urdf_notes: Optional[Prepared] = None
 
     def __post_init__(self):
         if self.kind == 'mjcf':
             warn_radian_like_ranges(self.spec, self.description or 'the model')
+
+    def settle(self, spawned: bool) -> None:
+        """Say the source was spawned, or refused: a refused one's copied files go."""
+        if self.reader is not None:
+            self.reader.settle(keep=spawned)
 
 
 def check_path(path: str, allowed_roots: Optional[Sequence[str]],
@@ -177,15 +188,16 @@ def check_model_text(text: str, base_dir: Optional[str] = None,
     _check_size(len(text.encode()), max_bytes)
     if not text.lstrip('\ufeff \t\r\n').startswith('<'):  # JSON, YAML, USD ascii, OBJ, ...
         raise UnsupportedFormatError(ERR_NOT_XML.format(start=text.strip()[:20]))
-    root = assets.parse(text)  # no DOCTYPE or entities, nesting bounded
+    # Blank lines before an XML declaration: expat refuses them, ROS's parsers take them.
+    root = assets.parse(text.lstrip('\ufeff \t\r\n'))  # no DOCTYPE, entities; depth bounded
     if root.tag not in ('mujoco', 'robot'):
         raise UnsupportedFormatError(ERR_ROOT_TAG.format(tag=root.tag[:100]))
     return root
 
 
 def _budget(max_bytes: int, max_faces: int) -> assets.Budget:
-    return assets.Budget(max_file_bytes=max_bytes, max_total_bytes=4 * max_bytes,
-                         max_mesh_faces=max_faces)
+    return assets.Budget(max_file_bytes=max_bytes, max_total_bytes=_LIMITS.max_model_bytes,
+                         max_mesh_faces=max_faces, max_mesh_bytes=_LIMITS.max_mesh_bytes)
 
 
 def _spec_from(root: ET.Element) -> mujoco.MjSpec:
@@ -255,31 +267,83 @@ def world_spec(text: str, base_dir: Optional[str] = None,
 def from_model_text(text: str, base_dir: Optional[str] = None,
                     allowed_roots: Optional[Sequence[str]] = None,
                     max_bytes: int = _LIMITS.max_resource_bytes,
-                    max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
+                    max_faces: int = _LIMITS.max_mesh_faces, fixed: bool = False,
+                    max_bodies: Optional[int] = None) -> SpawnSource:
     """
-    Parse MJCF or URDF text (URDF is compiled by MuJoCo's own importer).
+    Parse MJCF or URDF text (URDF through MuJoCo's own importer, prepared by :mod:`.urdf`).
 
     :param base_dir: directory relative file names resolve against (None: only absolute).
     :param allowed_roots: directories files may be read from (None: anywhere).
+    :param fixed: a URDF's root stays where it is spawned even when it would float.
+    :param max_bodies: a URDF with more links is refused before MuJoCo reads it.
     """
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
+    if root.tag == 'robot' and xacro_files.is_xacro('', text):
+        text = xacro_files.expand(allowed_roots if allowed_roots is not None else ['/'],
+                                  text=text)
+        root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     is_urdf = root.tag == 'robot'
-    assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
-                   _budget(max_bytes, max_faces))
-    if is_urdf:
-        _urdf_keep_root_link(root)
-    else:
-        _mjcf_gather_world_geoms(root)
-    spec = _spec_from(root)
-    _inline_skin_files(spec)
-    kind = 'urdf' if is_urdf else 'mjcf'
-    name = root.attrib.get('name') or root.attrib.get('model') or ''
-    source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(),
-                     compile_alone=False)
+    budget = _budget(max_bytes, URDF_MAX_INPUT_FACES if is_urdf else max_faces)
+    reader = assets.Reader(allowed_roots, budget)
+    prepared = None
+    try:
+        if is_urdf:
+            prepared = urdf.prepare(root, max_bodies, fixed)
+        found = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
+                               budget, reader)
+        if is_urdf:
+            _convert_urdf_meshes(root, found, reader)
+        else:
+            _mjcf_gather_world_geoms(root)
+        spec = _spec_from(root)
+        if is_urdf:
+            urdf.finish(spec, prepared)
+        _inline_skin_files(spec)
+        kind = 'urdf' if is_urdf else 'mjcf'
+        name = root.attrib.get('name') or root.attrib.get('model') or ''
+        source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(),
+                         compile_alone=False)
+    except BaseException:
+        reader.settle(keep=False)  # a refused model leaves no file behind
+        raise
     source.default_classes = tuple(d.attrib['class'] for d in root.iter('default')
                                    if 'class' in d.attrib)
     source.text, source.name = text, name
+    source.reader, source.urdf_notes = reader, prepared
     return source
+
+
+def _convert_urdf_meshes(root: ET.Element, found: list, reader: assets.Reader) -> None:
+    """
+    Convert the URDF's meshes MuJoCo cannot read (:mod:`.meshes`); point them at the STL.
+
+    A converted visual without a colour of its own takes the mesh file's (Collada materials).
+    """
+    todo = [(elem, value, stored) for elem, value, stored in found
+            if meshes.needs_conversion(value, stored)]
+    if not todo:
+        return
+    done = meshes.convert([(value, stored) for _, value, stored in todo])
+    visual_of = {id(m): v for v in root.iter('visual') for m in v.iter('mesh')}
+    named = {m.get('name') for m in root.findall('material') if m.find('color') is not None}
+    for (elem, value, _), converted in zip(todo, done):
+        reader.hold(converted.path)
+        elem.set('filename', converted.path)
+        if converted.decimated:
+            log.warning('the mesh %s has %d faces, more than MuJoCo reads (%d): decimated to %d',
+                        value, converted.faces_in, meshes.MUJOCO_MAX_FACES, converted.faces)
+        visual = visual_of.get(id(elem))
+        if visual is None or converted.rgba is None:
+            continue
+        material = visual.find('material')
+        if material is not None and (material.find('color') is not None
+                                     or material.get('name') in named):
+            continue
+        if material is None:
+            material = ET.SubElement(visual, 'material')
+        material.set('name', f'sim_mesh_colour_{len(named)}')
+        named.add(material.get('name'))
+        ET.SubElement(material, 'color', rgba=' '.join(f'{c:g}' for c in converted.rgba))
 
 
 def _inline_skin_files(spec: mujoco.MjSpec) -> None:
@@ -350,21 +414,6 @@ def _mjcf_gather_world_geoms(root: ET.Element) -> None:
         holder.append(e)
 
 
-def _urdf_keep_root_link(root: ET.Element) -> None:
-    """
-    Keep a URDF's root link: MuJoCo's import fuses links welded to the world (fusestatic).
-
-    Which would leave a fixed-base robot without a root body to be the entity: keep them.
-    """
-    ext = root.find('mujoco')
-    if ext is None:
-        ext = ET.SubElement(root, 'mujoco')
-    compiler = ext.find('compiler')
-    if compiler is None:
-        compiler = ET.SubElement(ext, 'compiler')
-    compiler.set('fusestatic', 'false')
-
-
 def read_model_text(path: Path) -> str:
     """Read an MJCF/URDF file as text; a file that is not UTF-8 is a parse error."""
     try:
@@ -375,8 +424,16 @@ def read_model_text(path: Path) -> str:
 
 def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = _LIMITS.max_resource_bytes,
-              max_faces: int = _LIMITS.max_mesh_faces, **mesh_options) -> SpawnSource:
-    """Load an MJCF/URDF file or a mesh file (STL, OBJ, PLY, GLB, DAE) as one entity."""
+              max_faces: int = _LIMITS.max_mesh_faces, fixed: bool = False,
+              xacro_args: Optional[dict] = None, max_bodies: Optional[int] = None,
+              **mesh_options) -> SpawnSource:
+    """
+    Load an MJCF, URDF or xacro file, or a mesh file (STL, OBJ, PLY, GLB, DAE), as one entity.
+
+    :param fixed: a URDF's root stays where it is spawned (see :mod:`.urdf`).
+    :param xacro_args: ``{name: value}`` for a xacro file's ``$(arg name)``.
+    :param max_bodies: a URDF with more links is refused before MuJoCo reads it.
+    """
     p = check_path(path, allowed_roots, max_bytes)
     suffix = p.suffix.lower()
     if suffix in MESH_SUFFIXES:
@@ -386,11 +443,17 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
         raise UnsupportedFormatError(
             f'unsupported file type {suffix!r}; supported: '
             + ', '.join(MODEL_SUFFIXES + MESH_SUFFIXES))
-    text = read_model_text(p)
+    if xacro_files.is_xacro(p.name):
+        # Expanded in a process of its own, reading only inside the readable folders.
+        text = xacro_files.expand(allowed_roots if allowed_roots is not None else ['/'],
+                                  path=str(p), args=xacro_args)
+    else:
+        text = read_model_text(p)
     # Relative names resolve against the folder the caller named the file in, as MuJoCo's
     # own loader does (a link to a model file keeps its folder's meaning).
     return from_model_text(text, base_dir=str(Path(path).parent), allowed_roots=allowed_roots,
-                           max_bytes=max_bytes, max_faces=max_faces)
+                           max_bytes=max_bytes, max_faces=max_faces, fixed=fixed,
+                           max_bodies=max_bodies)
 
 
 def check_rgba(rgba: Sequence[float]) -> list:
@@ -458,35 +521,39 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
               static: bool = False, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = _LIMITS.max_resource_bytes,
               max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
-    """Load a mesh file with trimesh (scenes are merged into one mesh) as one body."""
-    import trimesh  # heavy import, only needed here
+    """
+    Load a mesh file as one body: STL and OBJ as MuJoCo reads them, others converted.
 
-    p = check_path(path, allowed_roots, max_bytes)
+    PLY, GLB, glTF, DAE and ASCII STL are converted to binary STL (scenes merged into one
+    mesh) in a child process (:mod:`.meshes`); a mesh over `max_faces` is decimated.
+    """
+    p = check_path(path, allowed_roots, max(max_bytes, _LIMITS.max_mesh_bytes))
     suffix = p.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise UnsupportedAssetsError(ERR_MESH_SUFFIX.format(suffix=suffix))
     check_mass(mass)
     if not (math.isfinite(scale) and scale > 0):
         raise InvalidArgumentError(f'scale must be positive and finite, got {scale}')
+    colour = check_rgba(rgba)
+    reader = assets.Reader(allowed_roots, _budget(max_bytes, URDF_MAX_INPUT_FACES))
     try:
-        mesh = trimesh.load(str(p), force='mesh')
-    except Exception as exc:  # trimesh raises many types for bad files
-        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err=exc)) from None
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='no triangles'))
-    if len(mesh.faces) > max_faces:
-        raise UnsupportedAssetsError(ERR_MESH_FACES.format(n=len(mesh.faces), limit=max_faces))
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise UnsupportedAssetsError(ERR_MESH_LOAD.format(path=path, err='non-finite vertices'))
-    if scale != 1.0:
-        mesh.apply_scale(scale)
-    # A mesh file is cached across recompiles; raw vertex arrays would be reprocessed.
-    stored = assets.store().put(None, 'mesh.stl', mesh.export(file_type='stl'))
-    static = static or not mass
-    spec, body = _new_body_spec(static)
-    spec.add_mesh(name='mesh', file=stored.path)
-    geom = body.add_geom(name='geom', type=mujoco.mjtGeom.mjGEOM_MESH, meshname='mesh',
-                         rgba=check_rgba(rgba))
-    if mass:
-        geom.mass = float(mass)
-    return _finish(spec, 'mesh', f'mesh {p.name}')
+        stored = reader.read(p.name, [p], 'mesh')
+        file = stored.path
+        if meshes.needs_conversion(p.name, stored, max_faces):
+            (converted,) = meshes.convert([(p.name, stored)], max_faces)
+            reader.hold(converted.path)
+            file = converted.path
+        static = static or not mass
+        spec, body = _new_body_spec(static)
+        # A mesh file is cached across recompiles; raw vertex arrays would be reprocessed.
+        spec.add_mesh(name='mesh', file=file, scale=[float(scale)] * 3)
+        geom = body.add_geom(name='geom', type=mujoco.mjtGeom.mjGEOM_MESH, meshname='mesh',
+                             rgba=colour)
+        if mass:
+            geom.mass = float(mass)
+        source = _finish(spec, 'mesh', f'mesh {p.name}')
+    except BaseException:
+        reader.settle(keep=False)
+        raise
+    source.reader = reader
+    return source
