@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-vec bench-edits bench-storm snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-vec bench-edits bench-storm snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -55,6 +55,11 @@ bench-cameras: setup
 # Robot files from robosuite, gymnasium-robotics and dm_control (fetched once into .build/corpus)
 bench-models: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/models.py
+
+# ROS robots (URDF, xacro, Collada) from description packages: read, convert, compile, spawn,
+# second spawn and /clock stalls, ~3 min (BENCH_URDF=all: every file of the ROS corpus)
+bench-urdf: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/urdf.py
 
 # A PNG of a scene: make snapshot [SCENE=default] [OUT=snapshot.png] [ARGS='--camera overview']
 SCENE ?= default

@@ -43,7 +43,42 @@ def shape(geom: GeomVisual) -> tuple:
     if geom.type == 'plane':
         return CUBE, (2 * (sx or INFINITE_PLANE_HALF), 2 * (sy or INFINITE_PLANE_HALF),
                       0.001), None
-    return TRIANGLE_LIST, (1.0, 1.0, 1.0), geom.mesh_vertices[geom.mesh_faces.reshape(-1)]
+    vertices, faces = coarser(geom.mesh_vertices, geom.mesh_faces, MAX_MARKER_FACES)
+    return TRIANGLE_LIST, (1.0, 1.0, 1.0), vertices[faces.reshape(-1)]
+
+
+#: A mesh with more faces is drawn coarser in markers: a robot's visual meshes (110,000 faces
+#: for TIAGo) made a latched MarkerArray of 8 MB, which RViz redraws and rclpy publishes holding
+#: Python's GIL for tens of milliseconds. RobotModel, from robot_description, draws them in full.
+MAX_MARKER_FACES = 4000
+
+
+def coarser(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple:
+    """
+    Return (vertices, faces) with at most `max_faces` faces, by vertex clustering.
+
+    Vertices are snapped to a grid over the mesh's bounds, each cell's vertices merged into
+    their mean, and faces that collapse dropped; the grid is made coarser until few enough
+    faces are left. Cheap (numpy), and a mesh keeps its outline.
+    """
+    if len(faces) <= max_faces:
+        return vertices, faces
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    extent = float((hi - lo).max()) or 1.0
+    cells = max(2, int(np.sqrt(max_faces)))
+    for _ in range(8):
+        grid = np.minimum(np.floor((vertices - lo) / (extent / cells)), cells).astype(np.int64)
+        key = (grid[:, 0] * (cells + 1) + grid[:, 1]) * (cells + 1) + grid[:, 2]
+        _, cluster, counts = np.unique(key, return_inverse=True, return_counts=True)
+        cluster = cluster.reshape(-1)
+        merged = np.stack([np.bincount(cluster, vertices[:, k], len(counts)) for k in range(3)],
+                          axis=1) / counts[:, None]
+        f = cluster[faces]
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        if len(f) <= max_faces:
+            return merged, f
+        cells = max(2, int(cells * 0.7))
+    return merged, f[:max_faces]
 
 
 def _marker(w: CdrWriter, sec: int, nsec: int, frame: str, ns: str, mid: int, mtype: int,

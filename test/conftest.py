@@ -12,6 +12,7 @@ import random
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 import pytest
@@ -19,6 +20,9 @@ import pytest
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('SIM_TEST_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
 os.environ['ROS_DOMAIN_ID'] = os.environ['SIM_TEST_DOMAIN_ID']
+# Converted meshes are cached in a folder of this test session (and of the nodes it starts),
+# not in the user's ~/.cache: every run converts from scratch once.
+os.environ.setdefault('SIM_MESH_CACHE', tempfile.mkdtemp(prefix='sim_test_mesh_cache_'))
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / 'scenes'

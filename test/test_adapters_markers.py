@@ -84,3 +84,17 @@ def test_every_geom_has_a_marker_with_its_shape_pose_colour_and_frame():
     assert mesh.type == Marker.TRIANGLE_LIST and len(mesh.points) == 3 * len(pg.mesh_faces)
     np.testing.assert_allclose([mesh.points[0].x, mesh.points[0].y, mesh.points[0].z],
                                pg.mesh_vertices[pg.mesh_faces[0, 0]])
+
+
+def test_a_dense_mesh_is_drawn_coarser_within_the_marker_budget():
+    import trimesh
+    from msg_adapters.markers import coarser, MAX_MARKER_FACES
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=0.2)  # 81,920 faces
+    vertices, faces = coarser(np.asarray(sphere.vertices), np.asarray(sphere.faces),
+                              MAX_MARKER_FACES)
+    assert 0 < len(faces) <= MAX_MARKER_FACES
+    drawn = vertices[faces].reshape(-1, 3)
+    assert np.allclose(drawn.min(axis=0), -0.2, atol=0.02)  # it keeps its outline
+    assert np.allclose(drawn.max(axis=0), 0.2, atol=0.02)
+    small = trimesh.creation.box()
+    assert coarser(small.vertices, small.faces, MAX_MARKER_FACES)[1] is small.faces

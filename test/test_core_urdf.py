@@ -181,7 +181,7 @@ def test_a_second_spawn_of_a_robot_converts_nothing(world, tmp_path, monkeypatch
 
     def no_worker(*args, **kwargs):
         raise AssertionError('converted again')
-    monkeypatch.setattr(meshes, '_run', no_worker)
+    monkeypatch.setattr(meshes._POOL, 'run', no_worker)
     spawn_file(world, tmp_path, text, name='second', position=(-3, 3, 1))
     assert {'first', 'second'} <= {e.name for e in world.entities()}
 
@@ -443,3 +443,67 @@ def test_a_bad_xacro_argument_or_spawn_option_is_refused():
     with pytest.raises(FeatureUnsupportedError, match='not supported'):
         resources.split_options('file:///x.urdf?fast=yes')
     assert struct  # (imported for the helpers above)
+
+
+# ----------------------------------------------------------------------------- fast Collada
+
+
+def collada_scene() -> bytes:
+    """Return a Collada file with a polylist, node transforms, a matrix, an instanced node."""
+    box = trimesh.creation.box((0.2, 0.1, 0.05))
+    v = ' '.join(f'{x:.6f}' for x in box.vertices.reshape(-1))
+    quads = ' '.join(str(i) for f in box.faces[::2] for i in f)  # triangles as a polylist
+    return f"""<?xml version="1.0"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+ <asset><unit meter="0.5" name="half"/><up_axis>Z_UP</up_axis></asset>
+ <library_geometries><geometry id="box"><mesh>
+  <source id="box-pos"><float_array id="box-arr" count="{box.vertices.size}">{v}</float_array>
+   <technique_common><accessor source="#box-arr" count="{len(box.vertices)}" stride="3">
+    <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
+   </accessor></technique_common></source>
+  <vertices id="box-v"><input semantic="POSITION" source="#box-pos"/></vertices>
+  <polylist count="{len(box.faces[::2])}"><input semantic="VERTEX" source="#box-v" offset="0"/>
+   <vcount>{' '.join(['3'] * len(box.faces[::2]))}</vcount><p>{quads}</p></polylist>
+ </mesh></geometry></library_geometries>
+ <library_nodes><node id="part"><instance_geometry url="#box"/></node></library_nodes>
+ <library_visual_scenes><visual_scene id="scene">
+  <node id="a"><translate>0.1 0.2 0.3</translate><rotate>0 0.6 0.8 40</rotate>
+   <scale>1 2 1</scale><instance_geometry url="#box"/></node>
+  <node id="b"><matrix>1 0 0 0.5 0 0 -1 0 0 1 0 0 0 0 0 1</matrix>
+   <instance_node url="#part"/></node>
+ </visual_scene></library_visual_scenes>
+ <scene><instance_visual_scene url="#scene"/></scene>
+</COLLADA>""".encode()
+
+
+def test_the_fast_collada_reader_gives_trimeshs_triangles(tmp_path):
+    """Node transforms, a matrix, an instanced node, a polylist: the triangles trimesh reads."""
+    sys.path.insert(0, str(Path(meshes.__file__).parent))
+    import collada_fast  # noqa: I100 (the worker's own module, imported as the worker does)
+    import io
+    data = collada_scene()
+    vertices, faces, _ = collada_fast.read(data)
+    ours = np.sort(vertices[faces].reshape(-1, 3).round(6), axis=0)
+    theirs = trimesh.load(io.BytesIO(data), file_type='dae', force='scene').to_mesh()
+    assert len(faces) == len(theirs.faces) == 12
+    assert np.allclose(ours, np.sort(theirs.vertices[theirs.faces].reshape(-1, 3).round(6),
+                                     axis=0), atol=1e-6)
+    with pytest.raises(collada_fast.Unsupported):  # anything it does not read: trimesh reads
+        collada_fast.read(data.replace(b'<polylist', b'<tristrips').replace(b'</polylist>',
+                                                                            b'</tristrips>'))
+
+
+def test_the_converted_mesh_is_in_metres_from_a_scene_with_transforms(world, tmp_path):
+    """Its area is the scene's at half a metre per unit (MuJoCo turns a mesh to its axes)."""
+    (tmp_path / 'scene.dae').write_bytes(collada_scene())
+    spawn_file(world, tmp_path, robot(link('base', mesh_part('collision', 'scene.dae'))))
+
+    def area(m, d):
+        k = int(m.geom_dataid[[g for g in range(m.ngeom) if m.geom_type[g] == 7][-1]])
+        v = m.mesh_vert[m.mesh_vertadr[k]:m.mesh_vertadr[k] + m.mesh_vertnum[k]]
+        f = m.mesh_face[m.mesh_faceadr[k]:m.mesh_faceadr[k] + m.mesh_facenum[k]]
+        t = v[f]
+        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
+    import io
+    whole = trimesh.load(io.BytesIO(collada_scene()), file_type='dae', force='scene').to_mesh()
+    assert world.read(area) == pytest.approx(whole.area * 0.25, rel=1e-4)

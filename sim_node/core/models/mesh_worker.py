@@ -1,14 +1,16 @@
 """
 A child process that turns mesh files MuJoCo cannot read into binary STL (no sim_node imports).
 
-Run as ``python mesh_worker.py`` by :mod:`.meshes`: it reads one JSON job from stdin (a list of
-``{"src", "kind", "out", "max_faces"}``) and writes one JSON line per item to stdout
-(``{"faces_in", "faces", "rgba", "unit"}`` or ``{"error"}``). It loads each file with trimesh
-(Collada through pycollada) from its bytes, never by name, so nothing the file names (textures,
-an OBJ's ``mtllib``) is ever opened; merges a scene into one mesh with every node's transform;
-scales it by Collada's ``<unit meter>`` (Collada's ``up_axis`` is ignored, as RViz ignores it:
-ROS description packages ship Z-up meshes that declare Y_UP); decimates it to ``max_faces``
-with fast-simplification when it has more; and writes binary STL.
+Run as ``python mesh_worker.py`` by :mod:`.meshes`, and kept running: it reads one JSON line
+per file from stdin (``{"src", "kind", "out", "max_faces"}``) and answers each with one JSON
+line on stdout (``{"faces_in", "faces", "rgba", "unit"}`` or ``{"error"}``), until stdin ends.
+It reads each file from its bytes, never by name, so nothing the file names (textures, an OBJ's
+``mtllib``) is ever opened: Collada first with :mod:`collada_fast`, then, for what that does not
+read, and for every other kind, with trimesh (Collada through pycollada); merges a scene into
+one mesh with every node's transform; scales it by Collada's ``<unit meter>`` (Collada's
+``up_axis`` is ignored, as RViz ignores it: ROS description packages ship Z-up meshes that
+declare Y_UP); decimates it to ``max_faces`` with fast-simplification when it has more; and
+writes binary STL.
 
 The files are untrusted (a Collada file may claim hundreds of millions of values), so the
 process limits itself before it reads any: address space, CPU time, the size of what it writes,
@@ -31,12 +33,12 @@ _UNIT = re.compile(rb'<unit\b[^>]*\bmeter\s*=\s*"([^"]+)"')
 _BIND_MATERIAL = re.compile(rb'<bind_material\b.*?</bind_material>', re.S)
 
 
-def _limit(inputs: list, outputs: list) -> None:
+_ALLOWED: set = set()  # what the file being converted may open: its source, its output
+
+
+def _limit() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_BYTES, MEMORY_BYTES))
-    resource.setrlimit(resource.RLIMIT_CPU, (CPU_SECONDS, CPU_SECONDS))
     resource.setrlimit(resource.RLIMIT_FSIZE, (WRITE_BYTES, WRITE_BYTES))
-    allowed = {os.path.realpath(p) for p in inputs + outputs}
-    allowed |= {os.path.realpath(p) + '.part' for p in outputs}
 
     def hook(event: str, args: tuple) -> None:
         if event == 'open':
@@ -44,13 +46,23 @@ def _limit(inputs: list, outputs: list) -> None:
             if isinstance(path, int):
                 return
             real = os.path.realpath(os.fsdecode(path))
-            if real not in allowed and not real.endswith(('.py', '.pyc', '.so')):
+            if real not in _ALLOWED and not real.endswith(('.py', '.pyc', '.so')):
                 raise PermissionError(f'the mesh worker may not open {real}')
         elif event.split('.')[0] in ('subprocess', 'socket') or event in (
                 'os.system', 'os.exec', 'os.fork', 'os.forkpty', 'os.posix_spawn', 'os.spawn',
                 'ctypes.dlopen', 'os.startfile'):
             raise PermissionError(f'the mesh worker may not {event}')
     sys.addaudithook(hook)
+
+
+def _allow(job: dict) -> None:
+    """Let this file's source and output be opened, nothing else; give it its CPU time."""
+    _ALLOWED.clear()
+    _ALLOWED.update({os.path.realpath(job['src']), os.path.realpath(job['out']),
+                     os.path.realpath(job['out'] + '.part')})
+    used = resource.getrusage(resource.RUSAGE_SELF)
+    spent = int(used.ru_utime + used.ru_stime) + 1
+    resource.setrlimit(resource.RLIMIT_CPU, (spent + CPU_SECONDS, resource.RLIM_INFINITY))
 
 
 def _unit(data: bytes) -> float:
@@ -79,10 +91,45 @@ def _colour(scene) -> list:
 
 def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
     import numpy as np
-    import trimesh
     with open(src, 'rb') as f:
         data = f.read()
     unit = _unit(data) if kind == 'dae' else 1.0
+    found = _read_fast(data) if kind == 'dae' else None
+    if found is None:
+        found = _read_trimesh(data, kind)
+        if isinstance(found, dict):
+            return found  # an error
+    vertices, faces, rgba = found
+    faces_in = int(len(faces))
+    if faces_in == 0:
+        return {'error': 'it has no triangles'}
+    if not np.all(np.isfinite(vertices)):
+        return {'error': 'it has non-finite vertices'}
+    vertices = vertices * unit
+    if faces_in > max_faces:
+        import fast_simplification
+        vertices, faces = fast_simplification.simplify(
+            vertices.astype(np.float32), faces.astype(np.int32), 1.0 - max_faces / faces_in)
+    import collada_fast
+    with open(out + '.part', 'wb') as f:
+        f.write(collada_fast.binary_stl(np.asarray(vertices, dtype=float), np.asarray(faces)))
+    os.replace(out + '.part', out)
+    return {'faces_in': faces_in, 'faces': int(len(faces)), 'rgba': rgba, 'unit': unit}
+
+
+def _read_fast(data: bytes):
+    """Read Collada with :mod:`collada_fast`; None when it needs the full reader."""
+    import collada_fast
+    try:
+        return collada_fast.read(data)
+    except (collada_fast.Unsupported, ValueError, IndexError, KeyError, TypeError):
+        return None
+
+
+def _read_trimesh(data: bytes, kind: str):
+    """Read any mesh trimesh reads: (vertices, faces, rgba), or an error dict."""
+    import numpy as np
+    import trimesh
     loaded = trimesh.load(io.BytesIO(data), file_type=kind, force='scene', process=False)
     if kind == 'dae' and not loaded.geometry:
         # pycollada drops a node whose material is broken (a texture that is not there): read
@@ -93,24 +140,12 @@ def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
         return {'error': 'it has no triangles'}
     mesh = loaded.to_mesh() if hasattr(loaded, 'to_mesh') else loaded.dump(concatenate=True)
     rgba = _colour(loaded) if kind in ('dae', 'glb', 'gltf', 'obj') else None
-    faces_in = int(len(mesh.faces))
-    if faces_in == 0:
-        return {'error': 'it has no triangles'}
-    if not np.all(np.isfinite(mesh.vertices)):
-        return {'error': 'it has non-finite vertices'}
-    if unit != 1.0:
-        mesh.apply_scale(unit)
-    if faces_in > max_faces:
-        mesh = mesh.simplify_quadric_decimation(face_count=max_faces)
-    with open(out + '.part', 'wb') as f:
-        f.write(mesh.export(file_type='stl'))
-    os.replace(out + '.part', out)
-    return {'faces_in': faces_in, 'faces': int(len(mesh.faces)), 'rgba': rgba, 'unit': unit}
+    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces), rgba
 
 
 def main() -> None:
-    job = json.loads(sys.stdin.read())
     import numpy  # noqa: F401 (imported before the limits: they refuse opening modules' data)
+    import collada_fast  # noqa: F401
     import trimesh  # noqa: F401
     import trimesh.exchange.dae  # noqa: F401
     try:
@@ -118,10 +153,12 @@ def main() -> None:
         import collada  # noqa: F401
     except ImportError:
         pass  # said per file below
-    _limit([item['src'] for item in job], [item['out'] for item in job])
+    _limit()
     os.nice(5)  # the physics of the node that asked goes first
-    for item in job:
+    for line in sys.stdin:
         try:
+            item = json.loads(line)
+            _allow(item)
             result = convert(item['src'], item['kind'], item['out'], int(item['max_faces']))
         except MemoryError:
             result = {'error': 'converting it needs more memory than a mesh may take'}

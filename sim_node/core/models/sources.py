@@ -288,6 +288,9 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     prepared = None
     try:
         if is_urdf:
+            if any(Path(m.get('filename', '')).suffix.lower() in meshes.CONVERTED_SUFFIXES
+                   for m in root.iter('mesh')):
+                meshes.warm()  # the converters start while the files are read
             prepared = urdf.prepare(root, max_bodies, fixed)
         found = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
                                budget, reader)
@@ -313,6 +316,12 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     return source
 
 
+def _hold_if_stored(reader: assets.Reader, path: str) -> None:
+    """Hold a conversion in the asset store (not one in the conversion cache, kept by design)."""
+    if Path(path).parent == Path(assets.store().folder):
+        reader.hold(path)
+
+
 def _convert_urdf_meshes(root: ET.Element, found: list, reader: assets.Reader) -> None:
     """
     Convert the URDF's meshes MuJoCo cannot read (:mod:`.meshes`); point them at the STL.
@@ -327,7 +336,7 @@ def _convert_urdf_meshes(root: ET.Element, found: list, reader: assets.Reader) -
     visual_of = {id(m): v for v in root.iter('visual') for m in v.iter('mesh')}
     named = {m.get('name') for m in root.findall('material') if m.find('color') is not None}
     for (elem, value, _), converted in zip(todo, done):
-        reader.hold(converted.path)
+        _hold_if_stored(reader, converted.path)
         elem.set('filename', converted.path)
         if converted.decimated:
             log.warning('the mesh %s has %d faces, more than MuJoCo reads (%d): decimated to %d',
@@ -541,7 +550,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
         file = stored.path
         if meshes.needs_conversion(p.name, stored, max_faces):
             (converted,) = meshes.convert([(p.name, stored)], max_faces)
-            reader.hold(converted.path)
+            _hold_if_stored(reader, converted.path)
             file = converted.path
         static = static or not mass
         spec, body = _new_body_spec(static)

@@ -92,8 +92,9 @@ class Prepared:
     """What :func:`prepare` found: the root, what floats, and what it changed or left out."""
 
     root_link: str = ''
-    #: The root is joined to a link named ``world`` by a fixed joint (fixed where spawned).
-    world_fixed: bool = False
+    #: The root is joined to a link named ``world`` (by a fixed joint: fixed where spawned; by a
+    #: joint that turns or slides: it moves about that anchor, as a pendulum).
+    anchored: bool = False
     #: ``<gazebo><static>true</static></gazebo>`` (Gazebo's static model).
     static: bool = False
     #: The spawn asked for the root to stay where it is spawned.
@@ -108,7 +109,7 @@ class Prepared:
     @property
     def floats(self) -> bool:
         """Whether the root gets a free joint (Gazebo's rule; see :func:`finish`)."""
-        return not (self.world_fixed or self.static or self.spawn_fixed)
+        return not (self.anchored or self.static or self.spawn_fixed)
 
 
 def prepare(root: ET.Element, max_bodies: Optional[int] = None,
@@ -156,7 +157,7 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
         firsts = [j for j in joints if j.find('parent').get('link') == 'world']
         if len(firsts) == 1:
             out.root_link = firsts[0].find('child').get('link')
-            out.world_fixed = firsts[0].get('type') == 'fixed'
+            out.anchored = firsts[0].get('type') != 'floating'
     _check_mimics(joints)
     empty = _drop_empty_geometry(root)
     if empty:
