@@ -360,6 +360,12 @@ def bare_load_seconds(model) -> float:
 
 
 if __name__ == '__main__':
+    if sys.argv[1:2] == ['--where']:  # the folder of one package's descriptions
+        fetch()
+        print({'example-robot-data': CORPUS / 'example_robot_data' / 'cmeel.prefix' / 'share',
+               'rtb-data': CORPUS / 'rtb_data' / 'rtbdata' / 'xacro',
+               'pybullet': CORPUS / 'pybullet' / 'pybullet_data'}[sys.argv[2]])
+        sys.exit(0)
     fetch()
     for m in MODELS:
         print(f'{m.package:20s} {m.path}  ({m.what})')

@@ -507,3 +507,23 @@ def test_the_converted_mesh_is_in_metres_from_a_scene_with_transforms(world, tmp
     import io
     whole = trimesh.load(io.BytesIO(collada_scene()), file_type='dae', force='scene').to_mesh()
     assert world.read(area) == pytest.approx(whole.area * 0.25, rel=1e-4)
+
+
+def test_a_joint_whose_range_leaves_out_zero_starts_at_its_nearest_limit(world, tmp_path):
+    """Not thrown against its limit; a joint value still means what the URDF means (FK)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_core_description import check_description_matches_mujoco
+    limited = ('<limit lower="0.8" upper="2" effort="10" velocity="1"/>')
+    text = robot(link('base', box_geometry()), link('upper', box_geometry()),
+                 link('lower', box_geometry()),
+                 joint('j1', 'base', 'upper', xyz='0.1 0 0.2').replace(
+                     '<limit lower="-2" upper="2" effort="10" velocity="1"/>', limited),
+                 '<joint name="j2" type="prismatic"><parent link="upper"/><child link="lower"/>'
+                 '<origin xyz="0 0.2 0" rpy="0 0.4 0"/><axis xyz="1 0 0"/>'
+                 '<limit lower="-0.5" upper="-0.1" effort="10" velocity="1"/></joint>')
+    spawn_file(world, tmp_path, text, fixed=True)
+    states = world.get_joint_states()
+    assert states['r/j1'][0] == pytest.approx(0.8) and states['r/j2'][0] == pytest.approx(-0.1)
+    world.step(500)
+    assert np.isfinite(world.read(lambda m, d: d.qvel)).all()
+    assert check_description_matches_mujoco(world, 'r', np.random.default_rng(3)) == 3
