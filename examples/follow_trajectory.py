@@ -82,7 +82,8 @@ def main(uri: str) -> dict:
     print(f'{len(joints)} joints, 3 points over 1.5 s: error_code {res.error_code}, largest '
           f'tracking error in the feedback {worst[0]:.4f} rad')
     # A slow one, canceled midway: the joints stay where they were then.
-    slow = wait(client.send_goal_async(goal(joints, [(6.0, [q + 1.0 for q in q0])])), node)
+    far = [q + 2 * o for q, o in zip(q0, offsets)]  # inside the panda's joint ranges
+    slow = wait(client.send_goal_async(goal(joints, [(6.0, far)])), node)
     end = time.monotonic() + 1.5
     while time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)

@@ -241,6 +241,11 @@ def static_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
            for b in range(1, len(info.body_names)) if not info.body_has_joint[b]]
     out += [transform(frames[b], prefix + alias, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
             for b, alias in enumerate(info.body_alias) if alias]
+    # The intermediate link of a body's last joint: at the joint's anchor, in the body.
+    out += [transform(frames[c.body], prefix + c.frame, c.offset, (1.0, 0.0, 0.0, 0.0), t)
+            for c in info.chains if c.static]
+    out += [transform(prefix + parent, prefix + child, pos, quat_wxyz, t)
+            for parent, child, pos, quat_wxyz in info.link_frames]
     # At the world's origin: the root link of the robot description of an entity whose
     # top-level bodies move by joints of their own (see ModelInfo.body_mount).
     out += [transform(frames[0], prefix + mount, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), t)
@@ -262,23 +267,52 @@ def relative_poses(snap: Snapshot, bodies: np.ndarray, parents: np.ndarray) -> t
 
 
 def moving_tf_template(info: ModelInfo, bodies: np.ndarray, frames: Sequence[str],
-                       prefix: str = '') -> TfTemplate:
+                       prefix: str = '', chains: Sequence = ()) -> TfTemplate:
     """
     Return the /tf message layout of one model generation.
 
-    Parent body -> body for each of `bodies` (free bodies from the world frame); `frames` from
+    Parent body -> body for each of `bodies` (free bodies from the world frame), then parent
+    body -> link for each of `chains` (moving intermediate links of descriptions, see
+    :attr:`ModelInfo.chains <sim_node.core.records.ModelInfo.chains>`); `frames` from
     :func:`frame_names`.
     """
     parents = parent_frames(info, frames, prefix)
-    return TfTemplate([parents[b] for b in bodies], [frames[b] for b in bodies])
+    return TfTemplate([parents[b] for b in bodies] + [parents[c.body] for c in chains],
+                      [frames[b] for b in bodies] + [prefix + c.frame for c in chains])
 
 
 def moving_tf(template: TfTemplate, info: ModelInfo, snap: Snapshot,
-              bodies: np.ndarray) -> bytes:
+              bodies: np.ndarray, chains: Sequence = ()) -> bytes:
     """
     Return the serialized /tf message of a snapshot.
 
     Every transform stamped with its simulation time, built from numpy arrays in one pass.
     """
     pos, rot = relative_poses(snap, bodies, info.body_parent[bodies])
+    if chains:
+        cpos, crot = chain_poses(chains, snap.joint_position)
+        pos, rot = np.concatenate([pos, cpos]), np.concatenate([rot, crot])
     return template.fill(snap.time, pos, rot[:, [1, 2, 3, 0]])
+
+
+def chain_poses(chains: Sequence, joint_position: np.ndarray) -> tuple:
+    """
+    Poses of moving intermediate links in their parent body's frame, at the joints' positions.
+
+    Each is the product of its steps' ``origin * motion(q)``, as robot_state_publisher
+    computes them: (positions (n, 3), quaternions wxyz (n, 4)).
+    """
+    pos, rot = np.zeros((len(chains), 3)), np.zeros((len(chains), 4))
+    for i, c in enumerate(chains):
+        p, r = np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+        for origin_p, origin_q, j, hinge, axis in c.steps:
+            p, r = p + quat.rotate(r, origin_p), quat.mul(r, origin_q)
+            q = float(joint_position[j])
+            if hinge:
+                half = 0.5 * q
+                r = quat.mul(r, np.concatenate([[math.cos(half)],
+                                                math.sin(half) * np.asarray(axis)]))
+            else:
+                p = p + quat.rotate(r, np.asarray(axis) * q)
+        pos[i], rot[i] = p, r
+    return pos, rot

@@ -35,6 +35,7 @@ class TfStream:
         self._seq = -1
         self._frames: tuple = ()  # TF frame of each body of the planned generation
         self._moving = np.zeros(0, dtype=int)
+        self._chains: tuple = ()  # moving intermediate links of descriptions
         self._template = None
         self._time: Optional[float] = None  # the stamp of the last /tf
         self._layout: tuple = ((), None)  # (frame names, moving bodies) that /tf went with
@@ -59,7 +60,7 @@ class TfStream:
         if snap.time != self._time:
             self._time = snap.time
             self._layout, self._added = (self._frames, self._moving), set()
-            return convert.moving_tf(self._template, info, snap, self._moving)
+            return convert.moving_tf(self._template, info, snap, self._moving, self._chains)
         frames, moving = self._layout
         if moving is self._moving:  # the layout it went with: every frame went already
             return None
@@ -68,13 +69,15 @@ class TfStream:
         if not len(new):
             return None
         self._added |= {self._frames[b] for b in new}
-        template = convert.moving_tf_template(info, new, self._frames, self.prefix)
-        return convert.moving_tf(template, info, snap, new)
+        chains = tuple(c for c in self._chains if c.body in set(new.tolist()))
+        template = convert.moving_tf_template(info, new, self._frames, self.prefix, chains)
+        return convert.moving_tf(template, info, snap, new, chains)
 
     def _plan(self, info: ModelInfo) -> None:
         """Plan /tf of a new model generation: its moving bodies, their frames, the template."""
         self._generation = info.generation
         self._moving = convert.moving_body_ids(info)
         self._frames = convert.frame_names(info, self.world_frame, self.prefix)
+        self._chains = tuple(c for c in info.chains if not c.static)
         self._template = convert.moving_tf_template(info, self._moving, self._frames,
-                                                    self.prefix)
+                                                    self.prefix, self._chains)

@@ -288,6 +288,35 @@ class Watcher:
         with self.lock:
             return self.clock[-1] if self.clock else None
 
+    def robot_description(self, entity: str, timeout: float = 15.0) -> str:
+        """Subscribe late (transient local) and return the first description received."""
+        from sim_node.ros.descriptions import DESCRIPTION_QOS
+        from std_msgs.msg import String
+        got = []
+        sub = self.node.create_subscription(String, f'/{entity}/robot_description',
+                                            lambda msg: got.append(msg.data), DESCRIPTION_QOS)
+        try:
+            wait_for(lambda: got, timeout=timeout)
+        finally:
+            self.node.destroy_subscription(sub)
+        return got[0]
+
+    def links_without_frames(self, entity: str) -> list:
+        """Links of an entity's robot_description with no frame on /tf or /tf_static."""
+        from defusedxml import ElementTree
+        links = [e.get('name') for e in ElementTree.fromstring(
+            self.robot_description(entity)).findall('link')]
+
+        def missing():
+            with self.lock:
+                frames = {**self.tf, **self.tf_static}
+            return [link for link in links if f'{entity}/{link}' not in frames]
+        try:  # a static frame may come a moment after the description
+            wait_for(lambda: not missing(), timeout=5)
+        except AssertionError:
+            pass
+        return missing()
+
     def close(self):
         self._stop = True
         self.thread.join(2)

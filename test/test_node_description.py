@@ -16,8 +16,6 @@ import defusedxml.ElementTree as SafeET
 import gymnasium
 import numpy as np
 import pytest
-from sim_node.ros.descriptions import DESCRIPTION_QOS
-from std_msgs.msg import String
 from test_core_description import ARM_URDF
 from urdf_fk import urdf_fk
 
@@ -58,15 +56,7 @@ def watch(node, rclpy_context):
 
 
 def description(watch: Watcher, entity: str, timeout: float = 15.0) -> str:
-    """Subscribe late (transient local) and return the first description received."""
-    got = []
-    sub = watch.node.create_subscription(String, f'/{entity}/robot_description',
-                                         lambda msg: got.append(msg.data), DESCRIPTION_QOS)
-    try:
-        wait_for(lambda: got, timeout=timeout)
-    finally:
-        watch.node.destroy_subscription(sub)
-    return got[0]
+    return watch.robot_description(entity, timeout)
 
 
 def _matrix(q_xyzw) -> np.ndarray:
@@ -115,9 +105,7 @@ def check_fk_matches_tf(sim, watch: Watcher, entity: str) -> int:
         compared = 0
         for link, (p, r) in fk.items():
             frame = f'{entity}/{link}'
-            if frame not in frames:
-                assert '/' in link, f'{link!r}: only intermediate links are not on /tf'
-                continue
+            assert frame in frames, f'{link!r} of the description has no frame on /tf'
             want_p, want_r = world_pose(frames, frame)
             got_p, got_r = base_p + base_r @ p, base_r @ r
             assert np.linalg.norm(got_p - want_p) < 1e-3, (frame, got_p, want_p)
@@ -159,6 +147,29 @@ def test_a_spawned_urdf_is_described_by_its_own_text_and_matches_tf(sim, watch):
     assert check_fk_matches_tf(sim, watch, 'arm') == 5
 
 
+def test_a_urdf_fixed_to_its_world_link_has_that_link_on_tf_where_the_urdf_puts_it(sim, watch):
+    """The usual arm URDF: ``world`` -> base by a fixed joint, here off the origin and turned."""
+    text = ARM_URDF.replace('<robot name="arm">', '<robot name="arm"><link name="world"/>'
+                            '<joint name="anchor" type="fixed"><parent link="world"/>'
+                            '<child link="base_link"/><origin xyz="0.2 -0.1 0.4" '
+                            'rpy="0.2 -0.3 0.9"/></joint>')
+    sim.spawn('fixed_arm', resource_string=text, position=(2.0, -1.0, 0.0),
+              orientation_xyzw=(0, 0, 0.6, 0.8))
+    try:
+        wait_for(lambda: watch.joint_states is not None
+                 and 'fixed_arm/elbow' in watch.joint_states.name)
+        assert watch.links_without_frames('fixed_arm') == []
+        # FK from the description's root (world) matches every link's frame on /tf
+        assert check_fk_matches_tf(sim, watch, 'fixed_arm') == 6
+        with watch.lock:  # and the world link is where the spawn put it
+            frames = {**watch.tf, **watch.tf_static}
+        p, r = world_pose(frames, 'fixed_arm/world')
+        assert np.allclose(p, (2.0, -1.0, 0.0), atol=1e-6)
+        assert np.allclose(r, _matrix((0, 0, 0.6, 0.8)), atol=1e-6)
+    finally:
+        sim.delete('fixed_arm')
+
+
 @pytest.mark.parametrize('model', ['hopper', 'ant'])
 def test_a_spawned_gymnasium_model_matches_tf(sim, watch, model):
     name = sim.spawn(model, uri=(GYM_ASSETS / f'{model}.xml').as_uri(), position=(-2, 3, 1.5))
@@ -179,8 +190,9 @@ def test_meshes_are_files_rviz_can_read_and_the_description_goes_with_its_entity
     stl = trimesh.load(meshes[0][len('file://'):], file_type='stl')
     radius = np.linalg.norm(stl.vertices - stl.vertices.mean(axis=0), axis=1)
     assert len(stl.faces) == 320 and np.allclose(radius, 0.1, atol=1e-4)
-    # an off-centre hinge: an intermediate link; the bob still matches /tf
-    assert check_fk_matches_tf(sim, watch, 'pendulum') == 2
+    # an off-centre hinge: an intermediate link, on /tf_static at the anchor; the bob and it
+    # match /tf (the root, the intermediate link, the bob)
+    assert check_fk_matches_tf(sim, watch, 'pendulum') == 3
     sim.delete('pendulum')
     # Its description, controller state and trajectory action go with it.
     wait_for(lambda: not watch.node.get_publishers_info_by_topic('/pendulum/robot_description')

@@ -34,7 +34,7 @@ def test_the_example_drives_a_seven_joint_arm_then_cancels_midway(node, rclpy_co
     r = example.main(panda.file.as_uri())
     assert len(r['joints']) == 7
     assert r['error_code'] == 0
-    assert r['worst_error'] < 0.2  # the PD at its default gains (README: about 0.1 rad)
+    assert r['worst_error'] < 0.05  # computed-torque PD through the motors, default gains
     assert r['canceled_status'] == STATUS_CANCELED
     moved = r['held'][0] - r['start'][0]
-    assert 0.05 < moved < 0.95  # stopped on the way to +1.0
+    assert 0.05 < moved < 0.75  # stopped on the way to +0.8

@@ -59,6 +59,8 @@ def test_every_corpus_file_spawns_moves_and_goes(node, watch, sim, model):
         wait_for(lambda: name in own_frames(), timeout=15)
         for frame, (_, _, xyz, q) in own_frames().items():
             assert all(math.isfinite(v) for v in xyz + q), frame
+        # Every link of its robot_description has a frame (RViz's RobotModel needs them all).
+        assert watch.links_without_frames(name) == []
     finally:
         sim.delete(name)
     assert name not in sim.entities()

@@ -98,6 +98,8 @@ def test_every_ros_corpus_file_spawns_stands_or_falls_and_goes(node, watch, sim,
         sim_seconds_later(watch, 1.5)
         for frame, (_, _, xyz, q) in own_frames().items():
             assert all(math.isfinite(v) for v in xyz + q), frame
+        # Every link of its robot_description has a frame (RViz's RobotModel needs them all).
+        assert watch.links_without_frames(name) == []
         z1 = sim.entity_state(name)['position'][2]
         if stays:
             assert z1 == pytest.approx(z0, abs=1e-6), 'its URDF fixes it where it is spawned'

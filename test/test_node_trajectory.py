@@ -134,16 +134,56 @@ R = FollowJointTrajectory.Result
     {'points': [(1.0, (0.1,))], 'code': R.INVALID_GOAL, 'text': '1 positions for 2'},
     {'points': [], 'code': R.INVALID_GOAL, 'text': 'no points'},
     {'stamp': 1, 'code': R.OLD_HEADER_TIMESTAMP, 'text': 'past'},
-], ids=['unknown', 'hint', 'two-entities', 'times', 'size', 'empty', 'old-stamp'])
-def test_bad_goals_end_aborted_with_the_controllers_codes(arm, watch, case):
+    {'end_velocity': 0.5, 'code': R.INVALID_GOAL, 'text': 'must end at rest'},
+], ids=['unknown', 'hint', 'two-entities', 'times', 'size', 'empty', 'old-stamp',
+        'end-velocity'])
+def test_bad_goals_are_rejected_as_the_controller_rejects_them_saying_why(arm, watch, case):
+    """Rejected in the goal response (no result); the reason on /diagnostics and the log."""
+    from diagnostic_msgs.msg import DiagnosticArray
     sim, client = arm
     wait_for(lambda: (watch.latest_clock() or 0) > 3.0, timeout=10)  # a stamp of 1 s is old
-    points = case.get('points', [(0.5, (0.1, 0.1))])
-    h = send(client, goal(points, joints=case.get('joints', JOINTS),
-                          stamp_sec=case.get('stamp', 0)))
-    status, res = result_of(h)
-    assert status == STATUS_ABORTED
-    assert res.error_code == case['code'] and case['text'] in res.error_string
+    got = []
+    sub = watch.node.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)
+    try:
+        g = goal(case.get('points', [(0.5, (0.1, 0.1))]), joints=case.get('joints', JOINTS),
+                 stamp_sec=case.get('stamp', 0))
+        if 'end_velocity' in case:
+            for p in g.trajectory.points:
+                p.velocities = [case['end_velocity']] * 2
+        future = client.send_goal_async(g)
+        wait_for(future.done, timeout=10)
+        assert not future.result().accepted
+
+        def said() -> bool:
+            return any(st.name.endswith(': arm/follow_joint_trajectory')
+                       and case['text'] in st.message
+                       and f"(error code {case['code']})" in st.message
+                       and st.level == st.WARN for m in got for st in m.status)
+        wait_for(said, timeout=10)
+    finally:
+        watch.node.destroy_subscription(sub)
+    js = watch.joint_states  # and nothing moved
+    assert abs(joint(watch, 'arm/j1')) < 0.01 and 'arm/j1' in js.name
+
+
+def test_a_last_point_with_a_velocity_runs_when_the_parameter_allows_it(arm, watch):
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    sim, client = arm
+
+    def allow(on: bool) -> None:
+        req = SetParameters.Request(parameters=[Parameter(
+            name='trajectory_allow_nonzero_velocity_at_end',
+            value=ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=on))])
+        assert sim.call('sim/set_parameters', SetParameters, req).results[0].successful
+    allow(True)
+    try:
+        g = goal([(0.5, (0.2, 0.0))], goal_tol=0.05, goal_time=1.0)
+        g.trajectory.points[0].velocities = [0.1, 0.0]
+        status, res = result_of(send(client, g))
+        assert status == STATUS_SUCCEEDED, res.error_string
+    finally:
+        allow(False)
 
 
 def test_a_new_goal_preempts_the_running_one(arm, watch):
@@ -171,7 +211,7 @@ def test_cancel_holds_the_joints_where_they_are(arm, watch):
     here = joint(watch, 'arm/j1')
     assert 0.1 < here < 1.1  # stopped midway
     time.sleep(1.0)
-    assert abs(joint(watch, 'arm/j1') - here) < 0.02
+    assert abs(joint(watch, 'arm/j1') - here) < 0.005  # held, not drifting
 
 
 def test_a_path_tolerance_violation_aborts_naming_the_joint(arm):
@@ -185,12 +225,58 @@ def test_a_path_tolerance_violation_aborts_naming_the_joint(arm):
 
 def test_a_goal_tolerance_violation_aborts_after_the_goal_time_tolerance(arm, watch):
     sim, client = arm
-    # 0.5 rad in 10 ms, and then 0.2 s to be within a micro-radian: the PD cannot
-    h = send(client, goal([(0.01, (0.5, 0.0))], goal_tol=1e-6, goal_time=0.2))
+    # 0.5 rad in 10 ms, and then 0.2 s to be within a micro-radian: the PD cannot (path
+    # tolerance off: -1, or the default 0.25 rad would end it on the way)
+    h = send(client, goal([(0.01, (0.5, 0.0))], goal_tol=1e-6, goal_time=0.2, path_tol=-1.0))
     status, res = result_of(h)
     assert status == STATUS_ABORTED
     assert res.error_code == FollowJointTrajectory.Result.GOAL_TOLERANCE_VIOLATED
     assert 'goal tolerance' in res.error_string
+
+
+# The behaviours joint_trajectory_controller's own action tests check
+# (ros2_controllers, joint_trajectory_controller/test/test_trajectory_actions.cpp), here
+# against this node over the wire.
+
+def test_a_single_point_goal_succeeds_and_its_point_is_held(arm, watch):
+    """As test_success_single_point_sendgoal: then it holds the point it reached."""
+    sim, client = arm
+    status, res = result_of(send(client, goal([(0.5, (0.4, -0.2))], goal_tol=0.01,
+                                              goal_time=1.0)))
+    assert status == STATUS_SUCCEEDED and res.error_code == R.SUCCESSFUL, res.error_string
+    time.sleep(0.5)
+    assert joint(watch, 'arm/j1') == pytest.approx(0.4, abs=0.01)
+    assert joint(watch, 'arm/j2') == pytest.approx(-0.2, abs=0.01)
+
+
+def test_a_goals_own_tolerances_apply_to_that_goal_alone(arm, watch):
+    """As test_tolerances_via_actions: a goal's tolerances do not stay for the next goal."""
+    sim, client = arm
+    tight = goal([(0.2, (0.3, 0.0))], goal_tol=1e-7, goal_time=0.05, path_tol=-1.0)
+    status, res = result_of(send(client, tight))
+    assert res.error_code == R.GOAL_TOLERANCE_VIOLATED, res.error_string
+    status, res = result_of(send(client, goal([(0.5, (0.1, 0.0))])))  # the defaults again
+    assert status == STATUS_SUCCEEDED and res.error_code == R.SUCCESSFUL, res.error_string
+
+
+def test_after_a_path_violation_the_joints_hold_where_it_left_them(arm, watch):
+    """As test_state_tolerances_fail: aborted, then holding, not drifting."""
+    sim, client = arm
+    status, res = result_of(send(client, goal([(0.3, (1.0, 0.0))], path_tol=0.001)))
+    assert res.error_code == R.PATH_TOLERANCE_VIOLATED
+    time.sleep(0.3)
+    here = joint(watch, 'arm/j1')
+    assert abs(here) < 0.1  # stopped near where it started, not at 1.0
+    time.sleep(0.5)
+    assert abs(joint(watch, 'arm/j1') - here) < 0.005
+
+
+def test_a_point_at_time_zero_far_from_the_joints_violates_the_path_at_once(arm, watch):
+    """As test_no_time_from_start_state_tolerance_fail."""
+    sim, client = arm
+    status, res = result_of(send(client, goal([(0.0, (1.0, 0.0))], path_tol=0.01)))
+    assert status == STATUS_ABORTED
+    assert res.error_code == R.PATH_TOLERANCE_VIOLATED, res.error_string
 
 
 def test_paused_the_trajectory_waits(arm, watch):

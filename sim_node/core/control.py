@@ -37,9 +37,12 @@ class Control:
     Staged and held joint commands and the PD law for joints without a matching actuator.
 
     Position and velocity commands use the joint's actuator of that kind if it has one (its
-    ctrl is set once), otherwise PD torques through ``qfrc_applied`` recomputed before every
-    step: ``M0 * (kp * (q* - q) + kd * (v* - v)) + bias``, gains per unit of the joint's own
-    inertia. Effort commands use a motor actuator or ``qfrc_applied`` directly.
+    ctrl is set once), otherwise PD torques recomputed before every step, in computed-torque
+    form: ``M(q) (a* + kp (q* - q) + kd (v* - v)) + bias``, so the gains mean the same on a
+    50 g finger and a 20 kg arm (kp = w^2, kd = 2 w). The torque goes through the joint's
+    motor actuator where it has one, within that motor's ctrlrange and forcerange (what the
+    robot's file says its motor can give), else through ``qfrc_applied`` (unlimited). Effort
+    commands use a motor actuator or ``qfrc_applied`` directly.
     """
 
     def __init__(self, kp: float, kd: float):
@@ -47,7 +50,7 @@ class Control:
         self._staged: dict = {}  # joint name -> (mode, value), written by any thread
         self._held: dict = {}  # joint name -> (mode, value), PD/effort, held until replaced
         self.kp, self.kd = float(kp), float(kd)
-        self._pd_dof = _NONE_INT  # qfrc_applied entries the current binding writes
+        self._pd_out = _Outputs.empty()  # where the current binding's PD torques go
         self.per_step = False  # True when PD torques or servo targets change every step
         self._runs: dict = {}  # entity -> _Run: trajectories being followed
 
@@ -99,6 +102,7 @@ class Control:
                      data: mujoco.MjData) -> None:
         with self._stage_lock:
             staged, self._staged = self._staged, {}
+        ctrl = {}  # actuator -> value, written once the old binding let go of its outputs
         for name, (mode, value) in staged.items():
             i = index.joint_index.get(name)
             if i is None:
@@ -108,11 +112,13 @@ class Control:
                               hold=False)
             act = index.joint_actuators[i].get(mode)
             if act is not None:
-                data.ctrl[act] = value
+                ctrl[act] = value
                 self._held.pop(name, None)
             else:
                 self._held[name] = (mode, value)
         self.bind(index, model, data)
+        for act, value in ctrl.items():
+            data.ctrl[act] = value
 
     def clear(self, index: ModelIndex, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Drop every staged and held command (PD torques stop; actuators keep their ctrl)."""
@@ -134,7 +140,7 @@ class Control:
             addresses mean nothing in it (recompile already carried its applied forces over).
         """
         if not new_model:
-            data.qfrc_applied[self._pd_dof] = 0
+            self._pd_out.release(data)
         self._held = {n: c for n, c in self._held.items() if n in index.joint_index}
         items = [(index.joint_index[n], mode, v) for n, (mode, v) in self._held.items()]
         acts = index.joint_actuators
@@ -152,29 +158,27 @@ class Control:
         items = [(i, mode, v) for i, mode, v in items
                  if not (mode == VELOCITY and POSITION in acts[i])]
         idx = np.array([i for i, _, _ in items], dtype=int)
-        self._pd_dof = index.joint_dofadr[idx]
-        self._pd_qpos = index.joint_qposadr[idx]
         modes = [mode for _, mode, _ in items]
         target = np.array([v for _, _, v in items], dtype=float)
         is_pos = np.array([m == POSITION for m in modes], dtype=bool)
         is_eff = np.array([m == EFFORT for m in modes], dtype=bool)
+        # Effort commands reach here only for joints without a motor: qfrc_applied.
+        self._pd_out = _Outputs(index, model, idx, motors=~is_eff)
+        self._pd_qpos = index.joint_qposadr[idx]
         self._pd_is_pos = is_pos
         self._pd_pos_target = np.where(is_pos, target, 0.0)
         self._pd_vel_target = np.where([m == VELOCITY for m in modes], target, 0.0)
         self._pd_effort = np.where(is_eff, target, 0.0)
-        # Gains act per unit of the joint's own inertia (dof_M0), so one pair of defaults is
-        # stable on a 50 g finger and on a 20 kg arm; gravity/Coriolis is fed forward.
-        m0 = model.dof_M0[self._pd_dof]
-        self._pd_kp = np.where(is_pos, self.kp * m0, 0.0)
-        self._pd_kd = np.where(is_eff, 0.0, self.kd * m0)
-        self._pd_bias = ~is_eff
+        self._pd_kp = np.where(is_pos, self.kp, 0.0)
+        self._pd_kd = np.where(is_eff, 0.0, self.kd)
+        self._pd_is_eff = is_eff
         for run in list(self._runs.values()):
             if not run.bind(index, model):
                 # Its addresses were the old model's: in `data` they are other joints' and
                 # actuators' now (or out of range). Its joints are gone; nothing to hold.
                 run.qadr = None
                 self._end_run(run, INVALID_GOAL, ERR_GONE, data, hold=False, rebind=False)
-        self.per_step = bool(len(self._pd_dof) or len(self._servo_act) or self._runs)
+        self.per_step = bool(len(self._pd_out) or len(self._servo_act) or self._runs)
 
     # ---------------------------------------------------------------- trajectories
 
@@ -222,7 +226,7 @@ class Control:
         tracker.status.canceled = canceled
         joints = tracker.trajectory.joints
         if run.qadr is not None:
-            data.qfrc_applied[run.pd_dof] = 0
+            run.out.release(data)
             where = np.array(tracker.trajectory.positions[-1] if hold
                              else data.qpos[run.qadr], dtype=float)
             for name, q, act in zip(joints, where, run.act):
@@ -239,31 +243,35 @@ class Control:
         t = data.time
         for run in list(self._runs.values()):
             q, v = data.qpos[run.qadr], data.qvel[run.dof]
+            status = run.tracker.status
+            status.effort = data.qfrc_actuator[run.dof] + data.qfrc_applied[run.dof]
             code = run.tracker.judge(t, q, v)
             if code is not None:
-                self._end_run(run, code, run.tracker.status.message, data,
-                              hold=code == SUCCESSFUL)
+                if code != SUCCESSFUL:
+                    status.message += run.saturation_note()
+                self._end_run(run, code, status.message, data, hold=code == SUCCESSFUL)
                 continue
-            qd, vd, _ = run.tracker.status.desired
-            acts = run.act >= 0
-            data.ctrl[run.act[acts]] = qd[acts]
-            pd = ~acts
-            dof = run.dof[pd]
-            data.qfrc_applied[dof] = (run.m0[pd] * (self.kp * (qd[pd] - q[pd])
-                                                    + self.kd * (vd[pd] - v[pd]))
-                                      + data.qfrc_bias[dof])
+            qd, vd, ad = status.desired
+            servo = run.act >= 0
+            data.ctrl[run.act[servo]] = qd[servo]
+            pd = ~servo
+            if pd.any():
+                u = ad[pd] + self.kp * (qd[pd] - q[pd]) + self.kd * (vd[pd] - v[pd])
+                tau = _times_mass(model, data, run.out.dof, u) + data.qfrc_bias[run.out.dof]
+                run.count(run.out.write(data, tau))
 
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Before one step: PD torques and moving servo targets from the current state."""
         if self._runs:
             self._drive_runs(model, data)
-        dof = self._pd_dof
-        q = data.qpos[self._pd_qpos]
-        v = data.qvel[dof]
-        err = np.where(self._pd_is_pos, self._pd_pos_target - q, 0.0)
-        data.qfrc_applied[dof] = (self._pd_kp * err + self._pd_kd * (self._pd_vel_target - v)
-                                  + self._pd_effort
-                                  + np.where(self._pd_bias, data.qfrc_bias[dof], 0.0))
+        out = self._pd_out
+        if len(out):
+            q = data.qpos[self._pd_qpos]
+            v = data.qvel[out.dof]
+            err = np.where(self._pd_is_pos, self._pd_pos_target - q, 0.0)
+            u = self._pd_kp * err + self._pd_kd * (self._pd_vel_target - v)
+            tau = _times_mass(model, data, out.dof, u) + data.qfrc_bias[out.dof]
+            out.write(data, np.where(self._pd_is_eff, self._pd_effort, tau))
         if len(self._servo_act):
             follow = np.isnan(self._servo_rate)
             target = np.where(follow, data.qpos[self._servo_qpos],
@@ -274,14 +282,106 @@ class Control:
                                                   np.clip(target, lo, hi), target)
 
 
+def _times_mass(model: mujoco.MjModel, data: mujoco.MjData, dof: np.ndarray,
+                u: np.ndarray) -> np.ndarray:
+    """Return (M(q) x)[dof] for x = `u` on `dof` and 0 elsewhere (the last step's M)."""
+    x = np.zeros(model.nv)
+    x[dof] = u
+    out = np.empty(model.nv)
+    mujoco.mj_mulM(model, data, out, x)
+    return out[dof]
+
+
+class _Outputs:
+    """
+    Where the PD torques of some joints go: each joint's motor actuator, or qfrc_applied.
+
+    A motor (a single-joint actuator without bias or dynamics, of fixed gain) takes
+    ``ctrl = torque / (gain * gear)`` within its ctrlrange and forcerange; a joint without
+    one takes the torque through ``qfrc_applied``, unlimited.
+    """
+
+    def __init__(self, index: ModelIndex, model: mujoco.MjModel, idx: np.ndarray,
+                 motors: Optional[np.ndarray] = None):
+        self.dof = index.joint_dofadr[idx].astype(int)
+        act = np.array([index.joint_actuators[i].get(EFFORT, -1) for i in idx], dtype=int)
+        if motors is not None:
+            act = np.where(motors, act, -1)
+        n = len(act)
+        self.scale, self.lo, self.hi = np.ones(n), np.full(n, -np.inf), np.full(n, np.inf)
+        for k in np.nonzero(act >= 0)[0]:
+            a = act[k]
+            gear = model.actuator_gear[a, 0]
+            scale = model.actuator_gainprm[a, 0] * gear
+            if model.actuator_gaintype[a] != mujoco.mjtGain.mjGAIN_FIXED or scale == 0:
+                act[k] = -1
+                continue
+            # The joint torques the motor can give: ctrlrange times gain and gear, forcerange
+            # times gear, whichever is narrower.
+            lo, hi = -np.inf, np.inf
+            if model.actuator_ctrllimited[a]:
+                lo, hi = sorted(model.actuator_ctrlrange[a] * scale)
+            if model.actuator_forcelimited[a]:
+                f_lo, f_hi = sorted(model.actuator_forcerange[a] * gear)
+                lo, hi = max(lo, f_lo), min(hi, f_hi)
+            self.scale[k], self.lo[k], self.hi[k] = scale, lo, hi
+        self.act, self.motor = act, act >= 0
+
+    @classmethod
+    def empty(cls) -> '_Outputs':
+        out = cls.__new__(cls)
+        out.dof = out.act = _NONE_INT
+        out.scale = out.lo = out.hi = np.zeros(0)
+        out.motor = np.zeros(0, bool)
+        return out
+
+    def __len__(self) -> int:
+        return len(self.dof)
+
+    def write(self, data: mujoco.MjData, tau: np.ndarray) -> np.ndarray:
+        """Apply joint torques `tau`; return which joints' motors are at their limit."""
+        given = np.clip(tau, self.lo, self.hi)
+        m = self.motor
+        data.qfrc_applied[self.dof[~m]] = given[~m]
+        data.ctrl[self.act[m]] = given[m] / self.scale[m]
+        return given != tau
+
+    def release(self, data: mujoco.MjData) -> None:
+        """Stop every torque this binding wrote."""
+        m = self.motor
+        data.qfrc_applied[self.dof[~m]] = 0
+        data.ctrl[self.act[m]] = 0
+
+
 class _Run:
     """A trajectory being followed, bound to one model's addresses (world lock held)."""
 
     def __init__(self, entity: str, tracker: Tracker):
         self.entity, self.tracker = entity, tracker
         self.done = threading.Event()
-        self.qadr = self.dof = self.act = self.m0 = self.pd_dof = None
+        self.qadr = self.dof = self.act = self.out = None
         self.index = self.model = None
+        self.steps = 0
+        self.saturated = None  # per PD joint: steps its motor spent at its limit
+
+    def count(self, at_limit: np.ndarray) -> None:
+        self.steps += 1
+        if self.saturated is None or len(self.saturated) != len(at_limit):
+            self.saturated = np.zeros(len(at_limit), int)
+        self.saturated += at_limit
+
+    def saturation_note(self) -> str:
+        """Which motors spent much of the run at their limit ('' if none did)."""
+        if self.saturated is None or not self.steps or self.out is None:
+            return ''
+        names = [n for n, a in zip(self.tracker.trajectory.joints, self.act) if a < 0]
+        notes = [f'{names[k]!r} ({self.saturated[k] / self.steps:.0%} of the steps at '
+                 f'{max(abs(self.out.lo[k]), abs(self.out.hi[k])):.4g} N·m or N)'
+                 for k in np.nonzero(self.saturated > self.steps // 10)[0]]
+        if not notes:
+            return ''
+        return ('; the motors of ' + ', '.join(notes) + ' were at the limit their file gives '
+                'them: the trajectory asks more than the actuators can give')
 
     def bind(self, index: ModelIndex, model: mujoco.MjModel) -> bool:
         """Take the addresses of its joints in `index`; False if one is gone."""
@@ -292,7 +392,6 @@ class _Run:
         self.qadr, self.dof = index.joint_qposadr[idx], index.joint_dofadr[idx]
         self.act = np.array([index.joint_actuators[i].get(POSITION, -1) for i in idx],
                             dtype=int)
-        self.m0 = model.dof_M0[self.dof]
-        self.pd_dof = self.dof[self.act < 0]
+        self.out = _Outputs(index, model, idx[self.act < 0])
         self.index, self.model = index, model
         return True

@@ -48,6 +48,8 @@ class Spawned:
     :param description: what it was spawned from, for ``get_entities``' description.
     :param namespace: the ROS namespace it was spawned with ('' for none).
     :param urdf: a URDF source's own text ('' when spawned from anything else).
+    :param world_link: for a URDF fixed to a link named ``world``, that link's pose in the root
+        link's frame (see :attr:`.models.urdf.Prepared.world_link`).
     """
 
     frame: str
@@ -58,6 +60,7 @@ class Spawned:
     description: str = ''
     namespace: str = ''
     urdf: str = ''
+    world_link: Optional[tuple] = None
 
 
 @dataclass(frozen=True)

@@ -123,7 +123,8 @@ class Edits:
             return Spawned(frame=frame, bodies=bodies, root_link=f'{name}/{root}',
                            defaults=defaults, assets=tuple(source.assets),
                            description=source.description, namespace=namespace,
-                           urdf=source.text if source.kind == 'urdf' else '')
+                           urdf=source.text if source.kind == 'urdf' else '',
+                           world_link=getattr(source.urdf_notes, 'world_link', None))
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,

@@ -6,7 +6,7 @@ that turns names into MuJoCo ids and addresses, so nothing can hold an address o
 model without holding that model's index too (compare ``index.generation``).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable, Mapping
 
 import mujoco
@@ -15,6 +15,7 @@ import numpy as np
 from .checks import closest_hint
 from .devices import catalog
 from .errors import NotFoundError
+from .models import description
 from .records import (DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT,
                       STATIC, VELOCITY)
 
@@ -51,6 +52,7 @@ class ModelIndex:
     body_ids: dict  # name -> id
     joint_names: tuple
     joint_index: dict  # name -> position in joint_names
+    joint_ids: np.ndarray  # MuJoCo joint ids
     joint_qposadr: np.ndarray
     joint_dofadr: np.ndarray
     joint_actuators: tuple  # per joint: {mode: actuator id}
@@ -124,6 +126,14 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         if alias[rec.root_body] and (tops > 1 or any(int(m.jnt_type[j]) != _FREE
                                                      for j in jnt)):
             mount[rec.root_body] = f'{rec.name}/{MOUNT}'
+    position = {j: i for i, j in enumerate(jids)}
+    chains = tuple(
+        replace(c, steps=tuple(
+            (p, q, position[j], hinge, axis) for p, q, j, hinge, axis in c.steps))
+        for rec in entities if alias[rec.root_body] and rec.name in set(joint_entity)
+        and not getattr(spawned.get(rec.name), 'urdf', '')
+        for c in description.chain_frames(m, rec.body_ids, alias[rec.root_body],
+                                          mount[rec.root_body]))
     info = ModelInfo(
         generation=generation, timestep=float(m.opt.timestep), body_names=names,
         body_parent=parent, body_root=root_of, body_has_joint=m.body_jntnum > 0,
@@ -131,11 +141,15 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         body_alias=alias, body_mount=tuple(mount), joint_names=jnames, geoms=_geom_visuals(m),
         entities=entities,
         cameras=catalog.cameras(m), sensors=catalog.sensors(m), sites=catalog.sites(m),
-        joint_entity=joint_entity)
+        joint_entity=joint_entity, chains=chains,
+        link_frames=tuple((alias[rec.root_body], f'{rec.name}/world', *own.world_link)
+                          for rec in entities for own in [spawned.get(rec.name)]
+                          if own is not None and own.world_link and alias[rec.root_body]))
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,
         joint_names=jnames, joint_index={n: i for i, n in enumerate(jnames)},
+        joint_ids=np.array(jids, dtype=int),
         joint_qposadr=m.jnt_qposadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_dofadr=m.jnt_dofadr[jids].astype(int) if jids else np.zeros(0, int),
         joint_actuators=_classify_actuators(m, jids),

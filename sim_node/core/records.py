@@ -150,6 +150,14 @@ class ModelInfo:
     sensors: tuple = ()  # SensorSpec
     sites: tuple = ()  # SiteSpec of every named site
     joint_entity: tuple = ()  # for joint_names: the entity each joint belongs to
+    #: The intermediate links of the robot descriptions made from the model
+    #: (:class:`~.models.description.ChainFrame`, their steps' joints as indices into
+    #: joint_names): frames on /tf and /tf_static as every other link.
+    chains: tuple = ()
+    #: Other links of descriptions that no body stands for, fixed to one that does:
+    #: (parent frame, frame, position (3,), quaternion wxyz (4,)) for /tf_static (a URDF's
+    #: ``world`` link, which its root is fixed to).
+    link_frames: tuple = ()
 
 
 @dataclass(frozen=True)

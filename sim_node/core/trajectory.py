@@ -36,6 +36,14 @@ ERR_TIMES = ('time_from_start must increase from point to point: point {i} is at
 ERR_NEGATIVE = 'point {i} has a negative time_from_start ({t:g} s)'
 ERR_SIZE = 'point {i} has {n} {field} for {m} joints'
 ERR_NOT_FINITE = 'point {i} has a non-finite {field} value'
+ERR_RANGE = ('point {i} puts joint {name!r} at {q:.6g}, outside its range [{lo:.6g}, {hi:.6g}]: '
+             'no actuator can take it there')
+#: How far beyond its range a point may put a joint (rad or m) without being refused: a joint
+#: resting on its limit sits that little way past it (MuJoCo's limits are soft).
+RANGE_MARGIN = 1e-3
+ERR_END_VELOCITY = ('the last point gives joint {name!r} a velocity of {v:.6g}: a trajectory '
+                    'must end at rest (allow_nonzero_velocity_at_trajectory_end is off, as in '
+                    "the controller's default)")
 ERR_OLD = ('the trajectory ends at {end:.6f} s of simulated time, before now ({now:.6f} s): '
            'its header stamp is in the past')
 
@@ -204,16 +212,20 @@ def check(joint_names: Sequence[str], times: Sequence[float], positions: Sequenc
     return (t, *arrays)
 
 
-def plan(index, data, entity: str, joint_names: Sequence[str], times: Sequence[float],
+def plan(index, model, data, entity: str, joint_names: Sequence[str], times: Sequence[float],
          positions: Sequence[Sequence], velocities: Sequence[Sequence],
          accelerations: Sequence[Sequence], start_time: float,
          path_tolerance: Optional[dict], goal_tolerance: Optional[dict],
-         goal_time_tolerance: float) -> 'Trajectory':
+         goal_time_tolerance: float, allow_end_velocity: bool = False) -> 'Trajectory':
     """
     Check a goal against a world's joints (:class:`~.index.ModelIndex`, MjData) and plan it.
 
     Starts from the joints' state now; see :meth:`World.follow_trajectory
     <sim_node.core.world.World.follow_trajectory>` for the arguments. Call with the world lock.
+    A point that puts a limited joint outside its range is refused (INVALID_GOAL), unless the
+    joint is outside it already and the point is no further out; so is a last point with a
+    velocity, unless `allow_end_velocity` (joint_trajectory_controller's
+    ``allow_nonzero_velocity_at_trajectory_end``, off by default).
 
     :raises TrajectoryError: with FollowJointTrajectory's error code.
     """
@@ -225,14 +237,33 @@ def plan(index, data, entity: str, joint_names: Sequence[str], times: Sequence[f
         raise TrajectoryError(OLD_HEADER_TIMESTAMP, ERR_OLD.format(end=start + t[-1], now=now))
     idx = index.joints(joint_names)
     names = tuple(joint_names)
+    start_q = data.qpos[index.joint_qposadr[idx]].copy()
+    _check_ranges(model, index.joint_ids[idx], names, q, start_q)
+    if v is not None and not allow_end_velocity and np.any(v[-1] != 0):
+        j = int(np.nonzero(v[-1])[0][0])
+        raise TrajectoryError(INVALID_GOAL, ERR_END_VELOCITY.format(name=names[j], v=v[-1, j]))
     return Trajectory(
         joints=names, start=start, times=t, positions=q, velocities=v, accelerations=a,
-        start_positions=data.qpos[index.joint_qposadr[idx]].copy(),
+        start_positions=start_q,
         start_velocities=(data.qvel[index.joint_dofadr[idx]].copy() if v is not None
                           else np.zeros(len(names))),
         path_tolerance=_tolerance(names, path_tolerance),
         goal_tolerance=_tolerance(names, goal_tolerance),
         goal_time_tolerance=max(0.0, float(goal_time_tolerance)))
+
+
+def _check_ranges(model, jids: np.ndarray, names: tuple, q: np.ndarray,
+                  start_q: np.ndarray) -> None:
+    """Refuse a point that puts a limited joint outside its range (further than it is now)."""
+    limited = model.jnt_limited[jids].astype(bool)
+    lo = np.minimum(model.jnt_range[jids, 0], start_q) - RANGE_MARGIN
+    hi = np.maximum(model.jnt_range[jids, 1], start_q) + RANGE_MARGIN
+    out = limited & ((q < lo) | (q > hi))
+    if out.any():
+        i, j = (int(x[0]) for x in np.nonzero(out))
+        lo_j, hi_j = model.jnt_range[jids[j]]
+        raise TrajectoryError(INVALID_GOAL, ERR_RANGE.format(i=i, name=names[j], q=q[i, j],
+                                                             lo=lo_j, hi=hi_j))
 
 
 def _tolerance(names: tuple, given: Optional[dict]) -> Tolerance:
@@ -255,6 +286,7 @@ class Status:
     desired: tuple = ()
     actual: tuple = ()
     time: float = 0.0
+    effort: tuple = ()  # (n,) the joint torques the actuators and PD gave in the last step
 
 
 class Tracker:
@@ -263,6 +295,7 @@ class Tracker:
     def __init__(self, trajectory: Trajectory):
         self.trajectory = trajectory
         self.status = Status()
+        self._sampled = False  # the path tolerance holds from the first sample on
 
     def judge(self, t: float, q: np.ndarray, v: np.ndarray) -> Optional[int]:
         """Record the state at time `t`; return the outcome code once decided."""
@@ -271,11 +304,14 @@ class Tracker:
         self.status.desired, self.status.actual, self.status.time = (qd, vd, ad), (q, v), t
         if self.status.code is not None:
             return self.status.code
+        if t >= tr.start and (t < tr.end or not self._sampled):
+            # Along the way, and at the first sample even when that is the end: a single
+            # point at time 0 far from where the joints are violates the path at once.
+            self._sampled = True
+            bad = _violation(tr.joints, tr.path_tolerance, qd - q, vd - v)
+            if bad:
+                return self._decide(PATH_TOLERANCE_VIOLATED, 'path tolerance ' + bad)
         if t < tr.end:
-            if t >= tr.start:
-                bad = _violation(tr.joints, tr.path_tolerance, qd - q, vd - v)
-                if bad:
-                    return self._decide(PATH_TOLERANCE_VIOLATED, 'path tolerance ' + bad)
             return None
         bad = _violation(tr.joints, tr.goal_tolerance, qd - q, vd - v)
         if not bad:

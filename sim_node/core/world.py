@@ -330,7 +330,8 @@ class World:
                           accelerations: Sequence[Sequence[float]] = (),
                           start_time: float = 0.0, path_tolerance: Optional[dict] = None,
                           goal_tolerance: Optional[dict] = None,
-                          goal_time_tolerance: float = 0.0) -> 'TrajectoryHandle':
+                          goal_time_tolerance: float = 0.0,
+                          allow_end_velocity: bool = False) -> 'TrajectoryHandle':
         """
         Drive an entity's joints along a trajectory in simulated time (a new one preempts).
 
@@ -343,17 +344,37 @@ class World:
             error along the way; goal_tolerance likewise at the end; 0 or absent: not checked.
         :param goal_time_tolerance: how long after the end the goal tolerance may take to be
             met (0: no limit).
-        :raises TrajectoryError: with FollowJointTrajectory's error code.
+        :param allow_end_velocity: accept a last point with a velocity (refused otherwise,
+            as joint_trajectory_controller does by default).
+        :raises TrajectoryError: with FollowJointTrajectory's error code; a point outside a
+            joint's range is refused too.
         """
         live = self._live
         with live.lock:
-            traj = trajectory.plan(live.index, live.data, entity, joint_names, times,
-                                   positions, velocities, accelerations, start_time,
-                                   path_tolerance, goal_tolerance, goal_time_tolerance)
+            traj = trajectory.plan(live.index, live.model, live.data, entity, joint_names,
+                                   times, positions, velocities, accelerations, start_time,
+                                   path_tolerance, goal_tolerance, goal_time_tolerance,
+                                   allow_end_velocity)
             live.control.start_run(entity, trajectory.Tracker(traj), live.index, live.model,
                                    live.data)
             live.cached = None
             return TrajectoryHandle(self, entity, live.control.run_of(entity))
+
+    def check_trajectory(self, entity: str, joint_names: Sequence[str],
+                         times: Sequence[float], positions: Sequence[Sequence[float]],
+                         velocities: Sequence[Sequence[float]] = (),
+                         accelerations: Sequence[Sequence[float]] = (),
+                         start_time: float = 0.0, allow_end_velocity: bool = False) -> None:
+        """
+        Raise what :meth:`follow_trajectory` would refuse the goal for; start nothing.
+
+        :raises TrajectoryError: with FollowJointTrajectory's error code.
+        """
+        live = self._live
+        with live.lock:
+            trajectory.plan(live.index, live.model, live.data, entity, joint_names, times,
+                            positions, velocities, accelerations, start_time, None, None, 0.0,
+                            allow_end_velocity)
 
     def cancel_trajectory(self, handle: 'TrajectoryHandle') -> None:
         """End a trajectory now; the joints hold where they are (see TrajectoryHandle)."""

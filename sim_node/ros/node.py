@@ -80,7 +80,9 @@ class SimNode(Node):
             lambda: tuple(p(n) for n in ('trajectory_path_tolerance',
                                          'trajectory_goal_tolerance',
                                          'trajectory_goal_time_tolerance',
-                                         'trajectory_feedback_hz')))
+                                         'trajectory_feedback_hz',
+                                         'trajectory_allow_nonzero_velocity_at_end')),
+            self.status.refused)
         self.descriptions = RobotDescriptions(
             self, self.session,
             Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())

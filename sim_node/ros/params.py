@@ -139,15 +139,18 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('max_bodies', c.max_bodies, d(
         'most bodies the world may hold; a spawn past it is refused', read_only=True,
         imin=2, imax=100_000))
-    node.declare_parameter('trajectory_path_tolerance', 0.0, d(
+    node.declare_parameter('trajectory_path_tolerance', 0.25, d(
         'default position tolerance (rad or m) along a FollowJointTrajectory goal, every '
         "joint; 0: not checked; a goal's path_tolerance overrides it", fmin=0, fmax=1e3))
-    node.declare_parameter('trajectory_goal_tolerance', 0.0, d(
+    node.declare_parameter('trajectory_goal_tolerance', 0.05, d(
         'default position tolerance at the end of a FollowJointTrajectory goal; 0: not '
         "checked (the goal succeeds at its last point's time)", fmin=0, fmax=1e3))
-    node.declare_parameter('trajectory_goal_time_tolerance', 0.0, d(
+    node.declare_parameter('trajectory_goal_time_tolerance', 1.0, d(
         'default time (s) after the end within which the goal tolerance must be met; 0: no '
         'limit', fmin=0, fmax=1e6))
+    node.declare_parameter('trajectory_allow_nonzero_velocity_at_end', False, d(
+        'accept FollowJointTrajectory goals whose last point has a velocity (refused by '
+        "default, as joint_trajectory_controller's allow_nonzero_velocity_at_trajectory_end)"))
     node.declare_parameter('trajectory_feedback_hz', 20.0, d(
         'FollowJointTrajectory feedback and controller_state messages per wall second while '
         'a goal runs', fmin=0.1, fmax=1000))

@@ -44,7 +44,7 @@ class Status:
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._name = f'{node.get_fully_qualified_name()}: physics'
         self._diagnosed = (None, 0.0)  # (divergence report, wall time) last published
-        self._refused: Optional[tuple] = None  # (why, names, wall time) the latest
+        self._refused: dict = {}  # topic -> (what, why, names, wall time), the latest
         self._forwarder = LogForwarder()
         logging.getLogger('sim_node').addHandler(self._forwarder)
         logging.getLogger('sim_node').setLevel(logging.INFO)
@@ -60,9 +60,12 @@ class Status:
 
     def refused_command(self, why: str, names: list) -> None:
         """Log a refused joint command, and say so on /diagnostics now."""
-        self._node.get_logger().warning(f'joint command refused: {why}',
-                                        throttle_duration_sec=1.0)
-        self._refused = (why, names, time.monotonic())
+        self.refused('joint_commands', 'joint command', why, names)
+
+    def refused(self, topic: str, what: str, why: str, names: list) -> None:
+        """Log a refused request on `topic` (a joint command, a goal); /diagnostics now."""
+        self._node.get_logger().warning(f'{what} refused: {why}', throttle_duration_sec=1.0)
+        self._refused[topic] = (what, why, names, time.monotonic())
         self.publish(force=True)
 
     def publish(self, force: bool) -> None:
@@ -85,11 +88,10 @@ class Status:
             return
         self._diagnosed = (status.divergence, now)
         msg = diagnostics.diagnostics(status, self._name)
-        refused = self._refused
-        if refused is not None and now - refused[2] < REFUSAL_SHOWN_SEC:
-            msg.status.append(diagnostics.refused_command(
-                refused[0], refused[1], f'{self._node.get_fully_qualified_name()}: '
-                'joint_commands'))
+        for topic, (what, why, names, when) in list(self._refused.items()):
+            if now - when < REFUSAL_SHOWN_SEC:
+                msg.status.append(diagnostics.refused_command(
+                    why, names, f'{self._node.get_fully_qualified_name()}: {topic}', what))
         self._pub.publish(msg)
 
     def drain_logs(self) -> None:

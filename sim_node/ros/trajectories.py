@@ -7,7 +7,9 @@ and removed with the entity. A goal becomes a core trajectory
 (:meth:`~sim_node.core.world.World.follow_trajectory`, in simulated time); the execute callback
 waits for it, sends feedback at ``trajectory_feedback_hz`` (wall time) and maps the outcome
 to the result: SUCCESSFUL and the controller's error codes, ABORTED for a violation or a
-preemption, CANCELED for a cancel (the joints then hold where they are).
+preemption, CANCELED for a cancel (the joints then hold where they are). A goal the controller
+would reject is rejected, its reason logged and put on /diagnostics. ``controller_state``'s
+``output.effort`` is the torque each joint's actuators gave in the last step.
 """
 
 import threading
@@ -96,9 +98,9 @@ def tolerances(names, given, default: float) -> dict:
     return out
 
 
-def _point(q=(), v=(), a=()) -> JointTrajectoryPoint:
+def _point(q=(), v=(), a=(), e=()) -> JointTrajectoryPoint:
     return JointTrajectoryPoint(positions=[float(x) for x in q], velocities=[float(x) for x in v],
-                                accelerations=[float(x) for x in a])
+                                accelerations=[float(x) for x in a], effort=[float(x) for x in e])
 
 
 class TrajectoryServers:
@@ -106,14 +108,18 @@ class TrajectoryServers:
     The action servers and controller-state publishers of a node's entities.
 
     :param session: the loaded simulation; :meth:`on_model` is its listener.
-    :param params: returns (path tolerance, goal tolerance, goal time tolerance, feedback Hz).
+    :param params: returns (path tolerance, goal tolerance, goal time tolerance, feedback Hz,
+        allow a velocity at the end).
+    :param refused: called (topic, what, why, joint names) for a rejected goal.
     """
 
-    def __init__(self, node, callback_group, session: Session, params: Callable):
+    def __init__(self, node, callback_group, session: Session, params: Callable,
+                 refused: Callable):
         self._node = node
         self._group = callback_group
         self._session = session
         self._params = params
+        self._refused = refused
         self._servers: dict = {}  # entity -> (action server, controller_state pub, base)
         self._lock = threading.Lock()
 
@@ -146,7 +152,7 @@ class TrajectoryServers:
         server = _LeavableActionServer(
             self._node, FollowJointTrajectory, f'{base}/follow_joint_trajectory',
             execute_callback=lambda goal: self._execute(entity, goal),
-            goal_callback=lambda goal: GoalResponse.ACCEPT,
+            goal_callback=lambda goal: self._check(entity, base, goal),
             cancel_callback=lambda goal: CancelResponse.ACCEPT,
             callback_group=self._group)
         pub = self._node.create_publisher(
@@ -156,28 +162,58 @@ class TrajectoryServers:
 
     # ------------------------------------------------------------------ one goal
 
+    def _check(self, entity: str, base: str, goal) -> GoalResponse:
+        """
+        Accept a goal the controller would run; reject the others, as it does.
+
+        joint_trajectory_controller rejects a goal it cannot run (unknown joints, no points,
+        times that do not increase, sizes that differ, a velocity at the end, an end in the
+        past) at once, in its goal callback; a rejected goal has no result, so the reason goes
+        to the log and to /diagnostics (``<node>: <entity>/follow_joint_trajectory``).
+        """
+        jt = goal.trajectory
+        try:
+            self._plan(entity, goal, check=True)
+        except (trajectory.TrajectoryError, SimError) as exc:
+            code = getattr(exc, 'code', trajectory.INVALID_JOINTS)
+            self._refused(f'{base}/follow_joint_trajectory', 'FollowJointTrajectory goal',
+                          f'{exc} (error code {code})', list(jt.joint_names))
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _plan(self, entity: str, goal, check: bool = False):
+        """Start (or with `check`, only check) a goal; return its core handle."""
+        jt = goal.trajectory
+        sim = self._session.loaded
+        path_tol, goal_tol, goal_time, _, allow_end_velocity = self._params()
+        if goal.multi_dof_trajectory.joint_names:
+            raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS, ERR_MULTI_DOF)
+        if sim is None:
+            raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS,
+                                             ERR_GONE.format(entity=entity))
+        names = list(jt.joint_names)
+        points = ([_seconds(p.time_from_start) for p in jt.points],
+                  [list(p.positions) for p in jt.points], [list(p.velocities) for p in jt.points],
+                  [list(p.accelerations) for p in jt.points])
+        if check:
+            return sim.world.check_trajectory(entity, names, *points,
+                                              start_time=_seconds(jt.header.stamp),
+                                              allow_end_velocity=allow_end_velocity)
+        gtt = _seconds(goal.goal_time_tolerance)
+        return sim.world.follow_trajectory(
+            entity, names, *points, start_time=_seconds(jt.header.stamp),
+            path_tolerance=tolerances(names, goal.path_tolerance, path_tol),
+            goal_tolerance=tolerances(names, goal.goal_tolerance, goal_tol),
+            goal_time_tolerance=gtt if gtt > 0 else goal_time,
+            allow_end_velocity=allow_end_velocity)
+
     def _execute(self, entity: str, goal_handle):
         goal = goal_handle.request
-        jt = goal.trajectory
+        names = list(goal.trajectory.joint_names)
         result = FollowJointTrajectory.Result()
-        sim = self._session.loaded
-        path_tol, goal_tol, goal_time, feedback_hz = self._params()
-        try:
-            if goal.multi_dof_trajectory.joint_names:
-                raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS, ERR_MULTI_DOF)
-            if sim is None:
-                raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS,
-                                                 ERR_GONE.format(entity=entity))
-            names = list(jt.joint_names)
-            gtt = _seconds(goal.goal_time_tolerance)
-            handle = sim.world.follow_trajectory(
-                entity, names, [_seconds(p.time_from_start) for p in jt.points],
-                [list(p.positions) for p in jt.points], [list(p.velocities) for p in jt.points],
-                [list(p.accelerations) for p in jt.points],
-                start_time=_seconds(jt.header.stamp),
-                path_tolerance=tolerances(names, goal.path_tolerance, path_tol),
-                goal_tolerance=tolerances(names, goal.goal_tolerance, goal_tol),
-                goal_time_tolerance=gtt if gtt > 0 else goal_time)
+        feedback_hz = self._params()[3]
+        try:  # checked when accepted; the world may have changed since
+            handle = self._plan(entity, goal)
         except trajectory.TrajectoryError as exc:
             goal_handle.abort()
             result.error_code, result.error_string = exc.code, str(exc)
@@ -223,6 +259,7 @@ class TrajectoryServers:
         if entry is not None:
             state = JointTrajectoryControllerState(joint_names=names, reference=desired,
                                                    feedback=actual, error=error,
+                                                   output=_point(e=st.effort),
                                                    speed_scaling_factor=1.0)
             state.header.stamp = stamp
             entry[1].publish(state)

@@ -13,8 +13,9 @@ model (:func:`from_model`):
   from ``/tf`` only). Joint names are those on ``joint_states``. MuJoCo turns a body about each
   joint's anchor, in order, by ``qpos - qpos0``; URDF turns a child link about its joint's
   origin by the joint value. A body whose joint is off its origin, or that has several joints,
-  therefore gets an intermediate link per joint (``<link>/<joint>``, never on ``/tf``) and a
-  fixed joint back to the body's own link; a joint's ``ref`` is folded into its origin;
+  therefore gets an intermediate link per joint (``<link>/<joint>``, on ``/tf`` through
+  :func:`chain_frames`) and a fixed joint back to the body's own link; a joint's ``ref`` is
+  folded into its origin;
 * ``<limit>``: the joint's range; effort from the joint's or its actuator's force range;
   velocity 0 (MuJoCo has no velocity limit; MoveIt reads its own from joint_limits.yaml).
   An unlimited slide is written with +-1e6 m, as URDF requires bounds for prismatic joints;
@@ -26,6 +27,7 @@ model (:func:`from_model`):
 """
 
 import copy
+from dataclasses import dataclass
 import hashlib
 import math
 import os
@@ -79,18 +81,11 @@ def from_model(m: mujoco.MjModel, bodies: Sequence[int], root_frame: str,
         link, which its top-level bodies hang from by their joints.
     :param mesh_dir: where mesh and ellipsoid geometry is written as STL (None: left out).
     """
-    root = bodies[0]
-    entity = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, root)
-    links = {root: link_name(entity, root_frame)}
-    for b in bodies[1:]:
-        links[b] = link_name(entity, _body_name(m, b))
+    entity, links, mount, taken = _links(m, bodies, root_frame, mount_frame)
     robot = ET.Element('robot', name=entity)
-    taken = set(links.values())
     joint_names = set()
     writer = _Writer(m, mesh_dir)
-    mount = link_name(entity, mount_frame) if mount_frame else ''
     if mount:
-        taken.add(mount)
         ET.SubElement(robot, 'link', name=mount)
     for b in bodies:
         link = ET.SubElement(robot, 'link', name=links[b])
@@ -99,10 +94,73 @@ def from_model(m: mujoco.MjModel, bodies: Sequence[int], root_frame: str,
             writer.geom(g, link)
     for b in bodies[0 if mount else 1:]:
         parent = int(m.body_parentid[b])
-        _joints(m, b, entity, links[parent] if parent else mount, links[b], robot, taken,
+        steps, fixed = _chain(m, b, entity, links[b], taken)
+        _joints(m, steps, fixed, links[parent] if parent else mount, links[b], robot,
                 joint_names)
     ET.indent(robot)
     return ET.tostring(robot, encoding='unicode')
+
+
+@dataclass(frozen=True)
+class ChainFrame:
+    """
+    An intermediate link of a description (see the module's notes): where it is on /tf.
+
+    ``static``: at ``offset`` from the body's own frame, always (the link of the body's last
+    joint). Otherwise it moves with the joints before it: its pose in the parent body's frame
+    is the product over ``steps`` of ``origin * motion(q)``, each step (origin position (3,),
+    origin quaternion wxyz (4,), the joint's MuJoCo id, hinge (else slide), axis (3,)).
+    """
+
+    frame: str  # ``<entity>/<link>``, as robot_state_publisher with frame_prefix names it
+    body: int  # the body whose joints it stands between
+    parent: int  # that body's parent (0: the world, or the entity's mount at its origin)
+    static: bool
+    offset: tuple
+    steps: tuple
+
+
+def chain_frames(m: mujoco.MjModel, bodies: Sequence[int], root_frame: str,
+                 mount_frame: str = '') -> list:
+    """
+    Return the intermediate links of :func:`from_model`'s description, as :class:`ChainFrame`.
+
+    Links between ball or free joints are left out (robot_state_publisher cannot move those
+    either).
+    """
+    entity, links, mount, taken = _links(m, bodies, root_frame, mount_frame)
+    out = []
+    for b in bodies[0 if mount else 1:]:
+        steps, fixed = _chain(m, b, entity, links[b], taken)
+        movable = True
+        for k, (to, direct, jpos, jquat, j) in enumerate(steps):
+            movable = movable and int(m.jnt_type[j]) in (_HINGE, _SLIDE)
+            if direct:
+                continue
+            if k == len(steps) - 1:
+                out.append(ChainFrame(f'{entity}/{to}', b, int(m.body_parentid[b]), True,
+                                      tuple(-np.asarray(fixed[0])), ()))
+            elif movable:
+                out.append(ChainFrame(
+                    f'{entity}/{to}', b, int(m.body_parentid[b]), False, (),
+                    tuple((tuple(p), tuple(q), jj, int(m.jnt_type[jj]) == _HINGE,
+                           tuple(m.jnt_axis[jj])) for _, _, p, q, jj in steps[:k + 1])))
+    return out
+
+
+def _links(m: mujoco.MjModel, bodies: Sequence[int], root_frame: str,
+           mount_frame: str) -> tuple:
+    """Return (entity, body -> link name, mount link or '', names taken)."""
+    root = bodies[0]
+    entity = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, root)
+    links = {root: link_name(entity, root_frame)}
+    for b in bodies[1:]:
+        links[b] = link_name(entity, _body_name(m, b))
+    taken = set(links.values())
+    mount = link_name(entity, mount_frame) if mount_frame else ''
+    if mount:
+        taken.add(mount)
+    return entity, links, mount, taken
 
 
 def _body_name(m: mujoco.MjModel, b: int) -> str:
@@ -118,12 +176,19 @@ def _unique(name: str, taken: set) -> str:
     return out
 
 
-def _joints(m: mujoco.MjModel, b: int, entity: str, parent: str, child: str,
-            robot: ET.Element, taken: set, joint_names: set) -> None:
-    """Add the URDF joints from `parent`'s link to body `b`'s link `child`."""
-    # The transform still to place, in `parent`'s frame: the body's pose in its parent.
+def _chain(m: mujoco.MjModel, b: int, entity: str, child: str, taken: set) -> tuple:
+    """
+    Plan the URDF joints from body `b`'s parent link to its link `child`.
+
+    :returns: (steps, fixed): per joint (link it leads to, whether that is `child` itself,
+        origin position, origin quaternion wxyz, joint id); then the origin (position,
+        quaternion) of the fixed joint to `child` that follows an intermediate link (or of
+        the fixed joint of a welded body).
+    """
+    # The transform still to place, in the parent link's frame: the body's pose in its parent.
     pos, quat = m.body_pos[b].copy(), m.body_quat[b].copy()
     jids = range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+    steps = []
     for k, j in enumerate(jids):
         jtype = int(m.jnt_type[j])
         jname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'joint_{j}'
@@ -137,9 +202,18 @@ def _joints(m: mujoco.MjModel, b: int, entity: str, parent: str, child: str,
             jquat = _mul(quat, _axis_angle(axis, -ref))
         elif jtype == _SLIDE and ref:
             jpos = jpos - _rotate(quat, axis * ref)
-        last = k == len(jids) - 1
-        direct = last and not np.any(np.abs(anchor) > _EPS)
+        direct = k == len(jids) - 1 and not np.any(np.abs(anchor) > _EPS)
         to = child if direct else _unique(f'{child}/{link_name(entity, jname)}', taken)
+        steps.append((to, direct, jpos, jquat, j))
+        pos, quat = -np.asarray(anchor, dtype=float), np.array([1.0, 0.0, 0.0, 0.0])
+    return steps, (pos, quat)
+
+
+def _joints(m: mujoco.MjModel, steps: list, fixed: tuple, parent: str, child: str,
+            robot: ET.Element, joint_names: set) -> None:
+    """Write the URDF joints that :func:`_chain` planned."""
+    for to, direct, jpos, jquat, j in steps:
+        jname = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'joint_{j}'
         if not direct:
             ET.SubElement(robot, 'link', name=to)
         joint = ET.SubElement(robot, 'joint', name=_unique(jname, joint_names),
@@ -147,15 +221,14 @@ def _joints(m: mujoco.MjModel, b: int, entity: str, parent: str, child: str,
         _origin(joint, jpos, jquat)
         ET.SubElement(joint, 'parent', link=parent)
         ET.SubElement(joint, 'child', link=to)
-        if jtype in (_HINGE, _SLIDE):
-            ET.SubElement(joint, 'axis', xyz=_fmt(axis))
+        if int(m.jnt_type[j]) in (_HINGE, _SLIDE):
+            ET.SubElement(joint, 'axis', xyz=_fmt(m.jnt_axis[j]))
             _limit(m, j, joint)
         parent = to
-        pos, quat = -np.asarray(anchor, dtype=float), np.array([1.0, 0.0, 0.0, 0.0])
     if parent != child:  # welded, or after an intermediate link: a fixed joint to the body
         joint = ET.SubElement(robot, 'joint', name=_unique(f'{child}_fixed', joint_names),
                               type='fixed')
-        _origin(joint, pos, quat)
+        _origin(joint, *fixed)
         ET.SubElement(joint, 'parent', link=parent)
         ET.SubElement(joint, 'child', link=child)
 

@@ -107,7 +107,12 @@ def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
         return {'error': 'it has non-finite vertices'}
     vertices = vertices * unit
     if faces_in > max_faces:
-        import fast_simplification
+        try:
+            import fast_simplification
+        except ImportError:
+            return {'error': f'it has {faces_in} faces, more than {max_faces}, and cutting it '
+                    'down needs the fast-simplification package: pip install '
+                    'fast-simplification'}
         vertices, faces = fast_simplification.simplify(
             vertices.astype(np.float32), faces.astype(np.int32), 1.0 - max_faces / faces_in)
     import collada_fast

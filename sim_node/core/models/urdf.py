@@ -102,6 +102,9 @@ class Prepared:
     #: ``<gazebo><self_collide>true</self_collide></gazebo>``: its links collide with each
     #: other (Gazebo's default, and this one's, is that they do not).
     self_collide: bool = False
+    #: For a root fixed to a link named ``world``: where that link is in the root link's
+    #: frame, (position (3,), quaternion wxyz (4,)): the description names it, so /tf has it.
+    world_link: Optional[tuple] = None
     extensions: list = field(default_factory=list)  # the extension elements, as parsed
     unknown: list = field(default_factory=list)  # element names URDF does not define
     repairs: list = field(default_factory=list)  # one text per inertia repaired
@@ -158,6 +161,8 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
         if len(firsts) == 1:
             out.root_link = firsts[0].find('child').get('link')
             out.anchored = firsts[0].get('type') != 'floating'
+            if firsts[0].get('type') == 'fixed':
+                out.world_link = _inverse_origin(firsts[0].find('origin'))
     _check_mimics(joints)
     empty = _drop_empty_geometry(root)
     if empty:
@@ -205,6 +210,25 @@ def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
     tops = list(spec.worldbody.bodies)
     if len(tops) == 1 and not tops[0].joints:
         tops[0].add_freejoint(name=f'{prepared.root_link}_floating')
+
+
+def _inverse_origin(origin: Optional[ET.Element]) -> tuple:
+    """Return the inverse of a joint's ``<origin xyz rpy>``: (position (3,), quat wxyz (4,))."""
+    def vector(name: str) -> np.ndarray:
+        text = origin.get(name, '') if origin is not None else ''
+        values = [float(v) for v in text.split()] if text.strip() else [0.0] * 3
+        return np.asarray(values[:3] + [0.0] * (3 - len(values[:3])), dtype=float)
+    xyz, (roll, pitch, yaw) = vector('xyz'), vector('rpy')
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    for axis, angle in (((0, 0, 1), yaw), ((0, 1, 0), pitch), ((1, 0, 0), roll)):
+        turn, out = np.zeros(4), np.zeros(4)  # URDF: R = Rz(yaw) Ry(pitch) Rx(roll)
+        mujoco.mju_axisAngle2Quat(turn, np.asarray(axis, dtype=float), angle)
+        mujoco.mju_mulQuat(out, quat, turn)
+        quat = out
+    inv = np.array([quat[0], -quat[1], -quat[2], -quat[3]])
+    back = np.zeros(3)
+    mujoco.mju_rotVecQuat(back, -xyz, inv)
+    return tuple(back), tuple(inv)
 
 
 def _start_inside_ranges(spec: mujoco.MjSpec) -> None:
