@@ -32,6 +32,8 @@ from verdict import verdict  # noqa: E402, I100
 
 TARGET_RATIO = 1.25  # first spawn round trip over bare MuJoCo's cold load
 TARGET_SECOND_SEC = 0.25
+TARGET_SMALL_RATIO = 2.0  # the same ratio, for each file MuJoCo loads in under SMALL_BARE_SEC
+SMALL_BARE_SEC = 0.05
 TARGET_NO_MESH_SEC = 0.05
 TARGET_STALL_SEC = 0.05
 
@@ -169,6 +171,14 @@ def main() -> int:
 
     verdict(ratio <= TARGET_RATIO, f'first spawn / bare cold load, median {ratio:.2f} '
             f'(target <= {TARGET_RATIO})')
+    small = [r for r in rows if r[1] < SMALL_BARE_SEC]
+    worst = max(small, key=lambda r: r[2] / r[1]) if small else None
+    if worst is not None:
+        verdict(worst[2] / worst[1] <= TARGET_SMALL_RATIO,
+                f'first spawn / bare cold load of each small file (bare < '
+                f'{SMALL_BARE_SEC * 1e3:.0f} ms, {len(small)} files), worst '
+                f'{worst[2] / worst[1]:.2f} ({worst[0].name}: {worst[2] * 1e3:.0f} ms against '
+                f'{worst[1] * 1e3:.0f} ms; target <= {TARGET_SMALL_RATIO})')
     verdict(again <= TARGET_SECOND_SEC, f'second spawn of the same file, median {again:.3f} s '
             f'(target <= {TARGET_SECOND_SEC} s)')
     verdict(no_mesh <= TARGET_NO_MESH_SEC, f'a file without meshes, {no_mesh * 1e3:.0f} ms '

@@ -617,3 +617,35 @@ def test_a_value_gone_bad_in_a_batchs_last_integration_is_caught_in_that_batch(h
         world.step(1) if how == 'step' else world.stepping.batch(1, snapshot=False)
     assert info.value.step == 1 and 'BADQPOS' in ''.join(info.value.report['warnings'])
     assert world.step_count == 0 and world.get_state().values[1] == 9.99e9
+
+
+CHECKERED = """<mujoco><asset><texture name="grid" type="2d" builtin="checker" width="64"
+  height="64" rgb1="1 1 1" rgb2="0 0 0"/><material name="g" texture="grid"/></asset>
+  <worldbody><body name="tile"><geom type="box" size=".1 .1 .1" material="g"/></body>
+  </worldbody></mujoco>"""
+
+
+def test_generated_textures_keep_their_pixels_through_spawns_deletes_and_compaction(world):
+    """
+    Builtin textures (the sky) are generated once; every later compile reuses the pixels.
+
+    What a camera sees must not change: the pixels are those MuJoCo makes from the files.
+    """
+    from sim_node.core.design import COMPACT_AFTER_REMOVALS
+    sky = mujoco.MjModel.from_xml_path(str(DEFAULT_SCENE))
+    grid = mujoco.MjModel.from_xml_string(CHECKERED)
+
+    def pixels(m, name):
+        t = m.texture(name).id
+        n = m.tex_width[t] * m.tex_height[t] * m.tex_nchannel[t]
+        return m.tex_data[m.tex_adr[t]:m.tex_adr[t] + n].copy()
+    world.spawn('tiles', sources.from_model_text(CHECKERED), position=[2, 2, 0.5])
+    for i in range(COMPACT_AFTER_REMOVALS):  # a compaction writes the spec out as XML
+        world.spawn(f'b{i}', box(), position=[-2, 0.3 * i, 0.5])
+        with world.locked() as (m, _):  # recompiled from the pixels held
+            assert np.array_equal(pixels(m, 'sky'), pixels(sky, 'sky'))
+            assert np.array_equal(pixels(m, 'tiles/grid'), pixels(grid, 'grid'))
+        world.delete(f'b{i}')
+    with world.locked() as (m, _):  # and after the compaction
+        assert np.array_equal(pixels(m, 'sky'), pixels(sky, 'sky'))
+        assert np.array_equal(pixels(m, 'tiles/grid'), pixels(grid, 'grid'))

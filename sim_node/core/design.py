@@ -123,6 +123,10 @@ class Design:
     :param contacts: entity name -> its own contact settings (set_friction, set_restitution).
     :param default_contact: the world's, for every geom without its own.
     :param removals: spawned entities removed since the spec was last compacted.
+    :param baked: textures MuJoCo generates (``builtin``) held as their pixels in `spec`:
+        (name, (builtin, width, height, nchannel)) to write them out as they were given.
+        Generating a 256-pixel skybox took 3 of the default scene's 3.3 ms compile, on every
+        spawn and delete.
     """
 
     spec: mujoco.MjSpec
@@ -131,6 +135,7 @@ class Design:
     contacts: Mapping[str, Contact] = field(default_factory=lambda: MappingProxyType({}))
     default_contact: Contact = Contact()
     removals: int = 0
+    baked: Tuple[tuple, ...] = ()
 
     @classmethod
     def start(cls, spec: mujoco.MjSpec,
@@ -148,7 +153,7 @@ class Design:
             model = spec.compile()
         except ValueError as exc:
             raise ResourceParseError(f'the scene does not compile: {exc}') from None
-        return cls(keep, arena), model
+        return cls(keep, arena, baked=_bake_textures(keep, model, ())), model
 
     # ---------------------------------------------------------------- reading
 
@@ -220,7 +225,7 @@ class Design:
                 raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
         for w in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
             log.info('the world keeps its own settings: %s', ' '.join(str(w.message).split()))
-        nxt = replace(self, spec=keep)
+        nxt = replace(self, spec=keep, baked=_bake_textures(keep, model, self.baked))
         if edit.redesign is not None:
             nxt = edit.redesign(nxt, applied)
         return nxt, model
@@ -235,7 +240,9 @@ class Design:
         if it fails; the world then keeps its spec and tries another time).
         """
         try:
-            clean = replace(self, spec=mujoco.MjSpec.from_string(self.spec.to_xml()))
+            given = self.spec.copy()
+            _unbake_textures(given, self.baked)  # XML holds no pixel buffers
+            clean = replace(self, spec=mujoco.MjSpec.from_string(given.to_xml()), baked=())
             nxt, compiled = clean.build(NOTHING_TO_APPLY)
         except (ValueError, ResourceParseError) as exc:
             log.debug('could not compact the model spec: %s', exc)
@@ -244,6 +251,36 @@ class Design:
             log.debug('compacting the model spec changed its layout; kept the spec as it is')
             return None
         return replace(nxt, removals=0), compiled
+
+
+def _bake_textures(spec: mujoco.MjSpec, model: mujoco.MjModel, baked: tuple) -> tuple:
+    """
+    Hold each named builtin texture of `spec` as the pixels `model` has for it.
+
+    :returns: `baked` and the textures baked now (see :attr:`Design.baked`).
+    """
+    out = list(baked)
+    for tex in spec.textures:
+        if tex.builtin == mujoco.mjtBuiltin.mjBUILTIN_NONE or not tex.name:
+            continue
+        t = model.texture(tex.name).id
+        w, h, nc = (int(model.tex_width[t]), int(model.tex_height[t]),
+                    int(model.tex_nchannel[t]))
+        out.append((tex.name, (tex.builtin, tex.width, tex.height, tex.nchannel)))
+        adr = int(model.tex_adr[t])
+        tex.builtin = mujoco.mjtBuiltin.mjBUILTIN_NONE
+        tex.width, tex.height, tex.nchannel = w, h, nc
+        tex.data = model.tex_data[adr:adr + w * h * nc].tobytes()
+    return tuple(out)
+
+
+def _unbake_textures(spec: mujoco.MjSpec, baked: tuple) -> None:
+    """Give the textures :func:`_bake_textures` baked their builtin back (gone ones: none)."""
+    for name, (builtin, width, height, nchannel) in baked:
+        tex = spec.texture(name)
+        if tex is not None:
+            tex.builtin, tex.width, tex.height, tex.nchannel = builtin, width, height, nchannel
+            tex.data = b''
 
 
 #: An edit that compiles the spec as it is (a compaction's round trip).

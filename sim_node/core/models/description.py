@@ -101,6 +101,41 @@ def from_model(m: mujoco.MjModel, bodies: Sequence[int], root_frame: str,
     return ET.tostring(robot, encoding='unicode')
 
 
+def model_key(m: mujoco.MjModel, bodies: Sequence[int]) -> bytes:
+    """
+    Return a digest of what :func:`from_model` reads of an entity: equal digests, equal text.
+
+    Its bodies, joints, the actuators on those joints, geoms, materials' colours and meshes'
+    names and sizes, and all their names; ids relative to the entity's first body, so an
+    entity that only moved in the model (another one deleted before it) keeps its digest.
+    """
+    b = np.asarray(bodies, dtype=int)
+    h = hashlib.blake2b(digest_size=16)
+    j = np.concatenate([np.arange(m.body_jntadr[x], m.body_jntadr[x] + m.body_jntnum[x])
+                        for x in b]).astype(int) if len(b) else np.zeros(0, int)
+    g = np.concatenate([np.arange(m.body_geomadr[x], m.body_geomadr[x] + m.body_geomnum[x])
+                        for x in b]).astype(int) if len(b) else np.zeros(0, int)
+    acts = [a for a in range(m.nu) if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+            and m.actuator_trnid[a, 0] in set(j.tolist())]
+    mats = m.geom_matid[g]
+    meshes = [int(x) for x, t in zip(m.geom_dataid[g], m.geom_type[g]) if t == _MESH]
+    for arr in (m.body_pos[b], m.body_quat[b], m.body_mass[b], m.body_inertia[b],
+                m.body_ipos[b], m.body_iquat[b], m.body_parentid[b] - (b[0] if len(b) else 0),
+                m.jnt_type[j], m.jnt_pos[j], m.jnt_axis[j], m.jnt_range[j], m.jnt_limited[j],
+                m.qpos0[m.jnt_qposadr[j]], m.jnt_actfrcrange[j], m.jnt_actfrclimited[j],
+                m.actuator_gear[acts], m.actuator_ctrlrange[acts], m.actuator_forcerange[acts],
+                m.actuator_ctrllimited[acts], m.actuator_forcelimited[acts],
+                m.actuator_biastype[acts], m.geom_type[g], m.geom_size[g], m.geom_pos[g],
+                m.geom_quat[g], m.geom_rgba[g], m.geom_group[g], m.geom_contype[g],
+                m.geom_conaffinity[g], m.mat_rgba[mats[mats >= 0]], m.mesh_vertnum[meshes],
+                m.mesh_facenum[meshes]):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    for kind, ids in ((mujoco.mjtObj.mjOBJ_BODY, b), (mujoco.mjtObj.mjOBJ_JOINT, j),
+                      (mujoco.mjtObj.mjOBJ_MESH, meshes)):
+        h.update('\0'.join(mujoco.mj_id2name(m, kind, int(i)) or '' for i in ids).encode())
+    return h.digest()
+
+
 @dataclass(frozen=True)
 class ChainFrame:
     """
