@@ -27,7 +27,19 @@ class TfStream:
     def __init__(self, world_frame: str, frame_prefix: str = ''):
         self.world_frame = world_frame
         self.prefix = frame_prefix
+        self._elsewhere: frozenset = frozenset()
         self._start(None)
+
+    def set_elsewhere(self, entities: frozenset) -> None:
+        """
+        Leave out the world transform of these entities' root bodies (from the next message).
+
+        Another publisher sends it (a mobile base's world -> odom -> base): a frame with two
+        parents would break every tf2 listener.
+        """
+        if entities != self._elsewhere:
+            self._elsewhere = frozenset(entities)
+            self._generation = None  # plan again
 
     def _start(self, source: object) -> None:
         self._source = source  # the loop the snapshots come from: a new one starts over
@@ -76,7 +88,10 @@ class TfStream:
     def _plan(self, info: ModelInfo) -> None:
         """Plan /tf of a new model generation: its moving bodies, their frames, the template."""
         self._generation = info.generation
-        self._moving = convert.moving_body_ids(info)
+        moving = convert.moving_body_ids(info)
+        names = info.body_names
+        self._moving = np.array([b for b in moving if not (info.body_root[b] == b and names[b]
+                                                           in self._elsewhere)], dtype=int)
         self._frames = convert.frame_names(info, self.world_frame, self.prefix)
         self._chains = tuple(c for c in info.chains if not c.static)
         self._template = convert.moving_tf_template(info, self._moving, self._frames,

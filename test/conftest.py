@@ -79,12 +79,14 @@ def _end_with_parent() -> None:
 class NodeProcess:
     """The installed node executable running as a subprocess."""
 
-    def __init__(self, *params: str, namespace: str = ''):
+    def __init__(self, *params: str, namespace: str = '', remaps: tuple = ()):
         args = [str(node_executable()), '--ros-args']
         for p in params:
             args += ['-p', p]
         if namespace:
             args += ['-r', f'__ns:={namespace}']
+        for r in remaps:
+            args += ['-r', r]
         self.log_path = (Path(os.environ.get('TMPDIR', '/tmp'))
                          / f'sim_node_{os.getpid()}_{id(self)}.log')
         self._log = open(self.log_path, 'w+')
@@ -139,8 +141,8 @@ def start_node():
     """Start node processes (parameters as 'name:=value' strings); all stopped at the end."""
     procs = []
 
-    def start(*params, namespace=''):
-        p = NodeProcess(*params, namespace=namespace)
+    def start(*params, namespace='', remaps=()):
+        p = NodeProcess(*params, namespace=namespace, remaps=remaps)
         procs.append(p)
         return p
     yield start

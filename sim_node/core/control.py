@@ -13,6 +13,8 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
+from . import bases
+from .actuation import Outputs, times_mass
 from .checks import check_finite
 from .errors import InvalidArgumentError
 from .index import ModelIndex
@@ -28,8 +30,6 @@ ERR_PREEMPTED = 'Current goal cancelled due to new incoming action.'
 ERR_CANCELED = 'canceled: the joints hold where they were'
 ERR_RESET = 'the world was reset: the trajectory ended'
 ERR_GONE = 'a joint of the trajectory left the world (its entity was deleted)'
-
-_NONE_INT = np.zeros(0, int)
 
 
 class Control:
@@ -50,9 +50,12 @@ class Control:
         self._staged: dict = {}  # joint name -> (mode, value), written by any thread
         self._held: dict = {}  # joint name -> (mode, value), PD/effort, held until replaced
         self.kp, self.kd = float(kp), float(kd)
-        self._pd_out = _Outputs.empty()  # where the current binding's PD torques go
+        self._pd_out = Outputs.empty()  # where the current binding's PD torques go
         self.per_step = False  # True when PD torques or servo targets change every step
         self._runs: dict = {}  # entity -> _Run: trajectories being followed
+        self._drives: dict = {}  # entity -> bases.Drive: mobile bases
+        self._driving: set = set()  # the drives that need every step now
+        self._batched: set = set()  # the drives that need a look between batches of steps
 
     # ---------------------------------------------------------------- any thread
 
@@ -127,6 +130,12 @@ class Control:
         self._held.clear()
         for run in list(self._runs.values()):
             self._end_run(run, INVALID_GOAL, ERR_RESET, data, hold=False)
+        for drive in self._drives.values():  # bases stop
+            drive.command = bases.Command()
+            drive.speeds[:] = 0
+            drive.integral = None
+        self._driving.clear()
+        self._batched.clear()
         self.bind(index, model, data)
 
     def bind(self, index: ModelIndex, model: mujoco.MjModel, data: mujoco.MjData,
@@ -163,7 +172,7 @@ class Control:
         is_pos = np.array([m == POSITION for m in modes], dtype=bool)
         is_eff = np.array([m == EFFORT for m in modes], dtype=bool)
         # Effort commands reach here only for joints without a motor: qfrc_applied.
-        self._pd_out = _Outputs(index, model, idx, motors=~is_eff)
+        self._pd_out = Outputs(index, model, idx, motors=~is_eff)
         self._pd_qpos = index.joint_qposadr[idx]
         self._pd_is_pos = is_pos
         self._pd_pos_target = np.where(is_pos, target, 0.0)
@@ -178,7 +187,69 @@ class Control:
                 # actuators' now (or out of range). Its joints are gone; nothing to hold.
                 run.qadr = None
                 self._end_run(run, INVALID_GOAL, ERR_GONE, data, hold=False, rebind=False)
-        self.per_step = bool(len(self._pd_out) or len(self._servo_act) or self._runs)
+        for entity, drive in list(self._drives.items()):
+            if not drive.bind(index, model):
+                del self._drives[entity]  # gone (its old addresses mean nothing now)
+                self._place(entity, None)
+        self._update_per_step()
+
+    def _update_per_step(self) -> None:
+        self.per_step = bool(len(self._pd_out) or len(self._servo_act) or self._runs
+                             or self._driving)
+
+    # ---------------------------------------------------------------- mobile bases
+
+    def command_base(self, spec: bases.BaseSpec, vx: float, vy: float, wz: float,
+                     timeout: float, index: ModelIndex, model: mujoco.MjModel,
+                     data: mujoco.MjData) -> bool:
+        """
+        Drive a base at (vx, vy, wz) in its frame from now (see :mod:`.bases`).
+
+        :returns: whether controls changed (the same command again changes none).
+        """
+        drive = self._drives.get(spec.entity)
+        if drive is None or drive.spec != spec:
+            if drive is not None:
+                drive.release(data)
+            drive = bases.Drive(spec)
+            if not drive.bind(index, model):
+                raise InvalidArgumentError(f'the base of {spec.entity!r} lost its joints')
+            self._drives[spec.entity] = drive
+        drive.command = bases.Command(vx, vy, wz, float(data.time), timeout)
+        need = drive.apply(model, data, self.kd)
+        self._place(spec.entity, need)
+        self._update_per_step()
+        return drive.changed or need == bases.EVERY_STEP
+
+    @property
+    def batched(self) -> bool:
+        return bool(self._batched)
+
+    def before_batch(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
+        """
+        Between batches of steps: the drives held by velocity actuators (their timeout).
+
+        :returns: whether a control changed (a base stopped).
+        """
+        changed = False
+        for entity in list(self._batched):
+            drive = self._drives[entity]
+            self._place(entity, drive.apply(model, data, self.kd))
+            changed = changed or drive.changed
+        self._update_per_step()
+        return changed
+
+    def _place(self, entity: str, need: Optional[str]) -> None:
+        """File a drive under what it needs next (:meth:`bases.Drive.apply`)."""
+        self._driving.discard(entity)
+        self._batched.discard(entity)
+        if need == bases.EVERY_STEP:
+            self._driving.add(entity)
+        elif need == bases.EVERY_BATCH:
+            self._batched.add(entity)
+
+    def drive_of(self, entity: str) -> Optional[bases.Drive]:
+        return self._drives.get(entity)
 
     # ---------------------------------------------------------------- trajectories
 
@@ -257,20 +328,25 @@ class Control:
             pd = ~servo
             if pd.any():
                 u = ad[pd] + self.kp * (qd[pd] - q[pd]) + self.kd * (vd[pd] - v[pd])
-                tau = _times_mass(model, data, run.out.dof, u) + data.qfrc_bias[run.out.dof]
+                tau = times_mass(model, data, run.out.dof, u) + data.qfrc_bias[run.out.dof]
                 run.count(run.out.write(data, tau))
 
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Before one step: PD torques and moving servo targets from the current state."""
         if self._runs:
             self._drive_runs(model, data)
+        if self._driving:
+            for entity in list(self._driving):
+                self._place(entity, self._drives[entity].apply(model, data, self.kd))
+            if not self._driving:
+                self._update_per_step()
         out = self._pd_out
         if len(out):
             q = data.qpos[self._pd_qpos]
             v = data.qvel[out.dof]
             err = np.where(self._pd_is_pos, self._pd_pos_target - q, 0.0)
             u = self._pd_kp * err + self._pd_kd * (self._pd_vel_target - v)
-            tau = _times_mass(model, data, out.dof, u) + data.qfrc_bias[out.dof]
+            tau = times_mass(model, data, out.dof, u) + data.qfrc_bias[out.dof]
             out.write(data, np.where(self._pd_is_eff, self._pd_effort, tau))
         if len(self._servo_act):
             follow = np.isnan(self._servo_rate)
@@ -280,77 +356,6 @@ class Control:
             lo, hi = self._servo_range[:, 0], self._servo_range[:, 1]
             data.ctrl[self._servo_act] = np.where(self._servo_limited,
                                                   np.clip(target, lo, hi), target)
-
-
-def _times_mass(model: mujoco.MjModel, data: mujoco.MjData, dof: np.ndarray,
-                u: np.ndarray) -> np.ndarray:
-    """Return (M(q) x)[dof] for x = `u` on `dof` and 0 elsewhere (the last step's M)."""
-    x = np.zeros(model.nv)
-    x[dof] = u
-    out = np.empty(model.nv)
-    mujoco.mj_mulM(model, data, out, x)
-    return out[dof]
-
-
-class _Outputs:
-    """
-    Where the PD torques of some joints go: each joint's motor actuator, or qfrc_applied.
-
-    A motor (a single-joint actuator without bias or dynamics, of fixed gain) takes
-    ``ctrl = torque / (gain * gear)`` within its ctrlrange and forcerange; a joint without
-    one takes the torque through ``qfrc_applied``, unlimited.
-    """
-
-    def __init__(self, index: ModelIndex, model: mujoco.MjModel, idx: np.ndarray,
-                 motors: Optional[np.ndarray] = None):
-        self.dof = index.joint_dofadr[idx].astype(int)
-        act = np.array([index.joint_actuators[i].get(EFFORT, -1) for i in idx], dtype=int)
-        if motors is not None:
-            act = np.where(motors, act, -1)
-        n = len(act)
-        self.scale, self.lo, self.hi = np.ones(n), np.full(n, -np.inf), np.full(n, np.inf)
-        for k in np.nonzero(act >= 0)[0]:
-            a = act[k]
-            gear = model.actuator_gear[a, 0]
-            scale = model.actuator_gainprm[a, 0] * gear
-            if model.actuator_gaintype[a] != mujoco.mjtGain.mjGAIN_FIXED or scale == 0:
-                act[k] = -1
-                continue
-            # The joint torques the motor can give: ctrlrange times gain and gear, forcerange
-            # times gear, whichever is narrower.
-            lo, hi = -np.inf, np.inf
-            if model.actuator_ctrllimited[a]:
-                lo, hi = sorted(model.actuator_ctrlrange[a] * scale)
-            if model.actuator_forcelimited[a]:
-                f_lo, f_hi = sorted(model.actuator_forcerange[a] * gear)
-                lo, hi = max(lo, f_lo), min(hi, f_hi)
-            self.scale[k], self.lo[k], self.hi[k] = scale, lo, hi
-        self.act, self.motor = act, act >= 0
-
-    @classmethod
-    def empty(cls) -> '_Outputs':
-        out = cls.__new__(cls)
-        out.dof = out.act = _NONE_INT
-        out.scale = out.lo = out.hi = np.zeros(0)
-        out.motor = np.zeros(0, bool)
-        return out
-
-    def __len__(self) -> int:
-        return len(self.dof)
-
-    def write(self, data: mujoco.MjData, tau: np.ndarray) -> np.ndarray:
-        """Apply joint torques `tau`; return which joints' motors are at their limit."""
-        given = np.clip(tau, self.lo, self.hi)
-        m = self.motor
-        data.qfrc_applied[self.dof[~m]] = given[~m]
-        data.ctrl[self.act[m]] = given[m] / self.scale[m]
-        return given != tau
-
-    def release(self, data: mujoco.MjData) -> None:
-        """Stop every torque this binding wrote."""
-        m = self.motor
-        data.qfrc_applied[self.dof[~m]] = 0
-        data.ctrl[self.act[m]] = 0
 
 
 class _Run:
@@ -392,6 +397,6 @@ class _Run:
         self.qadr, self.dof = index.joint_qposadr[idx], index.joint_dofadr[idx]
         self.act = np.array([index.joint_actuators[i].get(POSITION, -1) for i in idx],
                             dtype=int)
-        self.out = _Outputs(index, model, idx[self.act < 0])
+        self.out = Outputs(index, model, idx[self.act < 0])
         self.index, self.model = index, model
         return True

@@ -61,6 +61,7 @@ class Spawned:
     namespace: str = ''
     urdf: str = ''
     world_link: Optional[tuple] = None
+    drive: Optional[dict] = None  # a URDF's Gazebo drive plugin (:func:`.bases.drive_plugin`)
 
 
 @dataclass(frozen=True)

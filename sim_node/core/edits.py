@@ -17,7 +17,7 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
-from . import checks, editor, quat, state
+from . import bases, checks, editor, quat, state
 from .checks import check_finite, check_pose
 from .design import Contact, Edit, NOTHING, Spawned
 from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
@@ -124,7 +124,9 @@ class Edits:
                            defaults=defaults, assets=tuple(source.assets),
                            description=source.description, namespace=namespace,
                            urdf=source.text if source.kind == 'urdf' else '',
-                           world_link=getattr(source.urdf_notes, 'world_link', None))
+                           world_link=getattr(source.urdf_notes, 'world_link', None),
+                           drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
+                                                            ())))
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,

@@ -106,6 +106,8 @@ class Stepping:
         if control.has_staged:
             control.apply_staged(live.index, m, d)
             before = None
+        if control.batched and control.before_batch(m, d):  # a base's command timed out
+            before = None
         if before is None:
             before = np.empty(live.index.state_size)
             mujoco.mj_getState(m, d, before, STATE_SPEC)

@@ -16,7 +16,8 @@ from typing import Callable, Iterator, Optional, Sequence, TypeVar
 import mujoco
 import numpy as np
 
-from . import checks, editor, guard, state, trajectory
+from . import bases, checks, editor, guard, state, trajectory
+from .bases import COMMAND_TIMEOUT
 from .checks import check_finite
 from .config import WorldConfig
 from .design import Design
@@ -71,6 +72,7 @@ class World:
         design, model = Design.start(spec, arena)
         self._live = live = Live(config, design, model)
         self._descriptions: dict = {}  # entity -> (what it was made of, its URDF text)
+        self._bases: tuple = (-1, {})  # (generation, entity -> BaseSpec)
         #: The stepping loop's way in (:class:`~.stepping.Stepping`).
         self.stepping = Stepping(live)
         self._transaction = Transaction(live)
@@ -395,6 +397,54 @@ class World:
             live.control.cancel_run(handle.entity, handle.run, live.data, live.index,
                                     live.model)
             live.cached = None
+
+    def bases(self) -> dict:
+        """
+        Return the entities that have a mobile base: name -> :class:`~.bases.BaseSpec`.
+
+        Found from each entity's model (wheel joints, planar joints) or its URDF's Gazebo drive
+        plugin; measured once per model generation.
+        """
+        with self._live.lock:
+            return dict(self._bases_locked())
+
+    def _bases_locked(self) -> dict:
+        live = self._live
+        if self._bases[0] != live.generation:
+            live.kinematics_locked()
+            found = {}
+            for rec in live.index.entities:
+                spawned = live.design.spawned.get(rec.name)
+                spec = bases.find(live.model, live.data, rec.name, rec.body_ids,
+                                  getattr(spawned, 'drive', None))
+                if spec is not None:
+                    found[rec.name] = spec
+            self._bases = (live.generation, found)
+        return self._bases[1]
+
+    def drive(self, entity: str, vx: float, vy: float = 0.0, wz: float = 0.0,
+              timeout: float = COMMAND_TIMEOUT) -> None:
+        """
+        Drive an entity's base at `vx`, `vy` (m/s) and `wz` (rad/s), in its own frame.
+
+        From the next step on, until another command, a reset, or `timeout` simulated seconds
+        without one (then it stops; 0: never, as Gazebo's DiffDrive system). A differential
+        drive ignores `vy`.
+
+        :raises NotFoundError: no such entity.
+        :raises InvalidArgumentError: it has no base; a value not finite or beyond
+            :data:`.bases.MAX_SPEED` / :data:`.bases.MAX_TURN`.
+        """
+        vx, vy, wz = bases.check_command(vx, vy, wz)
+        live = self._live
+        with live.lock:
+            live.index.entity(entity)
+            spec = self._bases_locked().get(entity)
+            if spec is None:
+                raise InvalidArgumentError(bases.ERR_NO_BASE.format(entity=entity))
+            if live.control.command_base(spec, vx, vy, wz, max(0.0, float(timeout)),
+                                         live.index, live.model, live.data):
+                live.cached = None  # the controls changed: the last batch's state is stale
 
     def set_gains(self, kp: float, kd: float) -> None:
         """PD gains for joints commanded without a matching actuator."""

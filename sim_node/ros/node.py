@@ -29,6 +29,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from . import instances, params
+from .bases import BaseControllers
 from .command_drain import CommandDrain
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
@@ -83,6 +84,9 @@ class SimNode(Node):
                                          'trajectory_feedback_hz',
                                          'trajectory_allow_nonzero_velocity_at_end')),
             self.status.refused)
+        self.bases = BaseControllers(self, ReentrantCallbackGroup(), self.session, self.frames,
+                                     self.param, self.publisher.set_tf_elsewhere,
+                                     self.status.refused)
         self.descriptions = RobotDescriptions(
             self, self.session,
             Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())
@@ -133,7 +137,8 @@ class SimNode(Node):
         """Load the `scene` parameter's world; start its loop, the publishers and listeners."""
         path = resources.resolve_scene(self.param('scene'), self.readable.scenes_dir)
         for listener in (self.model_topics, self.perception.on_model,
-                         self.trajectories.on_model, self.descriptions.on_model):
+                         self.trajectories.on_model, self.descriptions.on_model,
+                         self.bases.on_model):
             self.session.add_listener(listener)
         self.session.load_file(str(path), self.world_config())
         self.publisher.start()

@@ -57,7 +57,8 @@ def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
 #: set /sim real_time_factor 1``) is taken as that number, as users type them.
 DOUBLES = ('real_time_factor', 'timestep', 'max_sim_time', 'tf_rate_hz', 'joint_states_rate_hz',
            'kp', 'kd', 'camera_rate_hz', 'lidar_rate_hz', 'lidar_angle_min', 'lidar_angle_max',
-           'lidar_range_min', 'lidar_range_max', 'world_extent')
+           'lidar_range_min', 'lidar_range_max', 'world_extent', 'odom_rate_hz',
+           'cmd_vel_timeout')
 
 
 def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
@@ -148,6 +149,25 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('trajectory_goal_time_tolerance', 1.0, d(
         'default time (s) after the end within which the goal tolerance must be met; 0: no '
         'limit', fmin=0, fmax=1e6))
+    node.declare_parameter('cmd_vel_stamped', False, d(
+        '<entity>/cmd_vel takes geometry_msgs/TwistStamped (diff_drive_controller, later nav2) '
+        "instead of Twist (nav2 Jazzy's default)", read_only=True))
+    node.declare_parameter('cmd_vel_timeout', 0.5, d(
+        'simulated seconds without a cmd_vel after which a base stops, as diff_drive_controller '
+        "does; 0: never (Gazebo's DiffDrive system)", fmin=0, fmax=1e6))
+    node.declare_parameter('odom_rate_hz', 50.0, d(
+        '<entity>/odom messages (and the odom TF) per wall second', fmin=0.1, fmax=1000,
+        read_only=True))
+    node.declare_parameter('odom_source', 'wheels', d(
+        "where a base's odometry comes from: 'wheels' (integrated from its wheel joints; drifts "
+        "with slip, as a real robot's) or 'ground_truth' (the simulation's)"))
+    node.declare_parameter('odom_tf', True, d(
+        'publish world -> <entity>/odom -> <entity> on /tf for every mobile base (off: for a '
+        'robot localised by other means)', read_only=True))
+    node.declare_parameter('odom_pose_covariance', [0.0] * 6, d(
+        "the diagonal (x, y, z, roll, pitch, yaw) of odometry's pose covariance"))
+    node.declare_parameter('odom_twist_covariance', [0.0] * 6, d(
+        "the diagonal of odometry's twist covariance"))
     node.declare_parameter('trajectory_allow_nonzero_velocity_at_end', False, d(
         'accept FollowJointTrajectory goals whose last point has a velocity (refused by '
         "default, as joint_trajectory_controller's allow_nonzero_velocity_at_trajectory_end)"))

@@ -77,6 +77,10 @@ class StatePublisher:
             thread.start()
             self._threads.append(thread)
 
+    def set_tf_elsewhere(self, entities: frozenset) -> None:
+        """Leave these entities' world transforms to another publisher (mobile bases)."""
+        self._tf.set_elsewhere(entities)
+
     def stop(self) -> None:
         self.running.clear()
         for thread in self._threads:

@@ -1,0 +1,449 @@
+"""
+Mobile bases: velocity commands for differential-drive and holonomic planar robots, odometry.
+
+An entity has a base when (first match wins):
+
+* its URDF carries a Gazebo drive plugin: diff drive (``libgazebo_ros_diff_drive.so``, ROS 1's
+  ``<leftJoint>`` spelling too, or ``gz-sim-diff-drive-system`` with one or more joints a side)
+  or planar move (``libgazebo_ros_planar_move.so``, for a floating root);
+* it has hinge joints named as wheels, ``left`` and ``right`` (``left_wheel_joint``,
+  ``wheel_right``...): differential drive;
+* two slide joints with horizontal axes and a hinge with a vertical one (robosuite's mobile
+  bases): holonomic planar.
+
+Wheel radius and separation are measured from the model (a plugin's values win where it gives
+them): the radius from the wheel's colliding geoms across its axis, the separation between the
+left and right anchors along it, the sign of each wheel from which way its axis turns it
+forward. A command ``(vx, vy, wz)`` in the base's frame becomes wheel speeds (``v -+ wz s / 2``
+over ``r``), joint velocities of the planar joints, or the floating root's velocity (planar
+move, as Gazebo's plugin sets it). Wheels and planar joints go through their velocity actuators
+(``ctrl = gear * speed``, within ``ctrlrange``) where they have one, else a velocity loop
+``M (kd (w* - w)) + bias`` through their motor (within its limits) or ``qfrc_applied``. Wheel
+speed and acceleration are limited; no command for :data:`COMMAND_TIMEOUT` simulated seconds
+stops the base, as diff_drive_controller does. It is physics: the base pushes, slips and stops
+at walls.
+
+:class:`Odometry` integrates a base's pose from its wheel angles (it drifts with slip, as a
+real robot's does) or takes the simulation's ground truth; ROS-free, used by the node's
+``<entity>/odom``.
+"""
+
+from dataclasses import dataclass, field
+import math
+from typing import Optional, Sequence
+
+import mujoco
+import numpy as np
+
+DIFF_DRIVE, PLANAR_JOINTS, PLANAR_FREE = 'diff_drive', 'planar_joints', 'planar_free'
+#: Seconds of simulated time without a command after which a base stops.
+COMMAND_TIMEOUT = 0.5
+#: What a drive needs after a step (see :meth:`Drive.apply`).
+EVERY_STEP, EVERY_BATCH = 'step', 'batch'
+#: The largest command taken (m/s, rad/s): beyond is no base's, and would blow the physics up.
+MAX_SPEED, MAX_TURN = 50.0, 50.0
+ERR_NO_BASE = ('entity {entity!r} has no mobile base: no wheel joints named left and right, no '
+               'planar joints and no Gazebo drive plugin in its URDF')
+ERR_COMMAND = ('a base command must be finite, |linear| <= {speed:g} m/s and |angular| <= '
+               '{turn:g} rad/s; got vx={vx}, vy={vy}, wz={wz}')
+_HINGE, _SLIDE, _FREE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE),
+                         int(mujoco.mjtJoint.mjJNT_FREE))
+_DIFF_PLUGINS = ('diff_drive', 'diff-drive', 'diffdrive')
+_PLANAR_PLUGINS = ('planar_move',)
+
+
+@dataclass(frozen=True)
+class BaseSpec:
+    """
+    What drives an entity's base, as found in its model (see the module docstring).
+
+    Joint names are as on joint_states (``<entity>/<joint>``). ``signs``: per wheel, +1 when
+    turning it positively drives the base forward. Limits are +-inf when not given.
+    """
+
+    entity: str
+    kind: str
+    found_by: str  # 'gazebo plugin', 'wheel names', 'planar joints'
+    left: tuple = ()
+    right: tuple = ()
+    signs: tuple = ()  # for left + right, in that order
+    radius: float = 0.0
+    separation: float = 0.0
+    planar: tuple = ()  # (slide, slide, hinge) joint names of a holonomic planar base
+    max_wheel_speed: float = math.inf  # rad/s
+    max_wheel_acceleration: float = math.inf  # rad/s^2
+    max_wheel_torque: float = math.inf  # N m
+    odom_frame: str = 'odom'
+    base_frame: str = ''  # the plugin's robot base frame ('' : the description's root link)
+
+    @property
+    def wheels(self) -> tuple:
+        return self.left + self.right
+
+
+def drive_plugin(extensions: Sequence) -> Optional[dict]:
+    """
+    Read a Gazebo drive plugin out of a URDF's extension elements (:class:`.models.urdf.Prepared`).
+
+    :returns: {'kind', 'left', 'right', 'separation', 'radius', 'max_acceleration',
+        'max_torque', 'odom_frame', 'base_frame'} (values absent: missing), or None.
+    """
+    for ext in extensions:
+        for plugin in ext.iter('plugin'):
+            name = (plugin.get('filename', '') + ' ' + plugin.get('name', '')).lower()
+
+            def text(*tags):
+                for tag in tags:
+                    found = [e.text.strip() for e in plugin.iter(tag) if e.text and e.text.strip()]
+                    if found:
+                        return found
+                return []
+
+            def number(*tags):
+                values = text(*tags)
+                try:
+                    return float(values[0]) if values else None
+                except ValueError:
+                    return None
+            frames = {'odom_frame': (text('odometry_frame', 'odometryFrame', 'frame_id') or
+                                     ['odom'])[0],
+                      'base_frame': (text('robot_base_frame', 'robotBaseFrame', 'child_frame_id')
+                                     or [''])[0]}
+            if any(k in name for k in _DIFF_PLUGINS):
+                diameter = number('wheel_diameter', 'wheelDiameter')
+                return {'kind': DIFF_DRIVE, 'left': text('left_joint', 'leftJoint'),
+                        'right': text('right_joint', 'rightJoint'),
+                        'separation': number('wheel_separation', 'wheelSeparation'),
+                        'radius': (number('wheel_radius') if diameter is None
+                                   else diameter / 2),
+                        'max_acceleration': number('max_wheel_acceleration',
+                                                   'wheelAcceleration'),
+                        # Gazebo's plugin limits the wheels to 20 N m unless told
+                        'max_torque': number('max_wheel_torque', 'wheelTorque') or 20.0,
+                        **frames}
+            if any(k in name for k in _PLANAR_PLUGINS):
+                return {'kind': PLANAR_FREE, **frames}
+    return None
+
+
+def find(m: mujoco.MjModel, d: mujoco.MjData, entity: str, bodies: Sequence[int],
+         plugin: Optional[dict] = None) -> Optional[BaseSpec]:
+    """
+    Return the base of one entity (its bodies, root first), or None.
+
+    `d` must have its kinematics computed (anchors and axes are measured from it).
+    """
+    prefix = entity + '/'
+    joints = [j for b in bodies for j in range(m.body_jntadr[b], m.body_jntadr[b]
+                                               + m.body_jntnum[b])]
+
+    def jname(j: int) -> str:  # as on joint_states
+        return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'joint_{j}'
+
+    def own(j: int) -> str:  # as in the entity's own file
+        name = jname(j)
+        return name[len(prefix):] if name.startswith(prefix) else name
+
+    frames = {k: plugin[k] for k in ('odom_frame', 'base_frame')} if plugin else {}
+    if plugin and plugin['kind'] == PLANAR_FREE:
+        root = bodies[0]
+        if m.body_jntnum[root] and int(m.jnt_type[m.body_jntadr[root]]) == _FREE:
+            return BaseSpec(entity, PLANAR_FREE, 'gazebo plugin', **frames)
+    by_name = {own(j): j for j in joints if int(m.jnt_type[j]) == _HINGE}
+    if plugin and plugin['kind'] == DIFF_DRIVE:
+        left = [by_name[n] for n in plugin['left'] if n in by_name]
+        right = [by_name[n] for n in plugin['right'] if n in by_name]
+        if left and right:
+            return _diff(m, d, entity, left, right, 'gazebo plugin', plugin, jname, frames)
+    wheels = [j for n, j in by_name.items() if 'wheel' in n.lower()]
+    left = [j for j in wheels if 'left' in own(j).lower()]
+    right = [j for j in wheels if 'right' in own(j).lower()]
+    if left and right:
+        return _diff(m, d, entity, left, right, 'wheel names', {}, jname, frames)
+    planar = _planar_joints(m, joints)
+    if planar is not None:
+        return BaseSpec(entity, PLANAR_JOINTS, 'planar joints',
+                        planar=tuple(jname(j) for j in planar), **frames)
+    return None
+
+
+def _diff(m, d, entity: str, left: list, right: list, found_by: str, plugin: dict, jname,
+          frames: dict) -> Optional[BaseSpec]:
+    root = int(m.body_rootid[m.jnt_bodyid[left[0]]])
+    base = int(m.body_parentid[m.jnt_bodyid[left[0]]])
+    forward = d.xmat[base].reshape(3, 3)[:, 0]
+    up = np.array([0.0, 0.0, 1.0])
+    signs, radii = [], []
+    for j in left + right:
+        axis = d.xaxis[j]
+        signs.append(1.0 if float(np.dot(np.cross(axis, up), forward)) >= 0 else -1.0)
+        radii.append(_wheel_radius(m, int(m.jnt_bodyid[j]), m.jnt_axis[j]))
+    axis = d.xaxis[left[0]]
+    lc = np.mean([d.xanchor[j] for j in left], axis=0)
+    rc = np.mean([d.xanchor[j] for j in right], axis=0)
+    separation = plugin.get('separation') or abs(float(np.dot(lc - rc, axis)))
+    radius = plugin.get('radius') or float(np.median(radii))
+    if not (separation > 0 and radius > 0) or root == 0:
+        return None
+    return BaseSpec(
+        entity, DIFF_DRIVE, found_by, tuple(jname(j) for j in left),
+        tuple(jname(j) for j in right), tuple(signs), float(radius), float(separation),
+        max_wheel_acceleration=plugin.get('max_acceleration') or math.inf,
+        max_wheel_torque=plugin.get('max_torque') or math.inf, **frames)
+
+
+def _wheel_radius(m: mujoco.MjModel, body: int, axis: np.ndarray) -> float:
+    """Return a wheel's radius across its axis, from its colliding geoms (else any), or 0."""
+    geoms = range(m.body_geomadr[body], m.body_geomadr[body] + m.body_geomnum[body])
+    solid = [g for g in geoms if m.geom_contype[g] or m.geom_conaffinity[g]] or list(geoms)
+    best = 0.0
+    for g in solid:
+        q = m.geom_quat[g]
+        local = np.zeros(3)  # the axis in the geom's frame
+        mujoco.mju_rotVecQuat(local, np.asarray(axis, float),
+                              np.array([q[0], -q[1], -q[2], -q[3]]))
+        half = m.geom_aabb[g, 3:]
+        across = [half[k] for k in range(3) if abs(local[k]) < 0.5]
+        if across:
+            best = max(best, float(max(across)))
+    return best
+
+
+def _planar_joints(m: mujoco.MjModel, joints: list) -> Optional[tuple]:
+    """Two slides with horizontal axes and a vertical hinge: (slide, slide, hinge)."""
+    slides = [j for j in joints if int(m.jnt_type[j]) == _SLIDE and abs(m.jnt_axis[j][2]) < 0.1]
+    hinges = [j for j in joints if int(m.jnt_type[j]) == _HINGE and abs(m.jnt_axis[j][2]) > 0.9]
+    if len(slides) < 2 or not hinges:
+        return None
+    a, b = m.jnt_axis[slides[0]][:2], m.jnt_axis[slides[1]][:2]
+    if abs(a[0] * b[1] - a[1] * b[0]) < 0.5:  # parallel: not a plane
+        return None
+    return slides[0], slides[1], hinges[0]
+
+
+class Drive:
+    """
+    One base's controller, bound to one model's addresses (world lock held, before each step).
+
+    :param kd: the velocity loop's gain per unit of joint inertia (1/s), for joints without a
+        velocity actuator.
+    """
+
+    def __init__(self, spec: BaseSpec):
+        self.spec = spec
+        self.command = Command()
+        self.speeds = np.zeros(len(spec.wheels) if spec.kind == DIFF_DRIVE else 3)
+        self.integral: Optional[np.ndarray] = None  # the velocity loops' integral terms
+        self.changed = True  # the last apply wrote controls other than those in force
+        self._index = None
+
+    def bind(self, index, model: mujoco.MjModel) -> bool:
+        """Take the addresses of its joints in `index`; False if one is gone."""
+        from .actuation import Outputs
+        from .records import VELOCITY
+        names = self.spec.wheels if self.spec.kind == DIFF_DRIVE else self.spec.planar
+        if self.spec.kind == PLANAR_FREE:
+            root = index.entity_by_name.get(self.spec.entity)
+            if root is None or not model.body_jntnum[root.root_body]:
+                return False
+            j = model.body_jntadr[root.root_body]
+            if int(model.jnt_type[j]) != _FREE:
+                return False
+            self.free_dof = int(model.jnt_dofadr[j])
+            self._index = index
+            return True
+        if any(n not in index.joint_index for n in names):
+            return False
+        idx = np.array([index.joint_index[n] for n in names], dtype=int)
+        self.dof = index.joint_dofadr[idx]
+        self.jids = index.joint_ids[idx]
+        acts = np.array([index.joint_actuators[i].get(VELOCITY, -1) for i in idx], dtype=int)
+        self.act = acts
+        a = np.maximum(acts, 0)
+        self.gear = np.where(acts >= 0, model.actuator_gear[a, 0] if model.nu else 1.0, 1.0)
+        self.out = Outputs(index, model, idx[acts < 0])
+        # The loop pushes the robot, not just the wheel: its gain counts the robot's mass as
+        # each wheel carries it (m r^2 / wheels), or a 2 g wheel would not drag a 6 kg cart.
+        self.reflected = 0.0
+        if self.spec.kind == DIFF_DRIVE:
+            root = index.entity_by_name[self.spec.entity].root_body
+            self.reflected = (float(model.body_subtreemass[root]) * self.spec.radius ** 2
+                              / len(names))
+        torque = self.spec.max_wheel_torque
+        if math.isfinite(torque):
+            self.out.lo = np.maximum(self.out.lo, -torque)
+            self.out.hi = np.minimum(self.out.hi, torque)
+        self._index = index
+        return True
+
+    def apply(self, model: mujoco.MjModel, data: mujoco.MjData, kd: float) -> Optional[str]:
+        """
+        Drive toward the command; return what it needs next.
+
+        :returns: :data:`EVERY_STEP` (a ramp, a velocity loop, a floating root's velocity),
+            :data:`EVERY_BATCH` (velocity actuators hold the speeds: only the timeout is
+            watched, between batches of steps) or None (stopped: nothing to do).
+        """
+        from .actuation import times_mass
+        spec, cmd = self.spec, self.command
+        fresh = cmd.timeout <= 0 or data.time - cmd.time <= cmd.timeout
+        vx, vy, wz = (cmd.vx, cmd.vy, cmd.wz) if fresh else (0.0, 0.0, 0.0)
+        if spec.kind == PLANAR_FREE:
+            yaw = _body_yaw(data, model.dof_bodyid[self.free_dof])
+            c, s = math.cos(yaw), math.sin(yaw)
+            d = self.free_dof
+            data.qvel[d], data.qvel[d + 1] = c * vx - s * vy, s * vx + c * vy
+            data.qvel[d + 5] = wz
+            return EVERY_STEP if fresh else None
+        if spec.kind == DIFF_DRIVE:
+            n = len(spec.left)
+            half = wz * spec.separation / 2
+            side = np.array([vx - half] * n + [vx + half] * (len(spec.wheels) - n))
+            target = np.asarray(spec.signs) * side / spec.radius
+            target = np.clip(target, -spec.max_wheel_speed, spec.max_wheel_speed)
+            step = spec.max_wheel_acceleration * model.opt.timestep
+            self.speeds = self.speeds + np.clip(target - self.speeds, -step, step)
+        else:  # planar joints: the slides' velocities that move the base at (vx, vy)
+            base = model.jnt_bodyid[self.jids[2]]
+            yaw = _body_yaw(data, base)
+            c, s = math.cos(yaw), math.sin(yaw)
+            want = np.array([c * vx - s * vy, s * vx + c * vy])
+            axes = np.stack([data.xaxis[self.jids[0]][:2], data.xaxis[self.jids[1]][:2]], 1)
+            u = np.linalg.solve(axes, want)
+            self.speeds = np.array([u[0], u[1], wz * math.copysign(1.0, data.xaxis[
+                self.jids[2]][2])])
+            target = self.speeds
+        acts = self.act >= 0
+        if acts.any():
+            lo = model.actuator_ctrlrange[self.act[acts], 0]
+            hi = model.actuator_ctrlrange[self.act[acts], 1]
+            limited = model.actuator_ctrllimited[self.act[acts]].astype(bool)
+            ctrl = self.gear[acts] * self.speeds[acts]
+            ctrl = np.where(limited, np.clip(ctrl, lo, hi), ctrl)
+            self.changed = bool(np.any(data.ctrl[self.act[acts]] != ctrl))
+            data.ctrl[self.act[acts]] = ctrl
+        if (~acts).any():
+            dof = self.out.dof
+            err = self.speeds[~acts] - data.qvel[dof]
+            # PI: a load (a dragging caster, a slope) leaves no lasting speed error, as a
+            # velocity-controlled joint has none. Integral time 4 / kd; it stops growing while
+            # the torque is at its limit.
+            if self.integral is None or len(self.integral) != len(err):
+                self.integral = np.zeros(len(err))
+            u = kd * (err + kd / 4 * self.integral)
+            tau = times_mass(model, data, dof, u) + self.reflected * u + data.qfrc_bias[dof]
+            limited = self.out.write(data, tau)
+            self.integral = np.where(limited, self.integral,
+                                     self.integral + err * model.opt.timestep)
+        if (~acts).any() or np.any(self.speeds != target):
+            return EVERY_STEP  # a velocity loop holds the wheels, or a ramp runs
+        return EVERY_BATCH if fresh or np.any(self.speeds) else None
+
+    def release(self, data: mujoco.MjData) -> None:
+        """Stop what it wrote (the entity is gone or its joints changed)."""
+        if self.spec.kind != PLANAR_FREE and self._index is not None:
+            self.out.release(data)
+            data.ctrl[self.act[self.act >= 0]] = 0
+
+
+def _body_yaw(data: mujoco.MjData, body: int) -> float:
+    return yaw_of(data.xquat[body])
+
+
+def check_command(vx: float, vy: float, wz: float) -> tuple:
+    """Return a command as floats, or raise InvalidArgumentError (not finite, too large)."""
+    from .errors import InvalidArgumentError
+    try:
+        values = tuple(float(v) for v in (vx, vy, wz))
+    except (TypeError, ValueError):
+        values = (math.nan,) * 3
+    if not all(math.isfinite(v) for v in values) or max(abs(values[0]), abs(values[1])) > \
+            MAX_SPEED or abs(values[2]) > MAX_TURN:
+        raise InvalidArgumentError(ERR_COMMAND.format(speed=MAX_SPEED, turn=MAX_TURN, vx=vx,
+                                                      vy=vy, wz=wz))
+    return values
+
+
+@dataclass
+class Command:
+    """A velocity command in the base's frame, at simulated time `time`; 0 timeout: none."""
+
+    vx: float = 0.0
+    vy: float = 0.0
+    wz: float = 0.0
+    time: float = -math.inf
+    timeout: float = COMMAND_TIMEOUT
+
+
+@dataclass
+class Odometry:
+    """
+    A base's pose in its odometry frame (where it started), from wheels or from ground truth.
+
+    Wheel odometry integrates each interval along an arc of constant curvature (exact for a
+    constant command), as diff_drive_controller does; twist in the base's frame.
+    """
+
+    spec: BaseSpec
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+    vx: float = 0.0
+    vy: float = 0.0
+    wz: float = 0.0
+    time: Optional[float] = None
+    _wheels: Optional[np.ndarray] = None
+    _origin: Optional[tuple] = None  # ground truth: the start pose (position, yaw)
+    _last: Optional[tuple] = field(default=None)
+
+    def from_wheels(self, t: float, angles: np.ndarray) -> None:
+        """Advance to time `t` from the wheel joints' angles (left then right)."""
+        angles = np.asarray(angles, dtype=float)
+        if self._wheels is None or self.time is None or t < self.time:
+            self._wheels, self.time = angles.copy(), t
+            return
+        dt = t - self.time
+        turn = (angles - self._wheels) * np.asarray(self.spec.signs) * self.spec.radius
+        self._wheels, self.time = angles.copy(), t
+        n = len(self.spec.left)
+        dl, dr = float(np.mean(turn[:n])), float(np.mean(turn[n:]))
+        ds, dth = (dl + dr) / 2, (dr - dl) / self.spec.separation
+        if abs(dth) < 1e-9:
+            dx, dy = ds * math.cos(self.yaw + dth / 2), ds * math.sin(self.yaw + dth / 2)
+        else:
+            r = ds / dth
+            dx = r * (math.sin(self.yaw + dth) - math.sin(self.yaw))
+            dy = -r * (math.cos(self.yaw + dth) - math.cos(self.yaw))
+        self.x, self.y, self.yaw = self.x + dx, self.y + dy, _wrap(self.yaw + dth)
+        if dt > 0:
+            self.vx, self.vy, self.wz = ds / dt, 0.0, dth / dt
+
+    def from_pose(self, t: float, position: np.ndarray, yaw: float) -> None:
+        """Advance to time `t` from the base's true planar pose in the world."""
+        if self._origin is None or self.time is None or t < self.time:
+            self._origin, self.time = (np.asarray(position, float)[:2].copy(), yaw), t
+            self._last = (self._origin[0].copy(), yaw)
+            self.x = self.y = self.yaw = 0.0
+            return
+        o, oyaw = self._origin
+        c, s = math.cos(oyaw), math.sin(oyaw)
+        rel = np.asarray(position, float)[:2] - o
+        x, y = c * rel[0] + s * rel[1], -s * rel[0] + c * rel[1]
+        new_yaw = _wrap(yaw - oyaw)
+        dt = t - self.time
+        if dt > 0:
+            dx, dy = x - self.x, y - self.y
+            cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+            self.vx, self.vy = (cy * dx + sy * dy) / dt, (-sy * dx + cy * dy) / dt
+            self.wz = _wrap(new_yaw - self.yaw) / dt
+        self.x, self.y, self.yaw, self.time = x, y, new_yaw, t
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def yaw_of(quat_wxyz: np.ndarray) -> float:
+    """Return the heading (rotation about z) of a quaternion."""
+    w, x, y, z = (float(v) for v in quat_wxyz)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))

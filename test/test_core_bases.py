@@ -1,0 +1,187 @@
+"""
+Mobile bases in the core: found in the model, driven by physics, measured against theory.
+
+The mobile scene's rover (two wheels of 0.06 m, 0.36 m apart, velocity actuators) and omni (a
+holonomic base on planar joints), and the corpus's cart URDF (a Gazebo diff-drive plugin).
+Distances and turns are checked against v t and w t once the base is up to speed (it
+accelerates first), odometry against the simulation's own pose.
+"""
+
+import math
+from pathlib import Path
+import sys
+
+from conftest import SCENES
+import numpy as np
+import pytest
+from sim_node.core import bases
+from sim_node.core.errors import InvalidArgumentError, NotFoundError
+from sim_node.core.models import sources
+from sim_node.core.world import World
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'ros_env'))
+import corpus  # noqa: E402, I100
+
+STEP = 0.02  # a command every 20 ms of simulated time, as a 50 Hz nav2 controller sends
+
+
+@pytest.fixture
+def world():
+    w = World.from_file(str(SCENES / 'mobile.xml'))
+    w.step(250)  # settled on its wheels
+    return w
+
+
+def drive(w: World, entity: str, vx: float, vy: float, wz: float, seconds: float,
+          each=None) -> None:
+    for _ in range(int(round(seconds / STEP))):
+        w.drive(entity, vx, vy, wz)
+        w.step(int(round(STEP / w.timestep)))
+        if each is not None:
+            each()
+
+
+def planar(w: World, entity: str) -> tuple:
+    s = w.get_entity_state(entity)
+    return np.array(s.position[:2]), bases.yaw_of(s.quat_wxyz)
+
+
+def test_the_scenes_bases_are_found_and_measured_from_the_model(world):
+    found = world.bases()
+    rover, omni = found['rover'], found['omni']
+    assert (rover.kind, rover.found_by) == (bases.DIFF_DRIVE, 'wheel names')
+    assert rover.left == ('left_wheel_joint',) and rover.right == ('right_wheel_joint',)
+    assert rover.radius == pytest.approx(0.06) and rover.separation == pytest.approx(0.36)
+    assert rover.signs == (1.0, 1.0)  # +y axes: turning positively rolls forward
+    assert omni.kind == bases.PLANAR_JOINTS
+    assert omni.planar == ('omni_x', 'omni_y', 'omni_yaw')
+    assert set(found) == {'rover', 'omni'}  # walls, crates: no base
+
+
+def test_a_straight_line_covers_v_t(world):
+    drive(world, 'rover', 0.5, 0, 0, 1.0)  # up to speed
+    (p0, yaw0), t0 = planar(world, 'rover'), world.time
+    drive(world, 'rover', 0.5, 0, 0, 2.0)
+    (p1, yaw1), t1 = planar(world, 'rover'), world.time
+    assert np.linalg.norm(p1 - p0) == pytest.approx(0.5 * (t1 - t0), rel=0.05)
+    assert abs(p1[1] - p0[1]) < 0.02 and abs(yaw1 - yaw0) < 0.02  # straight ahead (+x)
+
+
+def test_a_turn_in_place_turns_w_t_and_stays_put(world):
+    drive(world, 'rover', 0, 0, 1.0, 0.5)
+    (p0, yaw0), t0 = planar(world, 'rover'), world.time
+    drive(world, 'rover', 0, 0, 1.0, 1.0)
+    (p1, yaw1), t1 = planar(world, 'rover'), world.time
+    assert bases.yaw_of(np.array([math.cos((yaw1 - yaw0) / 2), 0, 0,
+                                  math.sin((yaw1 - yaw0) / 2)])) == pytest.approx(
+        1.0 * (t1 - t0), rel=0.05)
+    assert np.linalg.norm(p1 - p0) < 0.1  # about the axle's middle, 5 cm ahead of the origin
+
+
+def test_wheel_odometry_of_a_square_ends_near_the_truth(world):
+    spec = world.bases()['rover']
+    odo = bases.Odometry(spec)
+    start, yaw0 = planar(world, 'rover')
+    path = [0.0, start]
+
+    def wheels():
+        js = world.get_joint_states()
+        odo.from_wheels(world.time, [js[n][0] for n in spec.wheels])
+        here = planar(world, 'rover')[0]
+        path[0] += float(np.linalg.norm(here - path[1]))
+        path[1] = here
+    wheels()
+    for _ in range(4):
+        drive(world, 'rover', 0.5, 0, 0, 2.0, wheels)
+        drive(world, 'rover', 0, 0, 1.0, math.pi / 2, wheels)
+    end, _ = planar(world, 'rover')
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    true_end = np.array([[c, s], [-s, c]]) @ (end - start)  # in the odom frame
+    assert path[0] > 3.5  # four sides of about a metre
+    assert np.linalg.norm(np.array([odo.x, odo.y]) - true_end) < 0.05 * path[0]
+
+
+def test_ground_truth_odometry_is_the_simulations_pose(world):
+    odo = bases.Odometry(world.bases()['rover'])
+    (p0, yaw0) = planar(world, 'rover')
+    odo.from_pose(world.time, *planar(world, 'rover'))
+    drive(world, 'rover', 0.4, 0, 0.5, 2.0,
+          lambda: odo.from_pose(world.time, *planar(world, 'rover')))
+    p1, yaw1 = planar(world, 'rover')
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    rel = np.array([[c, s], [-s, c]]) @ (p1 - p0)
+    assert (odo.x, odo.y) == pytest.approx(tuple(rel), abs=1e-9)
+    assert odo.yaw == pytest.approx(yaw1 - yaw0, abs=1e-9)
+    assert odo.vx == pytest.approx(0.4, rel=0.1) and odo.wz == pytest.approx(0.5, rel=0.1)
+
+
+def test_without_commands_for_half_a_second_the_base_stops(world):
+    drive(world, 'rover', 0.5, 0, 0, 1.0)
+    world.step(int(bases.COMMAND_TIMEOUT / world.timestep))  # no command since
+    world.step(500)
+    assert np.linalg.norm(world.get_entity_state('rover').linear_velocity) < 0.01
+
+
+def test_a_wall_stops_the_base_it_is_physics(world):
+    # 4 m ahead is the east wall (its face at x = 4.0); the chassis reaches 0.2 m past the
+    # origin: it stops there, wheels turning or not
+    drive(world, 'rover', 1.0, 0, 0, 8.0)
+    p, _ = planar(world, 'rover')
+    assert 3.6 < p[0] < 4.0 - 0.2 + 0.01
+    assert world.get_entity_state('rover').position[2] < 0.2  # not climbing it either
+
+
+def test_a_holonomic_base_moves_in_its_own_frame(world):
+    drive(world, 'omni', 0, 0, 1.0, math.pi / 2)  # turn a quarter to face +y
+    _, yaw = planar(world, 'omni')
+    assert yaw == pytest.approx(math.pi / 2, abs=0.1)
+    drive(world, 'omni', 0.3, 0, 0, 0.5)
+    p0, _ = planar(world, 'omni')
+    drive(world, 'omni', 0.3, 0.2, 0, 1.0)  # forward is +y now, left is -x
+    p1, _ = planar(world, 'omni')
+    c, s = math.cos(yaw), math.sin(yaw)
+    want = np.array([c * 0.3 - s * 0.2, s * 0.3 + c * 0.2])
+    assert p1 - p0 == pytest.approx(want, abs=0.03)
+
+
+@pytest.mark.parametrize('command', [(math.nan, 0, 0), (0, 0, math.inf), (1e9, 0, 0),
+                                     (0, -60.0, 0), ('fast', 0, 0)])
+def test_a_bad_command_is_refused_and_the_world_stays_as_it_was(world, command):
+    drive(world, 'rover', 0.3, 0, 0, 0.5)
+    before = world.get_entity_state('rover').position.copy()
+    with pytest.raises(InvalidArgumentError, match='must be finite'):
+        world.drive('rover', *command)
+    world.step(10)
+    after = world.get_entity_state('rover')
+    assert np.all(np.isfinite(after.position)) and abs(after.position[0] - before[0]) < 0.05
+
+
+def test_only_entities_with_a_base_are_driven(world):
+    with pytest.raises(InvalidArgumentError, match='no mobile base'):
+        world.drive('crate', 0.1)
+    with pytest.raises(NotFoundError):
+        world.drive('nobody', 0.1)
+
+
+def test_a_reset_stops_every_base(world):
+    drive(world, 'rover', 0.5, 0, 0, 0.5)
+    world.reset()
+    world.step(500)
+    assert np.linalg.norm(world.get_entity_state('rover').linear_velocity) < 0.01
+
+
+def test_a_urdf_with_a_gazebo_diff_drive_plugin_drives_without_settings(world):
+    own = corpus.write_own(corpus.CORPUS / 'own')  # written here, no download
+    cart = own / 'cart_description' / 'urdf' / 'cart.urdf'
+    world.spawn('cart', sources.from_file(str(cart), allowed_roots=[str(own)]),
+                position=[-2.0, -0.5, 0.2])  # clear road ahead (+x)
+    world.step(500)
+    spec = world.bases()['cart']
+    assert (spec.kind, spec.found_by) == (bases.DIFF_DRIVE, 'gazebo plugin')
+    assert spec.left == ('cart/left_wheel_joint',)
+    assert (spec.radius, spec.separation) == (0.1, 0.36)  # the plugin's own values
+    drive(world, 'cart', 0.3, 0, 0, 1.0)
+    p0, _ = planar(world, 'cart')
+    drive(world, 'cart', 0.3, 0, 0, 1.0)
+    p1, _ = planar(world, 'cart')
+    assert np.linalg.norm(p1 - p0) == pytest.approx(0.3, rel=0.1)

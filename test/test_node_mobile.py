@@ -1,0 +1,191 @@
+"""
+Mobile bases over the wire, as nav2 drives them: cmd_vel in, odometry and the odom TF out.
+
+The mobile scene's rover (differential drive) and omni (holonomic, planar joints), driven from
+a second process with geometry_msgs/Twist at 20 Hz, as a nav2 controller does.
+"""
+
+import math
+import time
+
+from conftest import serve_node, wait_for, Watcher
+from geometry_msgs.msg import Twist, TwistStamped, Vector3
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope='module')
+def node():
+    yield from serve_node('scene:=mobile')
+
+
+@pytest.fixture(scope='module')
+def watch(node, rclpy_context):
+    w = Watcher()
+    w.odom = []
+    w.node.create_subscription(Odometry, 'rover/odom', w.odom.append, 50)
+    yield w
+    w.close()
+
+
+def twist(vx=0.0, vy=0.0, wz=0.0) -> Twist:
+    return Twist(linear=Vector3(x=float(vx), y=float(vy)), angular=Vector3(z=float(wz)))
+
+
+def send(watch, topic: str, msg, seconds: float, rate: float = 20.0) -> None:
+    """Publish `msg` on `topic` at `rate` Hz (wall) for `seconds`."""
+    pub = watch.node.create_publisher(type(msg), topic, 10)
+    try:
+        wait_for(lambda: pub.get_subscription_count() > 0, timeout=10)
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            pub.publish(msg)
+            time.sleep(1.0 / rate)
+    finally:
+        watch.node.destroy_publisher(pub)
+
+
+def planar(sim, entity: str) -> tuple:
+    s = sim.entity_state(entity)
+    x, y, z, w = s['orientation_xyzw']
+    return np.array(s['position'][:2]), math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def test_a_twist_drives_the_rover_and_odometry_follows_as_nav2_reads_it(sim, watch):
+    p0, _ = planar(sim, 'rover')
+    send(watch, 'rover/cmd_vel', twist(0.4), 1.0)  # up to speed
+    t0, p1 = watch.latest_clock(), planar(sim, 'rover')[0]
+    send(watch, 'rover/cmd_vel', twist(0.4), 2.0)
+    t1, p2 = watch.latest_clock(), planar(sim, 'rover')[0]
+    assert np.linalg.norm(p2 - p1) == pytest.approx(0.4 * (t1 - t0), rel=0.1)
+    odom = watch.odom[-1]
+    assert (odom.header.frame_id, odom.child_frame_id) == ('rover/odom', 'rover/rover')
+    assert odom.twist.twist.linear.x == pytest.approx(0.4, rel=0.1)  # in the base's frame
+    assert odom.pose.pose.position.x == pytest.approx(np.linalg.norm(p2 - p0), rel=0.1)
+    stamps = [o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 for o in watch.odom[-20:]]
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+
+
+def test_the_tf_tree_is_world_odom_base_with_no_second_parent(sim, watch):
+    send(watch, 'rover/cmd_vel', twist(0.2, 0, 0.3), 1.0)
+    wait_for(lambda: 'rover/odom' in watch.tf, timeout=10)
+    with watch.lock:
+        assert watch.tf['rover'][1] == 'rover/odom'
+        assert watch.tf['rover/odom'][1] == 'world'
+        parents = {parent for (child, _), n in watch.tf_sends.items() if child == 'rover'
+                   for parent in [watch.tf['rover'][1]]}
+    assert parents == {'rover/odom'}
+    # world -> odom -> rover composes to where the simulation has it (stopped by now: no
+    # command for a second)
+    time.sleep(1.0)
+    with watch.lock:
+        _, _, odom_xyz, odom_q = watch.tf['rover/odom']
+        _, _, base_xyz, _ = watch.tf['rover']
+    yaw = 2 * math.atan2(odom_q[2], odom_q[3])  # a turn about z only
+    c, s = math.cos(yaw), math.sin(yaw)
+    composed = np.array(odom_xyz[:2]) + np.array([c * base_xyz[0] - s * base_xyz[1],
+                                                  s * base_xyz[0] + c * base_xyz[1]])
+    assert composed == pytest.approx(planar(sim, 'rover')[0], abs=0.005)
+
+
+def test_without_commands_the_rover_stops(sim, watch):
+    send(watch, 'rover/cmd_vel', twist(0.5), 0.5)
+    time.sleep(1.5)  # 0.5 s of simulated time without a command stops it
+    assert abs(sim.entity_state('rover')['linear'][0]) < 0.01
+
+
+def test_the_holonomic_base_takes_vy_too(sim, watch):
+    p0, _ = planar(sim, 'omni')
+    send(watch, 'omni/cmd_vel', twist(0.2, 0.3), 1.5)
+    d = planar(sim, 'omni')[0] - p0
+    assert d[0] > 0.15 and d[1] > 0.25 and d[1] / d[0] == pytest.approx(1.5, rel=0.2)
+
+
+def test_a_bad_command_is_refused_on_diagnostics_and_the_rover_is_intact(sim, watch):
+    from diagnostic_msgs.msg import DiagnosticArray
+    got = []
+    sub = watch.node.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)
+    try:
+        send(watch, 'rover/cmd_vel', twist(1e9), 0.3)
+        send(watch, 'rover/cmd_vel', twist(math.nan), 0.3)
+        wait_for(lambda: any(st.name.endswith(': rover/cmd_vel') and 'must be finite'
+                             in st.message for m in got for st in m.status), timeout=10)
+    finally:
+        watch.node.destroy_subscription(sub)
+    state = sim.entity_state('rover')
+    assert all(math.isfinite(v) for v in state['position'])
+    assert abs(state['linear'][0]) < 0.05  # it did not shoot off
+
+
+#: A small two-wheeled robot (PD-driven wheels: no actuators), for spawning.
+BUGGY = """<mujoco><worldbody><body name="buggy" pos="0 0 0.05"><freejoint/>
+  <geom type="box" size="0.1 0.08 0.02" mass="1"/>
+  <geom type="sphere" size="0.02" pos="-0.08 0 -0.03" condim="1" mass="0.05"/>
+  <body name="wl" pos="0.03 0.1 0"><joint name="wheel_left" axis="0 1 0"/>
+    <geom type="sphere" size="0.05" mass="0.1"/></body>
+  <body name="wr" pos="0.03 -0.1 0"><joint name="wheel_right" axis="0 1 0"/>
+    <geom type="sphere" size="0.05" mass="0.1"/></body>
+  </body></worldbody></mujoco>"""
+
+
+def test_a_spawned_base_drives_and_takes_its_topics_and_frames_when_deleted(sim, watch):
+    name = sim.spawn('buggy', resource_string=BUGGY, position=(-2.0, 0.5, 0.1))
+    wait_for(lambda: watch.node.get_subscriptions_info_by_topic('/buggy/cmd_vel'), timeout=10)
+    p0, _ = planar(sim, name)
+    send(watch, 'buggy/cmd_vel', twist(0.3), 1.5)
+    assert planar(sim, name)[0][0] - p0[0] > 0.2  # PD wheels drive it too
+    wait_for(lambda: 'buggy/odom' in watch.tf, timeout=5)
+    sim.delete(name)
+
+    def gone() -> bool:
+        n = watch.node
+        return (not n.get_publishers_info_by_topic('/buggy/odom')
+                and not n.get_subscriptions_info_by_topic('/buggy/cmd_vel'))
+    wait_for(gone, timeout=10)
+    with watch.lock:
+        watch.tf.pop('buggy/odom', None)
+    time.sleep(0.5)
+    with watch.lock:
+        assert 'buggy/odom' not in watch.tf  # no longer sent
+
+
+def test_twist_stamped_and_a_remap_to_the_plain_cmd_vel(start_node, rclpy_context):
+    from sim_node.ros.client import SimClient
+    node = start_node('scene:=mobile', 'cmd_vel_stamped:=true',
+                      remaps=('rover/cmd_vel:=/cmd_vel',), namespace='/stamped')
+    sim = SimClient(namespace='/stamped', timeout_sec=30)
+    w = Watcher()
+    try:
+        sim.entities()
+        p0, _ = planar(sim, 'rover')
+        msg = TwistStamped()
+        msg.twist.linear.x = 0.4
+        send(w, '/cmd_vel', msg, 1.5)
+        assert planar(sim, 'rover')[0][0] - p0[0] > 0.3
+    finally:
+        w.close()
+        sim.close()
+    assert node.proc.poll() is None
+
+
+def test_odometry_from_ground_truth_is_the_simulations_pose(start_node, rclpy_context):
+    from sim_node.ros.client import SimClient
+    start_node('scene:=mobile', 'odom_source:=ground_truth', namespace='/truth')
+    sim = SimClient(namespace='/truth', timeout_sec=30)
+    w = Watcher(namespace='/truth')
+    odom = []
+    w.node.create_subscription(Odometry, '/truth/rover/odom', odom.append, 50)
+    try:
+        sim.entities()
+        p0, yaw0 = planar(sim, 'rover')
+        send(w, '/truth/rover/cmd_vel', twist(0.3, 0, 0.4), 2.0)
+        time.sleep(1.0)  # stopped: the last odometry is where it stands
+        p1, yaw1 = planar(sim, 'rover')
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        rel = np.array([[c, s], [-s, c]]) @ (p1 - p0)
+        last = odom[-1].pose.pose.position
+        assert (last.x, last.y) == pytest.approx(tuple(rel), abs=1e-3)
+    finally:
+        w.close()
+        sim.close()
