@@ -185,3 +185,28 @@ def test_a_urdf_with_a_gazebo_diff_drive_plugin_drives_without_settings(world):
     drive(world, 'cart', 0.3, 0, 0, 1.0)
     p1, _ = planar(world, 'cart')
     assert np.linalg.norm(p1 - p0) == pytest.approx(0.3, rel=0.1)
+
+
+#: A two-wheeled robot whose right wheel's axis points the other way (as many URDFs have it):
+#: turned positively, that wheel rolls backward.
+MIRRORED = """<mujoco><worldbody><body name="buggy" pos="0 0 0.05"><freejoint/>
+  <geom type="box" size="0.1 0.08 0.02" mass="1"/>
+  <geom type="sphere" size="0.02" pos="-0.08 0 -0.03" condim="1" mass="0.05"/>
+  <body name="wl" pos="0.03 0.1 0"><joint name="wheel_left" axis="0 1 0"/>
+    <geom type="sphere" size="0.05" mass="0.1"/></body>
+  <body name="wr" pos="0.03 -0.1 0"><joint name="wheel_right" axis="0 -1 0"/>
+    <geom type="sphere" size="0.05" mass="0.1"/></body>
+  </body></worldbody></mujoco>"""
+
+
+def test_a_wheel_whose_axis_points_the_other_way_still_drives_forward(world):
+    world.spawn('buggy', sources.from_model_text(MIRRORED), position=[-2.0, -1.5, 0.1])
+    world.step(250)
+    spec = world.bases()['buggy']
+    assert spec.signs == (1.0, -1.0) and spec.separation == pytest.approx(0.2)
+    drive(world, 'buggy', 0.3, 0, 0, 0.5)
+    (p0, yaw0) = planar(world, 'buggy')
+    drive(world, 'buggy', 0.3, 0, 0, 1.0)
+    (p1, yaw1) = planar(world, 'buggy')
+    assert p1[0] - p0[0] == pytest.approx(0.3, rel=0.1)  # straight ahead, not spinning
+    assert abs(yaw1 - yaw0) < 0.05
