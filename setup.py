@@ -37,6 +37,7 @@ setup(
     entry_points={
         'console_scripts': [
             'node = sim_node.ros.main:main',
+            'spawn = sim_node.ros.spawn:main',
         ],
         'gymnasium.envs': [
             '__root__ = sim_node.gym.env:register_envs',

@@ -33,7 +33,7 @@ REQUIREMENTS = ROOT / 'ros_env' / 'requirements.txt'
 ENV_FILE = BUILD / 'env.sh'
 # What goes into the `sim` package build; a change to any of these rebuilds it.
 SIM_SOURCES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'sim_node', 'msg_adapters',
-               'scenes')
+               'scenes', 'launch', 'rviz')
 # The wheels' CMake exports name the wheel build machine's interpreter paths.
 WHEEL_PYTHON_INCLUDE = '/opt/python/cp311-cp311/include/python3.11'
 WHEEL_NUMPY_INCLUDE = '/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include'

@@ -1,0 +1,113 @@
+"""
+``ros2 run sim spawn``: bring a robot into the running simulation, as Gazebo's ``create`` does.
+
+One of ``-topic <robot_description topic>`` (what robot_state_publisher publishes, transient
+local: a late subscriber gets it), ``-file <path>`` or ``-string <URDF or MJCF text>``; then
+``-name``, ``-x -y -z`` (m), ``-R -P -Y`` (rad), ``-namespace`` (the entity's ROS namespace),
+``-allow_renaming``, ``-sim <namespace of the simulator's services>`` and ``-timeout`` (s, for
+the topic and the services). It calls the standard SpawnEntity service and exits 0 on success;
+otherwise it prints the standard's result code and message and exits with the code (1 when
+there is none: no answer, a bad argument)::
+
+    ros2 run sim spawn -topic robot_description -name cart -z 0.2
+    ros2 run sim spawn -file ~/ws/src/cart_description/urdf/cart.urdf -name cart -Y 1.57
+"""
+
+import argparse
+import math
+from pathlib import Path
+import sys
+from typing import Optional, Sequence
+
+EXIT_FAILED = 1
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog='ros2 run sim spawn', description=__doc__.split('\n')[1],
+                                prefix_chars='-', allow_abbrev=False)
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument('-topic', help='a topic with the robot description (std_msgs/String)')
+    source.add_argument('-file', help='a URDF, xacro or MJCF file the simulator may read')
+    source.add_argument('-string', help='the description itself (URDF or MJCF text)')
+    p.add_argument('-name', default='', help='the entity name (default: the robot name)')
+    for axis in ('x', 'y', 'z', 'R', 'P', 'Y'):
+        p.add_argument(f'-{axis}', type=float, default=0.0)
+    p.add_argument('-namespace', default='', help="the entity's ROS namespace")
+    p.add_argument('-allow_renaming', action='store_true')
+    p.add_argument('-sim', default='', help="the simulator's namespace (default: '/')")
+    p.add_argument('-timeout', type=float, default=30.0,
+                   help='seconds to wait for the description topic and the services')
+    return p
+
+
+def quaternion_xyzw(roll: float, pitch: float, yaw: float) -> tuple:
+    """Return the quaternion (x, y, z, w) of fixed-axis roll, pitch, yaw (URDF's order)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+
+
+def _from_topic(node, topic: str, timeout: float) -> Optional[str]:
+    """Return the first description published on `topic` (latched or not), or None."""
+    import rclpy
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+    got = []
+    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+    sub = node.create_subscription(String, topic, lambda msg: got.append(msg.data), qos)
+    try:
+        deadline = node.get_clock().now().nanoseconds + int(timeout * 1e9)
+        while not got and node.get_clock().now().nanoseconds < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    finally:
+        node.destroy_subscription(sub)
+    return got[0] if got else None
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    import rclpy
+    from rclpy.utilities import remove_ros_args
+    args = _parser().parse_args(remove_ros_args(list(sys.argv if argv is None
+                                                     else ['spawn', *argv]))[1:])
+    rclpy.init(args=None if argv is None else ['spawn', *argv])
+    from .client import SimClient, SimServiceError
+    node = rclpy.create_node('sim_spawn')
+    try:
+        uri, text = '', ''
+        if args.topic:
+            text = _from_topic(node, args.topic, args.timeout)
+            if text is None:
+                print(f'nothing was published on {args.topic!r} within {args.timeout:g} s: '
+                      'is robot_state_publisher (or another publisher of the description) '
+                      'running, with that topic name?', file=sys.stderr)
+                return EXIT_FAILED
+        elif args.file:
+            path = Path(args.file).expanduser().resolve()
+            uri = path.as_uri()
+        else:
+            text = args.string
+        sim = SimClient(namespace=args.sim, node=node, timeout_sec=args.timeout)
+        try:
+            name = sim.spawn(args.name, uri=uri, resource_string=text,
+                             position=(args.x, args.y, args.z),
+                             orientation_xyzw=quaternion_xyzw(args.R, args.P, args.Y),
+                             allow_renaming=args.allow_renaming or not args.name,
+                             namespace=args.namespace)
+        except SimServiceError as exc:
+            print(f'spawn_entity answered {exc.code}: {exc.message}', file=sys.stderr)
+            return exc.code if 0 < exc.code < 256 else EXIT_FAILED
+        except TimeoutError as exc:
+            print(f'{exc}; is the simulator running (ros2 run sim node)?', file=sys.stderr)
+            return EXIT_FAILED
+        print(f'spawned {name!r}')
+        return 0
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,119 @@
+"""
+``ros2 run sim spawn``, as Gazebo's ``create``: from a file, a string or a description topic.
+
+Run as a process against a running node, with the corpus's cart (a URDF with a Collada chassis
+from its description package and a Gazebo diff-drive plugin); the launch example
+(``launch/spawn_robot.launch.py``: robot_state_publisher, then ``sim spawn -topic``) runs
+through ``test/launch_shim`` where ros2launch is not installed.
+"""
+
+import math
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+from conftest import ROOT, serve_node, wait_for, Watcher
+import pytest
+
+sys.path.insert(0, str(ROOT / 'ros_env'))
+import corpus  # noqa: E402, I100
+
+BOX = ('<mujoco><worldbody><body name="b"><freejoint/><geom type="box" size=".1 .1 .1"/>'
+       '</body></worldbody></mujoco>')
+
+
+@pytest.fixture(scope='module')
+def own():
+    return corpus.write_own(corpus.CORPUS / 'own')
+
+
+@pytest.fixture(scope='module')
+def node(own):
+    yield from serve_node(f'resource_paths:=["{own}"]')
+
+
+@pytest.fixture(scope='module')
+def watch(node, rclpy_context):
+    w = Watcher()
+    yield w
+    w.close()
+
+
+def spawn(*args: str) -> subprocess.CompletedProcess:
+    exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'spawn'
+    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=120)
+
+
+def cart(own: Path) -> Path:
+    return own / 'cart_description' / 'urdf' / 'cart.urdf'
+
+
+def yaw(state: dict) -> float:
+    x, y, z, w = state['orientation_xyzw']
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def test_from_a_file_at_a_pose(sim, own):
+    out = spawn('-file', str(cart(own)), '-name', 'cart_file', '-x', '1.5', '-y', '-1.0',
+                '-z', '0.3', '-Y', '1.2')
+    assert out.returncode == 0, out.stderr
+    assert "spawned 'cart_file'" in out.stdout
+    state = sim.entity_state('cart_file')
+    assert state['position'][:2] == pytest.approx((1.5, -1.0), abs=0.05)
+    assert yaw(state) == pytest.approx(1.2, abs=0.05)
+
+
+def test_from_a_string(sim):
+    out = spawn('-string', BOX, '-name', 'crate', '-x', '-1.0', '-z', '1.0')
+    assert out.returncode == 0, out.stderr
+    assert 'crate' in sim.entities()
+
+
+def test_from_robot_description_as_robot_state_publisher_offers_it(sim, watch, own):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+    text = cart(own).read_text()
+    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+    pub = watch.node.create_publisher(String, 'test_description', qos)
+    pub.publish(String(data=text))  # published before the spawner starts: latched
+    try:
+        out = spawn('-topic', 'test_description', '-name', 'cart_topic', '-x', '-1.5',
+                    '-y', '1.5', '-z', '0.3')
+        assert out.returncode == 0, out.stderr
+    finally:
+        watch.node.destroy_publisher(pub)
+    # it drives as its Gazebo plugin says, and describes itself with the URDF as given
+    assert 'cart_topic' in sim.entities()
+    published = watch.robot_description('cart_topic')
+    assert 'libgazebo_ros_diff_drive.so' in published
+    assert 'cart_topic/left_wheel_joint' in published
+
+
+def test_a_topic_nobody_publishes_on_ends_with_a_clear_message(node):
+    out = spawn('-topic', 'nobody_publishes_this', '-name', 'ghost', '-timeout', '2')
+    assert out.returncode == 1
+    assert "nothing was published on 'nobody_publishes_this' within 2 s" in out.stderr
+
+
+def test_a_name_in_use_exits_with_the_standards_code(sim):
+    sim.spawn('taken', resource_string=BOX, position=(0.0, -2.0, 1.0))
+    out = spawn('-string', BOX, '-name', 'taken')
+    assert out.returncode == 101  # SpawnEntity.Response.NAME_NOT_UNIQUE
+    assert 'spawn_entity answered 101' in out.stderr and 'taken' in out.stderr
+
+
+def test_bad_arguments_say_what_is_expected(node):
+    out = spawn('-name', 'nothing')
+    assert out.returncode == 2 and 'one of the arguments -topic -file -string' in out.stderr
+
+
+def test_the_launch_example_spawns_from_robot_state_publishers_topic(sim, own):
+    out = subprocess.run([sys.executable, str(ROOT / 'test' / 'launch_shim' / 'run.py'),
+                          str(ROOT / 'launch' / 'spawn_robot.launch.py'),
+                          f'urdf:={cart(own)}', 'name:=cart_launch', 'x:=2.5', 'z:=0.3'],
+                         capture_output=True, text=True, timeout=180, cwd=ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+    wait_for(lambda: 'cart_launch' in sim.entities(), timeout=10)
+    assert sim.entity_state('cart_launch')['position'][0] == pytest.approx(2.5, abs=0.05)
