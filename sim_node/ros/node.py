@@ -22,6 +22,7 @@ import signal
 import sys
 import threading
 import time
+from typing import Optional
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -34,6 +35,7 @@ from .command_drain import CommandDrain
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
 from .publishing import ModelTopics, StatePublisher
+from .recording import Recording
 from .services import Services
 from .status import Status
 from .trajectories import TrajectoryServers
@@ -41,6 +43,7 @@ from ..core.config import WorldConfig
 from ..core.errors import InvalidArgumentError, SimError
 from ..core.models import resources
 from ..core.records import EFFORT, POSITION, VELOCITY
+from ..record.bag import Limits
 from ..session import Session
 
 NODE_NAME = 'sim'
@@ -56,10 +59,17 @@ class SimNode(Node):
     """
 
     def __init__(self, **kwargs):
+        self._recording: Optional[Recording] = None  # before Node makes its publishers
         super().__init__(NODE_NAME, **kwargs)
         scenes_dir = resources.installed_scenes_dir()
         params.declare(self, str(scenes_dir))
         p = self.param
+        if p('record'):
+            self._recording = Recording(
+                p('record'), params.string_list(self, 'record_topics'), p('record_cameras'),
+                Limits(int(p('record_split_mb') * 2 ** 20), p('record_split_s'),
+                       int(p('record_max_mb') * 2 ** 20)), self._sim_time,
+                lambda text: self.get_logger().error(text))
         self.frames = params.frames(self)
         # resource_paths adds to the installed scenes and objects (builtin_resources: false
         # leaves only resource_paths).
@@ -98,6 +108,20 @@ class SimNode(Node):
         self.create_timer(HOUSEKEEPING_SEC, self.status.housekeeping,
                           callback_group=self._events)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+
+    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        """Make a publisher; with ``record``, one that also writes into the bag."""
+        pub = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        recording = getattr(self, '_recording', None)
+        wrapped = recording.wrap(pub, msg_type, qos_profile) if recording else None
+        return wrapped or pub
+
+    def destroy_publisher(self, publisher) -> bool:
+        return super().destroy_publisher(getattr(publisher, 'publisher', publisher))
+
+    def _sim_time(self) -> float:
+        loaded = self.session.loaded if hasattr(self, 'session') else None
+        return loaded.loop.latest_snapshot().time if loaded is not None else 0.0
 
     def param(self, name: str):
         """Return a parameter's value."""
@@ -166,6 +190,8 @@ class SimNode(Node):
         self.perception.stop()
         self._commands.stop()
         self.status.close()
+        if self._recording is not None:  # after the publishers: what they sent is written
+            self._recording.close()
 
     def report_failure(self, what: str, exc: Exception) -> None:
         """

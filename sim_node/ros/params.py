@@ -58,7 +58,7 @@ def _descriptor(description: str, read_only: bool = False, fmin=None, fmax=None,
 DOUBLES = ('real_time_factor', 'timestep', 'max_sim_time', 'tf_rate_hz', 'joint_states_rate_hz',
            'kp', 'kd', 'camera_rate_hz', 'lidar_rate_hz', 'lidar_angle_min', 'lidar_angle_max',
            'lidar_range_min', 'lidar_range_max', 'world_extent', 'odom_rate_hz',
-           'cmd_vel_timeout')
+           'cmd_vel_timeout', 'record_split_mb', 'record_split_s', 'record_max_mb')
 
 
 def integers_as_doubles(params: List[Parameter]) -> List[Parameter]:
@@ -152,6 +152,21 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('cmd_vel_stamped', False, d(
         '<entity>/cmd_vel takes geometry_msgs/TwistStamped (diff_drive_controller, later nav2) '
         "instead of Twist (nav2 Jazzy's default)", read_only=True))
+    node.declare_parameter('record', '', d(
+        'a folder to record the run into, as rosbag2 bags (MCAP) that ros2 bag play and '
+        "Foxglove open; '' records nothing", read_only=True))
+    node.declare_parameter('record_topics', ['*'], d(
+        'topics to record (shell patterns on the full name, e.g. /tf*)', read_only=True))
+    node.declare_parameter('record_cameras', False, d(
+        'record camera images too (they are large)', read_only=True))
+    node.declare_parameter('record_split_mb', 0.0, d(
+        'start a new bag after this many MiB; 0: never', fmin=0, fmax=1e7, read_only=True))
+    node.declare_parameter('record_split_s', 0.0, d(
+        'start a new bag after this many simulated seconds; 0: never', fmin=0, fmax=1e9,
+        read_only=True))
+    node.declare_parameter('record_max_mb', 0.0, d(
+        'end the recording after this many MiB in all; 0: no cap', fmin=0, fmax=1e9,
+        read_only=True))
     node.declare_parameter('cmd_vel_timeout', 0.5, d(
         'simulated seconds without a cmd_vel after which a base stops, as diff_drive_controller '
         "does; 0: never (Gazebo's DiffDrive system)", fmin=0, fmax=1e6))
