@@ -7,6 +7,7 @@ joint no longer exists, while the others stay in force. The world calls every me
 :meth:`Control.stage` with its lock held.
 """
 
+import math
 import threading
 from typing import Optional, Sequence
 
@@ -305,6 +306,7 @@ class Control:
                     self._held.setdefault(name, (POSITION, float(q)))
             acts = run.act >= 0
             data.ctrl[run.act[acts]] = where[acts]
+            data.ctrl[run.vact[run.vact >= 0]] = 0  # velocity interfaces stop; PD holds
         run.done.set()
         if rebind and run.index is not None:
             self.bind(run.index, run.model, data)
@@ -325,7 +327,13 @@ class Control:
             qd, vd, ad = status.desired
             servo = run.act >= 0
             data.ctrl[run.act[servo]] = qd[servo]
-            pd = ~servo
+            vel = run.vact >= 0  # a velocity interface: its velocity, corrected toward q*
+            if vel.any():
+                want = run.vgear * (vd[vel] + math.sqrt(self.kp) * (qd[vel] - q[vel]))
+                lo, hi = model.actuator_ctrlrange[run.vact[vel]].T
+                limited = model.actuator_ctrllimited[run.vact[vel]].astype(bool)
+                data.ctrl[run.vact[vel]] = np.where(limited, np.clip(want, lo, hi), want)
+            pd = ~servo & ~vel
             if pd.any():
                 u = ad[pd] + self.kp * (qd[pd] - q[pd]) + self.kd * (vd[pd] - v[pd])
                 tau = times_mass(model, data, run.out.dof, u) + data.qfrc_bias[run.out.dof]
@@ -364,7 +372,7 @@ class _Run:
     def __init__(self, entity: str, tracker: Tracker):
         self.entity, self.tracker = entity, tracker
         self.done = threading.Event()
-        self.qadr = self.dof = self.act = self.out = None
+        self.qadr = self.dof = self.act = self.vact = self.vgear = self.out = None
         self.index = self.model = None
         self.steps = 0
         self.saturated = None  # per PD joint: steps its motor spent at its limit
@@ -379,7 +387,8 @@ class _Run:
         """Which motors spent much of the run at their limit ('' if none did)."""
         if self.saturated is None or not self.steps or self.out is None:
             return ''
-        names = [n for n, a in zip(self.tracker.trajectory.joints, self.act) if a < 0]
+        names = [n for n, a, va in zip(self.tracker.trajectory.joints, self.act, self.vact)
+                 if a < 0 and va < 0]
         notes = [f'{names[k]!r} ({self.saturated[k] / self.steps:.0%} of the steps at '
                  f'{max(abs(self.out.lo[k]), abs(self.out.hi[k])):.4g} N·m or N)'
                  for k in np.nonzero(self.saturated > self.steps // 10)[0]]
@@ -397,6 +406,10 @@ class _Run:
         self.qadr, self.dof = index.joint_qposadr[idx], index.joint_dofadr[idx]
         self.act = np.array([index.joint_actuators[i].get(POSITION, -1) for i in idx],
                             dtype=int)
-        self.out = Outputs(index, model, idx[self.act < 0])
+        self.vact = np.array([index.joint_actuators[i].get(VELOCITY, -1) if a < 0 else -1
+                              for i, a in zip(idx, self.act)], dtype=int)
+        v = np.maximum(self.vact[self.vact >= 0], 0)
+        self.vgear = model.actuator_gear[v, 0] if len(v) else np.zeros(0)
+        self.out = Outputs(index, model, idx[(self.act < 0) & (self.vact < 0)])
         self.index, self.model = index, model
         return True

@@ -36,6 +36,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
+from . import urdf_declared
 from ..errors import CapacityError, ResourceParseError
 
 log = logging.getLogger(__name__)
@@ -102,6 +103,10 @@ class Prepared:
     #: ``<gazebo><self_collide>true</self_collide></gazebo>``: its links collide with each
     #: other (Gazebo's default, and this one's, is that they do not).
     self_collide: bool = False
+    #: joint -> {'velocity', 'effort'} limits, for the interfaces a URDF declares.
+    joint_limits: dict = field(default_factory=dict)
+    #: What :mod:`.urdf_declared` made of the extensions (sensors, interfaces), as text.
+    declared: list = field(default_factory=list)
     #: For a root fixed to a link named ``world``: where that link is in the root link's
     #: frame, (position (3,), quaternion wxyz (4,)): the description names it, so /tf has it.
     world_link: Optional[tuple] = None
@@ -132,6 +137,7 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
         out.extensions.append(ext)
     model = [e for e in out.extensions if e.tag == 'gazebo' and 'reference' not in e.attrib]
     out.static = any(_true(e.findtext('static')) for e in model)
+    out.joint_limits = urdf_declared.joint_limits(root)
     out.self_collide = any(_true(e.findtext('self_collide')) for e in model)
     out.unknown = _drop_unknown(root)
     links = list(root.findall('link'))
@@ -202,6 +208,7 @@ def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
             for g in geoms:
                 if g.contype or g.conaffinity:
                     g.group = COLLISION_GROUP
+    prepared.declared = urdf_declared.add(spec, prepared.extensions, prepared.joint_limits)
     _start_inside_ranges(spec)
     if not prepared.self_collide:
         _exclude_self_contacts(spec)

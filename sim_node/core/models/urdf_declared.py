@@ -1,0 +1,207 @@
+"""
+What a URDF declares for a simulator, made into MJCF: Gazebo sensors and ros2_control interfaces.
+
+Called on the spec MuJoCo imported from a URDF (:func:`.urdf.finish`), with the extension
+elements :func:`.urdf.prepare` kept:
+
+* ``<gazebo reference="link"><sensor type=...>`` (and a ``<sensor>`` of current Gazebo in a
+  link): ``camera``, ``depth``, ``rgbd_camera``/``rgbd`` become a camera on the link (looking
+  along the link's x, z up, as Gazebo's do; vertical field of view from ``horizontal_fov`` and
+  the tag's image size); ``imu`` a site ``<sensor>_imu`` with a framequat, a gyro and an
+  accelerometer; ``ray``, ``gpu_ray``, ``lidar``, ``gpu_lidar`` a site ``<sensor>_lidar`` (a
+  planar laser in the link's x-y plane). The node publishes them as it publishes every camera,
+  IMU and laser (its topics, its resolution, rate and range parameters: a tag's own are not
+  used, so an absurd one costs nothing); a sensor's ``<pose>`` places it on the link.
+* ``<ros2_control>`` joints: a joint whose command interfaces are velocity without position
+  gets a velocity actuator (``kv`` the link's inertia over twice a 2 ms step: a 4 ms time
+  constant, stable; ``ctrlrange`` from the interface's min/max or the URDF velocity limit,
+  ``forcerange`` from the effort limit); effort only, a motor within the effort
+  limit. Position interfaces need nothing: joint commands and trajectories drive them by PD.
+  ``<transmission>`` joints with a velocity or effort ``hardwareInterface`` likewise.
+"""
+
+import logging
+import math
+from typing import Optional
+from xml.etree import ElementTree as ET
+
+import mujoco
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+CAMERAS = ('camera', 'depth', 'depth_camera', 'rgbd_camera', 'rgbd', 'multicamera')
+LASERS = ('ray', 'gpu_ray', 'lidar', 'gpu_lidar')
+#: A velocity interface's actuator gain: its joint's link inertia times this, over STEP.
+VELOCITY_GAIN, STEP = 0.5, 0.002
+
+
+def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> list:
+    """
+    Add the declared sensors and interfaces to `spec`; return what was added (text).
+
+    :param limits: joint -> {'velocity', 'effort'} from the URDF (:func:`joint_limits`).
+    """
+    done = []
+    bodies = {b.name: b for b in spec.bodies if b.name}
+    for ext in extensions:
+        if ext.tag != 'gazebo':
+            continue
+        link = ext.get('reference', '')
+        for sensor in ext.iter('sensor'):
+            body = bodies.get(link)
+            if body is None:
+                log.warning('URDF sensor %r names link %r, which the model lacks: left out',
+                            sensor.get('name'), link)
+                continue
+            text = _sensor(spec, body, sensor)
+            if text:
+                done.append(text)
+    for joint, interfaces in _interfaces(extensions).items():
+        text = _actuator(spec, joint, interfaces, limits.get(joint, {}))
+        if text:
+            done.append(text)
+    return done
+
+
+def _floats(text: Optional[str], n: int) -> Optional[list]:
+    try:
+        values = [float(v) for v in (text or '').split()]
+    except ValueError:
+        return None
+    return values if len(values) == n and all(math.isfinite(v) for v in values) else None
+
+
+def _sensor(spec, body, sensor: ET.Element) -> str:
+    kind = (sensor.get('type') or '').lower()
+    name = sensor.get('name') or f'{body.name}_{kind}'
+    pose = _floats(sensor.findtext('pose'), 6) or [0.0] * 6
+    pos, quat = np.array(pose[:3]), _rpy_quat(*pose[3:])
+    if kind in CAMERAS:
+        width = _number(sensor, './/image/width', 640.0)
+        height = _number(sensor, './/image/height', 480.0)
+        hfov = _number(sensor, './/horizontal_fov', 1.047)
+        if not (0 < hfov < math.pi and width > 0 and height > 0):
+            log.warning('URDF camera %r: field of view %g rad or image %gx%g is not a '
+                        "camera's; the node's defaults are used", name, hfov, width, height)
+            hfov, width, height = 1.047, 640.0, 480.0
+        fovy = math.degrees(2 * math.atan(math.tan(hfov / 2) * height / width))
+        # MuJoCo's camera looks along its -z with y up; Gazebo's along the link's x, z up.
+        turn = np.zeros(4)
+        mujoco.mju_mulQuat(turn, quat, _xyaxes_quat((0, -1, 0), (0, 0, 1)))
+        body.add_camera(name=name, pos=pos, quat=turn, fovy=fovy)
+        return f'camera {name!r} on {body.name!r}'
+    if kind == 'imu':
+        site = body.add_site(name=f'{name}_imu', pos=pos, quat=quat)
+        for stype, suffix in ((mujoco.mjtSensor.mjSENS_FRAMEQUAT, 'orientation'),
+                              (mujoco.mjtSensor.mjSENS_GYRO, 'gyro'),
+                              (mujoco.mjtSensor.mjSENS_ACCELEROMETER, 'accel')):
+            spec.add_sensor(name=f'{name}_{suffix}', type=stype,
+                            objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site.name)
+        return f'IMU {name!r} on {body.name!r}'
+    if kind in LASERS:
+        body.add_site(name=f'{name}_lidar', pos=pos, quat=quat)
+        return f'laser {name!r} on {body.name!r}'
+    log.warning('URDF sensor %r of type %r: not a kind this simulator makes (cameras, IMUs, '
+                'lasers); left out', name, kind)
+    return ''
+
+
+def _number(el: ET.Element, path: str, default: float) -> float:
+    try:
+        value = float(el.findtext(path) or default)
+    except ValueError:
+        return default
+    return value if math.isfinite(value) else default
+
+
+def _rpy_quat(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    for axis, angle in (((0, 0, 1), yaw), ((0, 1, 0), pitch), ((1, 0, 0), roll)):
+        turn, out = np.zeros(4), np.zeros(4)
+        mujoco.mju_axisAngle2Quat(turn, np.asarray(axis, dtype=float), angle)
+        mujoco.mju_mulQuat(out, q, turn)
+        q = out
+    return q
+
+
+def _xyaxes_quat(x, y) -> np.ndarray:
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    mat = np.stack([x, y, np.cross(x, y)], axis=1).ravel()
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, mat)
+    return q
+
+
+def _interfaces(extensions: list) -> dict:
+    """Joint -> {interface: (min, max)} from <ros2_control> and <transmission> elements."""
+    out: dict = {}
+    for ext in extensions:
+        if ext.tag == 'ros2_control':
+            for joint in ext.iter('joint'):
+                for ci in joint.findall('command_interface'):
+                    lo = hi = None
+                    for p in ci.findall('param'):
+                        if p.get('name') == 'min':
+                            lo = _floats(p.text, 1)
+                        elif p.get('name') == 'max':
+                            hi = _floats(p.text, 1)
+                    out.setdefault(joint.get('name', ''), {})[(ci.get('name') or '').lower()] = (
+                        lo[0] if lo else None, hi[0] if hi else None)
+        elif ext.tag == 'transmission':
+            for joint in ext.iter('joint'):
+                for hw in joint.iter('hardwareInterface'):
+                    kind = (hw.text or '').lower()
+                    for name in ('velocity', 'effort', 'position'):
+                        if name in kind:
+                            out.setdefault(joint.get('name', ''), {})[name] = (None, None)
+    return out
+
+
+def joint_limits(root: ET.Element) -> dict:
+    """Return joint -> {'velocity', 'effort'} of a URDF's <limit> elements (0: none)."""
+    out = {}
+    for joint in root.findall('joint'):
+        limit = joint.find('limit')
+        if limit is None:
+            continue
+        values = {}
+        for key in ('velocity', 'effort'):
+            got = _floats(limit.get(key), 1)
+            values[key] = got[0] if got else 0.0
+        out[joint.get('name', '')] = values
+    return out
+
+
+def _actuator(spec, joint: str, interfaces: dict, limit: dict) -> str:
+    if spec.joint(joint) is None or 'position' in interfaces:
+        if spec.joint(joint) is None and interfaces:
+            log.warning('ros2_control names joint %r, which the model lacks: left out', joint)
+        return ''
+    effort = abs(limit.get('effort') or 0.0)
+    if 'velocity' in interfaces:
+        lo, hi = interfaces['velocity']
+        speed = abs(limit.get('velocity') or 0.0)
+        if lo is None and hi is None and speed > 0:
+            lo, hi = -speed, speed
+        # Stiff enough to follow, not so stiff that an explicit step overshoots: the link's
+        # inertia over twice a 2 ms step (a 4 ms time constant).
+        body = spec.joint(joint).parent  # URDF inertias arrive as fullinertia
+        inertia = max(float(np.max(body.inertia)), float(np.max(body.fullinertia[:3])))
+        kv = max(inertia, 1e-6) * VELOCITY_GAIN / STEP
+        act = spec.add_actuator(name=f'{joint}_velocity', target=joint,
+                                trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_velocity(kv=kv)
+        if lo is not None and hi is not None and lo < hi:
+            act.ctrlrange, act.ctrllimited = [lo, hi], mujoco.mjtLimited.mjLIMITED_TRUE
+        if effort > 0:
+            act.forcerange, act.forcelimited = [-effort, effort], mujoco.mjtLimited.mjLIMITED_TRUE
+        return f'velocity interface on {joint!r}'
+    if 'effort' in interfaces:
+        act = spec.add_actuator(name=f'{joint}_effort', target=joint,
+                                trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_motor()
+        if effort > 0:
+            act.ctrlrange, act.ctrllimited = [-effort, effort], mujoco.mjtLimited.mjLIMITED_TRUE
+        return f'effort interface on {joint!r}'
+    return ''

@@ -1,0 +1,57 @@
+"""
+Sensors a URDF declares in its ``<gazebo>`` tags publish, checked against the scene.
+
+The scout of ``test_core_urdf_declared`` is spawned fixed to the world, facing a crate 0.55 m
+ahead of its laser: the scan's range ahead, the camera's calibration (its vertical field of
+view from the tag's horizontal one) and the IMU's gravity.
+"""
+
+import math
+
+from conftest import serve_node, wait_for, Watcher
+import pytest
+from sensor_msgs.msg import CameraInfo, Imu, LaserScan
+from test_core_urdf_declared import SCOUT
+
+BOX = ('<mujoco><worldbody><body name="crate"><geom type="box" size="0.25 0.25 0.25"/>'
+       '</body></worldbody></mujoco>')
+
+
+@pytest.fixture(scope='module')
+def node():
+    yield from serve_node('lidar_range_max:=5.0')
+
+
+@pytest.fixture(scope='module')
+def watch(node, rclpy_context):
+    w = Watcher()
+    yield w
+    w.close()
+
+
+def latest(watch, msg_type, topic: str, timeout: float = 20.0):
+    from rclpy.qos import qos_profile_sensor_data
+    got = []
+    sub = watch.node.create_subscription(msg_type, topic, got.append, qos_profile_sensor_data)
+    try:
+        wait_for(lambda: len(got) >= 2, timeout=timeout)
+    finally:
+        watch.node.destroy_subscription(sub)
+    return got[-1]
+
+
+def test_the_declared_laser_camera_and_imu_publish_what_the_scene_shows(sim, watch):
+    sim.spawn('scout', resource_string=SCOUT, position=(2.0, -2.0, 0.1))
+    sim.spawn('crate', resource_string=BOX, position=(3.0, -2.0, 0.25))
+    # the laser: on the mount (0.2 m ahead of the base), the crate's face at x = 2.75
+    scan = latest(watch, LaserScan, 'lasers/scout/scan_lidar/scan')
+    ahead = round((0.0 - scan.angle_min) / scan.angle_increment)
+    assert scan.header.frame_id == 'scout/scan_lidar'
+    assert scan.ranges[ahead] == pytest.approx(2.75 - 2.2, abs=0.01)
+    # the camera: its vertical field of view from the tag's horizontal one (1.2 rad, 4:3)
+    info = latest(watch, CameraInfo, 'cameras/scout/front_cam/camera_info')
+    fovy = 2 * math.atan(math.tan(0.6) * 480 / 640)
+    assert info.k[4] == pytest.approx(info.height / (2 * math.tan(fovy / 2)), rel=1e-6)
+    # the IMU: at rest on a fixed robot, gravity up
+    imu = latest(watch, Imu, 'sensors/scout/imu_imu/imu')
+    assert imu.linear_acceleration.z == pytest.approx(9.81, abs=0.05)
