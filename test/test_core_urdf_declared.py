@@ -34,6 +34,7 @@ SCOUT = f"""<robot name="scout">
     <sensor type="gpu_lidar" name="scan"><pose>0 0 0.05 0 0 0</pose></sensor>
     <sensor type="camera" name="silly"><camera><horizontal_fov>1e9</horizontal_fov>
       <image><width>100000</width><height>100000</height></image></camera></sensor>
+    <sensor type="depth" name="front_cam"/>
   </gazebo>
   <gazebo reference="no_such_link"><sensor type="imu" name="lost"/></gazebo>
   <ros2_control name="sys" type="system">
@@ -66,6 +67,8 @@ def test_gazebo_sensors_become_a_camera_an_imu_and_a_laser_on_their_link(world):
     assert cams['scout/silly'][0] == pytest.approx(
         math.degrees(2 * math.atan(math.tan(1.047 / 2) * 480 / 640)))
     assert 'scout/lost_imu' not in sites
+    # two sensors of one name (as a depth and an RGB sensor in ROS files): both, told apart
+    assert cams['scout/front_cam_2'][1] == cams['scout/front_cam'][1]
 
 
 def test_the_camera_looks_along_its_links_x_as_gazebos_do(world):

@@ -111,9 +111,15 @@ def ranges(watch, joints) -> np.ndarray:
                      for j in joints])
 
 
-def inward_goal(watch, joints, q0, stamp: float):
-    """Return the client's three-point goal, each joint's offsets pointing into its range."""
+def inward_goal(watch, joints, q0, lead: float = 0.0):
+    """
+    Return the client's three-point goal, its knots and its start in simulated time.
+
+    Each joint's offsets point into its range. With a `lead`, the goal starts that long after
+    the latest /clock (a stamp in the future: the client knows when it starts); else on arrival.
+    """
     rng = ranges(watch, joints)
+    stamp = watch.latest_clock() + lead if lead else 0.0  # after the ranges came, not before
     sign = np.where(q0 + max(OFFSETS) + 0.05 < rng[:, 1], 1.0, -1.0)
     knots = [q0 + k * sign for k in OFFSETS]
     g = FollowJointTrajectory.Goal()
@@ -123,7 +129,7 @@ def inward_goal(watch, joints, q0, stamp: float):
     for t, q in zip((1.0, 2.0, 3.0), knots):
         g.trajectory.points.append(JointTrajectoryPoint(positions=list(q),
                                                         time_from_start=duration(t)))
-    return g, knots
+    return g, knots, stamp
 
 
 def send(client, g):
@@ -156,9 +162,10 @@ def deviation(watch, joints, start: float, q0, knots) -> float:
 def test_the_panda_follows_the_interpolated_path_and_ends_on_its_last_point(robot, watch):
     sim, client, joints = robot
     q0 = positions(watch, joints)
-    start = watch.latest_clock() + 0.5  # a stamp in the future: the client knows the start
-    g, knots = inward_goal(watch, joints, q0, start)
-    status, res = result_of(send(client, g))
+    g, knots, start = inward_goal(watch, joints, q0, lead=1.0)
+    accepted = send(client, g)
+    assert watch.latest_clock() < start, 'the goal came after its own start: a slow test host'
+    status, res = result_of(accepted)
     assert status == SUCCEEDED and res.error_code == R.SUCCESSFUL, res.error_string
     # Computed-torque PD at kp 400: a velocity step of 0.15 rad/s lags by 0.15 / (e 20).
     assert deviation(watch, joints, start, q0, knots) < 0.03
@@ -170,8 +177,7 @@ def test_the_panda_follows_the_interpolated_path_and_ends_on_its_last_point(robo
 def test_the_pusher_cannot_follow_and_is_told_so_not_succeeded(robot, watch):
     sim, client, joints = robot
     q0 = positions(watch, joints)
-    start = watch.latest_clock() + 0.5
-    g, _ = inward_goal(watch, joints, q0, start)
+    g, _, _ = inward_goal(watch, joints, q0, lead=1.0)
     status, res = result_of(send(client, g))
     assert status == ABORTED, res.error_string
     assert res.error_code == R.PATH_TOLERANCE_VIOLATED
@@ -185,7 +191,7 @@ def test_the_pusher_cannot_follow_and_is_told_so_not_succeeded(robot, watch):
 def test_a_goal_past_a_joints_range_is_rejected(robot, watch):
     sim, client, joints = robot
     q0 = positions(watch, joints)
-    g, _ = inward_goal(watch, joints, q0, 0.0)
+    g, _, _ = inward_goal(watch, joints, q0)
     elbow = joints.index('pusher/r_elbow_flex_joint')  # range [-2.32, 0]
     for p in g.trajectory.points:
         p.positions[elbow] = 0.3
@@ -199,7 +205,7 @@ def test_paused_a_driven_arm_stays_still_while_its_goal_waits(robot, watch):
     try:
         time.sleep(0.3)  # what was published before the pause has arrived
         clock, before = watch.latest_clock(), positions(watch, joints)
-        g, _ = inward_goal(watch, joints, before, 0.0)
+        g, _, _ = inward_goal(watch, joints, before)
         handle = send(client, g)
         assert handle.accepted
         time.sleep(1.5)
@@ -214,7 +220,7 @@ def test_paused_a_driven_arm_stays_still_while_its_goal_waits(robot, watch):
 def test_a_cancel_leaves_the_joints_where_it_found_them(robot, watch):
     sim, client, joints = robot
     q0 = positions(watch, joints)
-    g, knots = inward_goal(watch, joints, q0, 0.0)
+    g, knots, _ = inward_goal(watch, joints, q0)
     handle = send(client, g)
     time.sleep(1.5)
     future = handle.cancel_goal_async()

@@ -68,6 +68,9 @@ ERR_DEGREE_RANGES = ("{what} reads joint angles in degrees (MJCF's default), but
                      'ranges look like radians: {joints}. Add <compiler angle="radian"/> if '
                      'you meant radians.')
 
+ERR_URDF_MESH_KIND = ('the mesh {value!r} is of a kind neither MuJoCo nor the converters read '
+                      '({kind!r}): give an STL, OBJ, Collada (.dae), PLY, glTF or OFF file')
+
 
 def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
     """
@@ -327,7 +330,13 @@ def _convert_urdf_meshes(root: ET.Element, found: list, reader: assets.Reader) -
     Convert the URDF's meshes MuJoCo cannot read (:mod:`.meshes`); point them at the STL.
 
     A converted visual without a colour of its own takes the mesh file's (Collada materials).
+    A file of a kind neither MuJoCo nor the converters read is refused (108), not compiled.
     """
+    readable = assets.MUJOCO_MESH_SUFFIXES + meshes.CONVERTED_SUFFIXES
+    for _, value, _ in found:
+        kind = Path(value).suffix.lower()
+        if kind not in readable:
+            raise UnsupportedAssetsError(ERR_URDF_MESH_KIND.format(value=value, kind=kind))
     todo = [(elem, value, stored) for elem, value, stored in found
             if meshes.needs_conversion(value, stored)]
     if not todo:

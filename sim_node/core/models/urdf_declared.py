@@ -54,11 +54,19 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> list:
                 log.warning('URDF sensor %r names link %r, which the model lacks: left out',
                             sensor.get('name'), link)
                 continue
-            text = _sensor(spec, body, sensor)
+            try:
+                text = _sensor(spec, body, sensor)
+            except ValueError as exc:  # MuJoCo refused a name or value: the robot still spawns
+                log.warning('URDF sensor %r on %r left out: %s', sensor.get('name'), link, exc)
+                continue
             if text:
                 done.append(text)
     for joint, interfaces in _interfaces(extensions).items():
-        text = _actuator(spec, joint, interfaces, limits.get(joint, {}))
+        try:
+            text = _actuator(spec, joint, interfaces, limits.get(joint, {}))
+        except ValueError as exc:
+            log.warning('URDF interfaces of joint %r left out: %s', joint, exc)
+            continue
         if text:
             done.append(text)
     return done
@@ -74,7 +82,7 @@ def _floats(text: Optional[str], n: int) -> Optional[list]:
 
 def _sensor(spec, body, sensor: ET.Element) -> str:
     kind = (sensor.get('type') or '').lower()
-    name = sensor.get('name') or f'{body.name}_{kind}'
+    name = _free_name(spec, sensor.get('name') or f'{body.name}_{kind}')
     pose = _floats(sensor.findtext('pose'), 6) or [0.0] * 6
     pos, quat = np.array(pose[:3]), _rpy_quat(*pose[3:])
     if kind in CAMERAS:
@@ -105,6 +113,23 @@ def _sensor(spec, body, sensor: ET.Element) -> str:
     log.warning('URDF sensor %r of type %r: not a kind this simulator makes (cameras, IMUs, '
                 'lasers); left out', name, kind)
     return ''
+
+
+def _free_name(spec, name: str) -> str:
+    """Return `name`, or `name_2`, `name_3`... if a sensor's element already takes it.
+
+    Gazebo tells sensors apart by link; URDFs reuse a name on one link (an RGB and a depth
+    sensor both called ``rgbd_frame_sensor``), which MuJoCo refuses.
+    """
+    def taken(n):
+        return (spec.camera(n) is not None or spec.site(f'{n}_imu') is not None
+                or spec.site(f'{n}_lidar') is not None
+                or spec.sensor(f'{n}_orientation') is not None)
+    out, k = name, 1
+    while taken(out):
+        k += 1
+        out = f'{name}_{k}'
+    return out
 
 
 def _number(el: ET.Element, path: str, default: float) -> float:
