@@ -203,6 +203,8 @@ def write_gym_autoload(python: Path) -> None:
 #: Debian packages of a headless OpenGL driver for the cameras: Mesa's EGL (software rendering
 #: through llvmpipe, no display or GPU needed).
 GL_PACKAGES = ['libegl1', 'libegl-mesa0', 'libgl1-mesa-dri']
+#: A virtual display for the viewer window's tests (and for a viewer on a machine without one).
+DISPLAY_PACKAGES = ['xvfb', 'libgl1', 'libglx-mesa0']
 
 
 def ensure_headless_gl() -> None:
@@ -211,19 +213,32 @@ def ensure_headless_gl() -> None:
     if ctypes.util.find_library('EGL') or ctypes.util.find_library('OSMesa'):
         say('headless OpenGL: present (libEGL or libOSMesa)')
         return
-    if os.geteuid() == 0 and shutil.which('apt-get'):
-        say(f'installing headless OpenGL for the cameras from Debian: {" ".join(GL_PACKAGES)}')
-        apt_env = dict(os.environ, DEBIAN_FRONTEND='noninteractive')
-        done = subprocess.run(['apt-get', 'install', '-y', '-q', '--no-install-recommends',
-                               *GL_PACKAGES], env=apt_env).returncode == 0
-        if not done:  # package lists may be missing on a fresh machine
-            subprocess.run(['apt-get', 'update', '-q'], env=apt_env)
-            done = subprocess.run(['apt-get', 'install', '-y', '-q', '--no-install-recommends',
-                                   *GL_PACKAGES], env=apt_env).returncode == 0
-        if done:
-            return
-    say('WARNING: no libEGL or libOSMesa: cameras will be off. Install them with: '
-        f'sudo apt-get install {" ".join(GL_PACKAGES)}')
+    if not apt_install(GL_PACKAGES, 'headless OpenGL for the cameras'):
+        say('WARNING: no libEGL or libOSMesa: cameras will be off. Install them with: '
+            f'sudo apt-get install {" ".join(GL_PACKAGES)}')
+
+
+def ensure_virtual_display() -> None:
+    """Install Xvfb where we may, for the viewer window's tests (else they skip)."""
+    if shutil.which('Xvfb'):
+        say('virtual display (Xvfb): present')
+        return
+    if not apt_install(DISPLAY_PACKAGES, "a virtual display for the viewer window's tests"):
+        say('note: no Xvfb: the viewer window tests will skip. Install it with: '
+            f'sudo apt-get install {" ".join(DISPLAY_PACKAGES)}')
+
+
+def apt_install(packages: list, why: str) -> bool:
+    """Install Debian packages when running as root with apt; True when they installed."""
+    if os.geteuid() != 0 or not shutil.which('apt-get'):
+        return False
+    say(f'installing {why} from Debian: {" ".join(packages)} (a minute or two)')
+    apt_env = dict(os.environ, DEBIAN_FRONTEND='noninteractive')
+    command = ['apt-get', 'install', '-y', '-q', '--no-install-recommends', *packages]
+    if subprocess.run(command, env=apt_env).returncode == 0:
+        return True
+    subprocess.run(['apt-get', 'update', '-q'], env=apt_env)  # lists missing on a new machine
+    return subprocess.run(command, env=apt_env).returncode == 0
 
 
 def write_env_file(lines: list) -> None:
@@ -235,6 +250,7 @@ def main() -> None:
     BUILD.mkdir(exist_ok=True)
     (BUILD / 'COLCON_IGNORE').touch()
     ensure_headless_gl()
+    ensure_virtual_display()
     pyver = f'python{sys.version_info.major}.{sys.version_info.minor}'
     if system_ros_sourced():
         say('using the sourced ROS 2 Jazzy installation (no venv)')

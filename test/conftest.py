@@ -331,3 +331,14 @@ def watcher(rclpy_context):
     w = Watcher()
     yield w
     w.close()
+
+
+@pytest.fixture(scope='module')
+def display():
+    """A virtual X display (Xvfb) for a module's windows; skipped where xvfb is missing."""
+    from sim_node.view.xvfb import VirtualDisplay
+    if not VirtualDisplay.available():
+        pytest.skip("needs a virtual display: Debian's xvfb (sudo apt-get install xvfb, or "
+                    'make setup as root)')
+    with VirtualDisplay() as d:
+        yield d

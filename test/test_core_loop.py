@@ -314,3 +314,27 @@ def test_locked_marks_poses_stale_even_when_its_block_raises():
             d.qpos[m.jnt_qposadr[m.body_jntadr[body]] + 2] += 0.5
             raise RuntimeError('a caller error after a change')
     assert w.get_entity_state('box_a').position[2] == pytest.approx(z0 + 0.5, abs=1e-12)
+
+
+def test_once_pause_returns_no_step_runs_and_a_reset_stays_at_zero(make_loop):
+    """
+    Pause, then reset: the world shows time 0, not a step the loop had already decided on.
+
+    The loop thread is slowed between deciding on a batch and taking the world lock, as a
+    loaded machine preempts it (the conformance suite saw a step land after pause and reset).
+    """
+    loop = make_loop(real_time_factor=0.0)
+    world = loop.world
+    decided = world.stepping.wait_for_callers
+
+    def preempted():
+        time.sleep(0.005)
+        decided()
+    world.stepping.wait_for_callers = preempted
+    for _ in range(30):
+        loop.play()
+        time.sleep(0.002)
+        loop.pause()
+        world.reset()
+        time.sleep(0.01)
+        assert world.time == 0.0 and world.step_count == 0

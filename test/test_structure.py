@@ -21,6 +21,8 @@ LIBRARY_PRIVATES = {
     '_exit': 'os._exit: leave at once when a callback still works at shutdown',
     '_add_info': "gymnasium.vector.VectorEnv's, for the vector env's infos",
     '_eval_dict': "xacro's table of $(eval) names, whose find() the isolated xacro replaces",
+    '_get_sim': "mujoco.viewer.Handle's passive Simulate: its Run flag and a model reload (the "
+                'only ways to a pause button and a new model without reopening the window)',
 }
 MAX_MODULE_LINES = 600
 MAX_NODE_LINES = 350

@@ -126,6 +126,17 @@ def drive_plugin(extensions: Sequence) -> Optional[dict]:
     return None
 
 
+def find_all(model, data, entities, spawned: dict) -> dict:
+    """Return entity name -> :class:`BaseSpec` for every entity with a mobile base."""
+    found = {}
+    for rec in entities:
+        spec = find(model, data, rec.name, rec.body_ids,
+                    getattr(spawned.get(rec.name), 'drive', None))
+        if spec is not None:
+            found[rec.name] = spec
+    return found
+
+
 def find(m: mujoco.MjModel, d: mujoco.MjData, entity: str, bodies: Sequence[int],
          plugin: Optional[dict] = None) -> Optional[BaseSpec]:
     """

@@ -86,12 +86,20 @@ class SimLoop:
     """
     Steps a world on its own thread.
 
-    Start with :meth:`start`, end with :meth:`stop`.
+    Start with :meth:`start`, end with :meth:`stop`. With ``viewer=True``, :meth:`start` opens
+    MuJoCo's viewer on the world (:attr:`window`, a :class:`~sim_node.view.window.Window`:
+    its pause, step and mouse act on this loop) and :meth:`stop` closes it.
     """
 
-    def __init__(self, world: World, config: Optional[WorldConfig] = None):
+    def __init__(self, world: World, config: Optional[WorldConfig] = None,
+                 viewer: bool = False):
         cfg = config or world.config
         self.world = world
+        self._viewer = bool(viewer)
+        self.window = None
+        if self._viewer:  # no display: say so now, not from start()
+            from ..view.window import check_display
+            check_display()
         self._rtf = float(cfg.real_time_factor)
         self._max_steps = int(cfg.max_steps)
         self._max_sim_time = float(cfg.max_sim_time)
@@ -105,6 +113,7 @@ class SimLoop:
         self._paused = bool(cfg.paused)
         self._stopping = False
         self._pending_steps = 0
+        self._in_batch = False  # the loop thread is running a batch it decided on
         self._steps_done_cv = threading.Condition(self._cv)
         self._stop_reason = ''
         self._failure = ''  # set when the loop caught an internal error: see recover()
@@ -133,8 +142,14 @@ class SimLoop:
         self._thread = threading.Thread(target=self._run, name='sim-loop', daemon=True)
         _RUNNING.add(self)
         self._thread.start()
+        if self._viewer and self.window is None:
+            from ..view.window import Window
+            self.window = Window(self)
 
     def stop(self, timeout: float = 2.0) -> None:
+        if self.window is not None:
+            self.window.close()
+            self.window = None
         with self._cv:
             self._stopping = True
             self._cv.notify_all()
@@ -149,11 +164,23 @@ class SimLoop:
     # ------------------------------------------------------------------ control
 
     def pause(self) -> None:
-        """Pause; a step request in progress ends (see :meth:`cancel_steps`)."""
+        """
+        Pause; a step request in progress ends (see :meth:`cancel_steps`).
+
+        When it returns no step runs any more: a batch already under way (at most about
+        :data:`MAX_BATCH_WALL_SEC`) has ended, so a reset or a state write that follows is what
+        a paused world shows. (Called inside :meth:`World.locked`, it cannot wait for that batch,
+        which needs the lock: the batch runs once the lock is let go.)
+        """
         with self._cv:
             self._cancel_steps_locked()
             self._paused = True
             self._cv.notify_all()
+            # Not on the loop's thread, nor under the world lock (the batch needs it).
+            if threading.get_ident() != getattr(self._thread, 'ident', None) \
+                    and not self.world.holds_lock():
+                while self._in_batch:
+                    self._cv.wait()
 
     def cancel_steps(self) -> None:
         """
@@ -433,6 +460,17 @@ class SimLoop:
                 n = min(n, self._steps_to_limit(clock))
             # A step request's last batch is shown by a snapshot before its caller hears.
             last_request_batch = stepping_request and self._pending_steps <= n
+            self._in_batch = True  # pause() waits for it: no step after pause() returned
+        try:
+            self._batch_of(n, clock, rtf, stepping_request, last_request_batch)
+        finally:
+            with self._cv:
+                self._in_batch = False
+                self._cv.notify_all()
+
+    def _batch_of(self, n: int, clock, rtf: float, stepping_request: bool,
+                  last_request_batch: bool) -> None:
+        """Run one batch of `n` steps decided by :meth:`_iterate`; hand out its snapshot."""
         self.world.stepping.wait_for_callers()
         t0 = time.perf_counter()
         try:

@@ -337,3 +337,31 @@ def _violation(joints: tuple, tol: Tolerance, dq: np.ndarray, dv: np.ndarray) ->
             return (f'violated by joint {joints[j]!r}: {label} error {abs(err[j]):.4g} over '
                     f'{lim[j]:.4g}')
     return ''
+
+
+class TrajectoryHandle:
+    """A trajectory a world follows: wait for it, read how it goes, cancel it."""
+
+    def __init__(self, world: 'World', entity: str, run):  # noqa: F821 (core.world)
+        self.world, self.entity, self.run = world, entity, run
+
+    @property
+    def status(self) -> Status:
+        """Return the latest judgement: desired and actual, and the outcome once decided."""
+        return self.run.tracker.status
+
+    @property
+    def trajectory(self) -> Trajectory:
+        return self.run.tracker.trajectory
+
+    def wait(self, timeout: Optional[float] = None) -> bool:
+        """Block until the trajectory has ended (True) or `timeout` wall seconds passed."""
+        return self.run.done.wait(timeout)
+
+    @property
+    def done(self) -> bool:
+        return self.run.done.is_set()
+
+    def cancel(self) -> None:
+        """End it now; the joints hold where they are (nothing if it has ended already)."""
+        self.world.cancel_trajectory(self)

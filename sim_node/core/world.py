@@ -31,6 +31,7 @@ from .models import assets, description, sources
 from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
                       RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
 from .stepping import ERR_STEPS, Stepping
+from .trajectory import TrajectoryHandle
 from .transaction import Transaction
 from .writes import Writes
 
@@ -412,14 +413,8 @@ class World:
         live = self._live
         if self._bases[0] != live.generation:
             live.kinematics_locked()
-            found = {}
-            for rec in live.index.entities:
-                spawned = live.design.spawned.get(rec.name)
-                spec = bases.find(live.model, live.data, rec.name, rec.body_ids,
-                                  getattr(spawned, 'drive', None))
-                if spec is not None:
-                    found[rec.name] = spec
-            self._bases = (live.generation, found)
+            self._bases = (live.generation, bases.find_all(
+                live.model, live.data, live.index.entities, live.design.spawned))
         return self._bases[1]
 
     def drive(self, entity: str, vx: float, vy: float = 0.0, wz: float = 0.0,
@@ -445,6 +440,34 @@ class World:
             if live.control.command_base(spec, vx, vy, wz, max(0.0, float(timeout)),
                                          live.index, live.model, live.data):
                 live.cached = None  # the controls changed: the last batch's state is stale
+
+    def push(self, body: str, force: Sequence[float], torque: Sequence[float] = (0, 0, 0)
+             ) -> None:
+        """
+        Push a body with a force (N, at its centre of mass) and a torque (N m), world axes.
+
+        The push holds from the next step until replaced (zeros release it) or a reset (a spawn
+        or delete keeps it): what a viewer's mouse drag applies (MuJoCo's ``xfrc_applied``).
+
+        :raises NotFoundError: no such body; :raises InvalidArgumentError: not 3 finite values.
+        """
+        wrench = np.concatenate([check_finite('force', force, 3),
+                                 check_finite('torque', torque, 3)])
+        live = self._live
+        with live.lock:
+            live.data.xfrc_applied[live.index.body(body)] = wrench
+
+    def view(self, **options) -> 'Window':  # noqa: F821 (sim_node.view, imported when used)
+        """
+        Open MuJoCo's viewer on this world: a window that follows it as you step it.
+
+        As the lab's ``C.view()``: ``window = world.view()``, step, ``window.close()``. Options
+        go to :class:`~sim_node.view.window.Window`.
+
+        :raises ViewerUnavailableError: no display (the message says how to get one).
+        """
+        from ..view.window import Window
+        return Window(self, **options)
 
     def set_gains(self, kp: float, kd: float) -> None:
         """PD gains for joints commanded without a matching actuator."""
@@ -569,31 +592,3 @@ class World:
     def set_mass(self, name: str, mass: float) -> None:
         """Total mass of an entity (kg); 0 welds a free one where it is (:mod:`.edits`)."""
         self._edits.set_mass(name, mass)
-
-
-class TrajectoryHandle:
-    """A trajectory a world follows: wait for it, read how it goes, cancel it."""
-
-    def __init__(self, world: World, entity: str, run):
-        self.world, self.entity, self.run = world, entity, run
-
-    @property
-    def status(self) -> trajectory.Status:
-        """Return the latest judgement: desired and actual, and the outcome once decided."""
-        return self.run.tracker.status
-
-    @property
-    def trajectory(self) -> trajectory.Trajectory:
-        return self.run.tracker.trajectory
-
-    def wait(self, timeout: Optional[float] = None) -> bool:
-        """Block until the trajectory has ended (True) or `timeout` wall seconds passed."""
-        return self.run.done.wait(timeout)
-
-    @property
-    def done(self) -> bool:
-        return self.run.done.is_set()
-
-    def cancel(self) -> None:
-        """End it now; the joints hold where they are (nothing if it has ended already)."""
-        self.world.cancel_trajectory(self)

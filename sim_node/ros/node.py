@@ -45,6 +45,8 @@ from ..core.models import resources
 from ..core.records import EFFORT, POSITION, VELOCITY
 from ..record.bag import Limits
 from ..session import Session
+from ..view import web
+from ..view.window import check_display, Window
 
 NODE_NAME = 'sim'
 #: How often the housekeeping timer runs: the `paused` parameter, log lines, /diagnostics.
@@ -75,6 +77,10 @@ class SimNode(Node):
         # leaves only resource_paths).
         self.readable = resources.Readable.of(params.string_list(self, 'resource_paths'),
                                               scenes_dir, p('builtin_resources'))
+        if p('viewer'):
+            check_display()  # no display: one line and exit status 2, before anything starts
+        self.window: Optional[Window] = None
+        self.web_view: Optional[web.WebView] = None
         self.session = Session()
         self.exit_code = 0  # main's exit status; 2 when another simulator had this name
         self._events = MutuallyExclusiveCallbackGroup()
@@ -165,6 +171,13 @@ class SimNode(Node):
                          self.bases.on_model):
             self.session.add_listener(listener)
         self.session.load_file(str(path), self.world_config())
+        if self.param('viewer'):
+            self.window = Window(self.session, on_closed=lambda: self.get_logger().info(
+                'the viewer window was closed; the simulation goes on'),
+                show_ui=self.param('viewer_ui'), camera=self.param('view_camera'))
+        if self.param('web_view'):
+            self.web_view = web.serve(self.session, self.param('web_view'),
+                                      self.param('web_view_host'), self.param('view_camera'))
         self.publisher.start()
         self._commands.start()
         self.perception.start()
@@ -185,6 +198,9 @@ class SimNode(Node):
 
     def shutdown(self) -> None:
         """Stop the loop, the session's thread and the publishers (before the executor)."""
+        for view in (self.window, self.web_view):
+            if view is not None:
+                view.close()
         self.session.close()
         self.publisher.stop()
         self.perception.stop()

@@ -167,6 +167,20 @@ def declare(node: Node, scenes_dir: str) -> None:
     node.declare_parameter('record_max_mb', 0.0, d(
         'end the recording after this many MiB in all; 0: no cap', fmin=0, fmax=1e9,
         read_only=True))
+    node.declare_parameter('viewer', False, d(
+        "open MuJoCo's viewer window on the live world (needs a display; closing it leaves the "
+        'node running)', read_only=True))
+    node.declare_parameter('viewer_ui', True, d(
+        "show the viewer's side panels (off: the scene fills the window)", read_only=True))
+    node.declare_parameter('view_camera', '', d(
+        "the viewer window and the browser view look through this camera of the world ('': "
+        "MuJoCo's free camera; the browser's from above, at an angle)", read_only=True))
+    node.declare_parameter('web_view', 0, d(
+        'serve the live world to a browser on this port (http://localhost:<port>); 0: off',
+        read_only=True, imin=0, imax=65535))
+    node.declare_parameter('web_view_host', '127.0.0.1', d(
+        'the address the browser view listens on; anything but loopback lets other machines '
+        'see the world (a warning says so)', read_only=True))
     node.declare_parameter('cmd_vel_timeout', 0.5, d(
         'simulated seconds without a cmd_vel after which a base stops, as diff_drive_controller '
         "does; 0: never (Gazebo's DiffDrive system)", fmin=0, fmax=1e6))

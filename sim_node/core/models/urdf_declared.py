@@ -116,7 +116,8 @@ def _sensor(spec, body, sensor: ET.Element) -> str:
 
 
 def _free_name(spec, name: str) -> str:
-    """Return `name`, or `name_2`, `name_3`... if a sensor's element already takes it.
+    """
+    Return `name`, or `name_2`, `name_3`... if a sensor's element already takes it.
 
     Gazebo tells sensors apart by link; URDFs reuse a name on one link (an RGB and a depth
     sensor both called ``rgbd_frame_sensor``), which MuJoCo refuses.

@@ -1,0 +1,94 @@
+"""
+The browser view, looked at in headless Chromium: from Python (a session) and from the node.
+
+The probe scene (a red ball right of a top-down camera's centre) served by ``viser`` on a free
+local port, the page loaded with no network, a screenshot's pixels read: the ball is drawn
+right of the centre, a box spawned while the page is open appears left of it. Skipped, with the
+package to install, where Debian's chromium is missing.
+"""
+
+from pathlib import Path
+import socket
+import time
+
+from conftest import wait_for
+import headless_browser
+from headless_browser import Browser, where
+import numpy as np
+import pytest
+from sim_node.core.config import WorldConfig
+from sim_node.core.models import sources
+from sim_node.session import Session
+from sim_node.view.web import WebView
+
+SCENES = Path(__file__).resolve().parent / 'scenes'
+GREEN_BOX = ('<mujoco><worldbody><body><freejoint/><geom type="box" size="0.2 0.2 0.2" '
+             'rgba="0 1 0 1"/></body></worldbody></mujoco>')
+
+needs_chromium = pytest.mark.skipif(
+    not headless_browser.executable(),
+    reason="needs Debian's chromium (sudo apt-get install chromium, or make setup as root)")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+def seen(browser, channel: int, side: float) -> bool:
+    n, x = where(browser.screenshot(), channel)
+    return n > 0 and x * side > 0.1
+
+
+@needs_chromium
+def test_a_session_in_the_browser_shows_the_ball_and_a_spawned_box():
+    with Session() as session:
+        session.load_file(str(SCENES / 'view_probe.xml'), WorldConfig(real_time_factor=1.0))
+        with WebView(session, port=free_port(), camera='top') as view, Browser() as browser:
+            assert view.url.startswith('http://127.0.0.1:')
+            browser.load(view.url)
+            assert wait_for(lambda: seen(browser, 0, +1.0), timeout=30)
+            assert where(browser.screenshot(), 1)[0] == 0
+            session.world.spawn('box', sources.primitive('box', [0.2, 0.2, 0.2],
+                                                         rgba=[0, 1, 0, 1]),
+                                position=[-0.8, 0.0, 0.3])
+            assert wait_for(lambda: seen(browser, 1, -1.0), timeout=15)
+            session.world.delete('box')
+            assert wait_for(lambda: where(browser.screenshot(), 1)[0] == 0, timeout=15)
+            # the bodies move on the page as in the world: the ball, moved further right
+            before = where(browser.screenshot(), 0)[1]
+            session.world.set_entity_state('ball', position=[1.4, 0.0, 0.2])
+            assert wait_for(lambda: where(browser.screenshot(), 0)[1] > before + 0.1,
+                            timeout=15)
+
+
+@needs_chromium
+def test_the_default_scene_in_the_browser_as_a_person_sees_it():
+    """Show the default scene and the overlay panel in a browser: the README's picture."""
+    from test_core_view import save_picture
+    default = Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml'
+    with Session() as session:
+        session.load_file(str(default), WorldConfig(real_time_factor=1.0))
+        with WebView(session, port=free_port()) as view, Browser() as browser:
+            browser.load(view.url)
+            assert wait_for(lambda: view.server.get_clients(), timeout=30)
+            time.sleep(3)  # the page draws what it was sent
+            img = browser.screenshot()
+            assert len(np.unique(img.reshape(-1, 3) // 16, axis=0)) > 50
+            save_picture(img, 'web_view.png')
+
+
+@needs_chromium
+def test_the_node_serves_the_live_world_to_a_browser(start_node, client):
+    port = free_port()
+    node = start_node(f'scene:={SCENES / "view_probe.xml"}', f'resource_paths:=["{SCENES}"]',
+                      f'web_view:={port}', 'view_camera:=top')
+    sim = client
+    wait_for(lambda: sim.state(), timeout=30)  # the node is up, and so is its page
+    with Browser() as browser:
+        browser.load(f'http://127.0.0.1:{port}')
+        assert wait_for(lambda: seen(browser, 0, +1.0), timeout=40), node.output()
+        sim.spawn('box', resource_string=GREEN_BOX, position=(-0.8, 0.0, 0.3))
+        assert wait_for(lambda: seen(browser, 1, -1.0), timeout=15)
+    assert f'the browser view is at http://127.0.0.1:{port}' in node.output()
