@@ -5,7 +5,8 @@ A session on the default scene at real_time_factor 0 (as fast as it goes), ROS-f
 steps per wall second without a window, then with MuJoCo's viewer open on it (synced at 30 Hz,
 drawn by Mesa's software renderer on a virtual display), each over bare ``mj_step`` of the same
 scene measured beside it in this process. Then what reloading the window's model costs when a
-spawn changes it.
+spawn changes it, and the same ratio with the browser view served (nobody watching, then a
+headless Chromium on this machine watching).
 
     make bench-viewer
 """
@@ -16,6 +17,7 @@ import time
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'benchmarks'))
+sys.path.insert(0, str(ROOT / 'test'))  # headless_browser: the tests' Chromium driver
 from verdict import summary, verdict  # noqa: E402, I100
 
 TARGET = 0.9  # steps per second with the viewer over without
@@ -32,6 +34,30 @@ def bare_steps_per_second() -> float:
         mujoco.mj_step(m, d, 500)
         n += 500
     return n / (time.perf_counter() - t0)
+
+
+def web_steps_per_second(browser: bool) -> float:
+    """Measure steps per second with the browser view served (and a browser watching)."""
+    from sim_node.core.config import WorldConfig
+    from sim_node.session import Session
+    from sim_node.view.web import WebView
+    with Session() as session:
+        session.load_file(str(SCENE), WorldConfig(real_time_factor=0.0))
+        with WebView(session, port=8765) as view:
+            page = None
+            if browser:
+                from headless_browser import Browser
+                page = Browser()
+                page.load(view.url)
+            try:
+                time.sleep(2.0)
+                world = session.world
+                s0, t0 = world.step_count, time.perf_counter()
+                time.sleep(SECONDS)
+                return (world.step_count - s0) / (time.perf_counter() - t0)
+            finally:
+                if page is not None:
+                    page.close()
 
 
 def loop_steps_per_second(viewer: bool) -> tuple:
@@ -89,6 +115,19 @@ def main() -> int:
                   f'{", ".join(f"{r * 1000:.0f} ms" for r in reloads)}')
         verdict(ratio >= TARGET, f'viewer on over off, steps/s (each over bare mj_step): '
                 f'{ratio:.2f}x (target >= {TARGET}x)')
+        bare = bare_steps_per_second()
+        served = web_steps_per_second(browser=False) / bare
+        print(f'browser view served, nobody watching: ratio {served:.3f}')
+        verdict(served / off >= TARGET, f'browser view served over off: {served / off:.2f}x '
+                f'(target >= {TARGET}x)')
+        import headless_browser
+        if headless_browser.executable():
+            bare = bare_steps_per_second()
+            watched = web_steps_per_second(browser=True) / bare
+            print(f'browser view, headless Chromium watching: ratio {watched:.3f}')
+            verdict(watched / off >= TARGET, f'browser view watched by a browser on this '
+                    f'machine over off: {watched / off:.2f}x (target >= {TARGET}x; the '
+                    "browser's software WebGL shares this machine's cores)")
         summary()
     finally:
         if display is not None:

@@ -1,10 +1,16 @@
 """A ball dropped from 1 m, then again with a higher default restitution: it bounces higher."""
 
+import sys
+
 from sim_node.simulation import Simulation
+
+VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
 
 
 def bounce_height(default_restitution=None) -> float:
     sim = Simulation.empty()
+    if VIEW:
+        sim.view()
     if default_restitution is not None:
         sim.set_defaults(restitution=default_restitution)
     sim.add_object('ball', 'sphere', [0.05], position=[0, 0, 1.05], mass=0.2)

@@ -1,10 +1,16 @@
 """A block without mass is static; it only falls once it has mass."""
 
+import sys
+
 from sim_node.simulation import Simulation
+
+VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
 
 
 def main() -> dict:
     sim = Simulation.empty()
+    if VIEW:
+        sim.view()
     sim.add_object('block', 'box', [0.05, 0.05, 0.05], position=[0, 0, 1.0], mass=0)
     sim.step(dt=1.0)
     z_without_mass = sim.get_state()['bodies']['block'][0][2]

@@ -6,16 +6,19 @@ loop.
 """
 
 import math
+import sys
 import time
 
 from sim_node.core.config import WorldConfig
 from sim_node.core.loop import SimLoop
 from sim_node.simulation import Simulation
 
+VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
+
 
 def main() -> dict:
     sim = Simulation.empty(real_time_factor=4.0)
-    loop = SimLoop(sim.world, WorldConfig(real_time_factor=4.0))
+    loop = SimLoop(sim.world, WorldConfig(real_time_factor=4.0), viewer=VIEW)
     loop.start()  # the world is running from here on
     try:
         sim.add_object('base', 'box', [0.1, 0.1, 0.1], position=[0, 0, 0.1], mass=0)

@@ -5,18 +5,21 @@ With a max-steps constraint of 10,000 steps: the loop stops by itself and says w
 """
 
 from pathlib import Path
+import sys
 import time
 
 from sim_node.core.config import WorldConfig
 from sim_node.core.loop import SimLoop
 from sim_node.core.world import World
 
+VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
+
 SCENE = Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml'
 
 
 def main() -> dict:
     world = World.from_file(str(SCENE), WorldConfig(real_time_factor=0, max_steps=10_000))
-    loop = SimLoop(world)
+    loop = SimLoop(world, viewer=VIEW)
     t0 = time.perf_counter()
     loop.start()
     while not loop.paused:

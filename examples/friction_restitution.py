@@ -1,15 +1,20 @@
 """Ten blocks of rising friction on a tilted table, ten balls of rising restitution."""
 
 from pathlib import Path
+import sys
 
 import numpy as np
 from sim_node.simulation import Simulation
+
+VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
 
 SCENE = Path(__file__).resolve().parent.parent / 'scenes' / 'friction_restitution.xml'
 
 
 def main() -> dict:
     sim = Simulation.from_file(str(SCENE))
+    if VIEW:
+        sim.view()
     start = sim.get_state()['bodies']
     peaks, landed = np.zeros(10), np.zeros(10, bool)
     for step in range(1000):  # 2 s

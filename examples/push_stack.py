@@ -6,9 +6,12 @@ first run exactly.
 """
 
 from pathlib import Path
+import sys
 
 import numpy as np
 from sim_node.simulation import Simulation
+
+VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
 
 SCENE = Path(__file__).resolve().parent.parent / 'scenes' / 'push_stack.xml'
 
@@ -24,6 +27,8 @@ def run(sim: Simulation, steps: int = 600) -> np.ndarray:
 
 def main() -> dict:
     sim = Simulation.from_file(str(SCENE))
+    if VIEW:
+        sim.view()
     first = run(sim)
     # Swap blocks 0 and 4 mid-run by overwriting their poses (no rebuild).
     st = sim.get_state()

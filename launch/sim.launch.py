@@ -3,7 +3,8 @@ Start the sim node and RViz showing its TF and markers: ``ros2 launch sim sim.la
 
 Arguments: ``scene`` (a scene name or file, default ``default``), ``real_time_factor``,
 ``paused``, ``rviz`` (``false`` for the node alone), ``entity`` (an entity with joints, e.g.
-``robot``, shown in RViz as a RobotModel from its ``robot_description``).
+``robot``, shown in RViz as a RobotModel from its ``robot_description``), ``viewer``
+(``true``: MuJoCo's viewer window), ``web_view`` (a port: the browser view).
 """
 
 from pathlib import Path
@@ -23,6 +24,8 @@ ARGUMENTS = {
     'paused': ('false', 'start paused'),
     'rviz': ('true', 'start RViz with rviz/sim.rviz (TF and markers)'),
     'entity': ('', 'an entity with joints (e.g. robot) to show in RViz as a RobotModel'),
+    'viewer': ('false', "open MuJoCo's viewer window on the live world"),
+    'web_view': ('0', 'serve the live world to a browser on this port (0: off)'),
 }
 #: Launch arguments that are not node parameters.
 LAUNCH_ONLY = ('rviz', 'entity')
@@ -49,6 +52,7 @@ def generate_launch_description():
         Node(package='sim', executable='node', name='sim', output='screen',
              parameters=[{'scene': config['scene'],
                           'real_time_factor': config['real_time_factor'],
-                          'paused': config['paused']}]),
+                          'paused': config['paused'], 'viewer': config['viewer'],
+                          'web_view': config['web_view']}]),
         OpaqueFunction(function=_rviz),
     ])

@@ -21,6 +21,7 @@ Rules worth knowing:
 """
 
 import math
+import time
 from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -32,6 +33,8 @@ from .core.models import sources
 from .core.records import RESET_STATE, RESET_TIME
 from .core.world import World
 
+#: With a window in real time, a long step is shown in slices of this much simulated time.
+FRAME_SEC = 1.0 / 60.0
 MODES = ('none', 'position', 'velocity', 'effort', 'kinematic')
 EMPTY_WORLD = ('<mujoco model="empty"><compiler angle="radian"/><option timestep="0.002"/>'
                '<worldbody><light pos="0 0 4" dir="0 0 -1" directional="true"/>'
@@ -44,6 +47,8 @@ class Simulation:
 
     def __init__(self, world: World):
         self.world = world
+        self.window = None  # MuJoCo's viewer on this world, once view() opened it
+        self._paced: Optional[tuple] = None  # (wall, simulated) time when pacing began
 
     @classmethod
     def from_file(cls, path: str, **config) -> 'Simulation':
@@ -147,13 +152,45 @@ class Simulation:
             raise InvalidArgumentError(f'unknown mode {mode!r}; use one of {MODES}')
         n = 1 if dt is None else self.steps_for(dt)
         commands = self._as_dict(ctrl)
-        if mode == 'kinematic':
-            self.world.step_kinematic(commands, n)
-            return self.world.time
-        if mode != 'none' and commands:
+        if mode != 'none' and mode != 'kinematic' and commands:
             self.world.command(list(commands), list(commands.values()), mode)
-        self.world.step(n)
+        # Watched in real time (view()): in slices of a display frame, each paced.
+        chunk = n if self._paced is None else max(1, round(FRAME_SEC / self.world.timestep))
+        while n > 0:
+            k = min(n, chunk)
+            if mode == 'kinematic':
+                self.world.step_kinematic(commands, k)
+            else:
+                self.world.step(k)
+            n -= k
+            self._pace()
         return self.world.time
+
+    def view(self, real_time: bool = True, **options):
+        """
+        Open MuJoCo's viewer on this simulation and return the window.
+
+        What the lab's ``C.view`` did. With `real_time`, :meth:`step` waits so that simulated time runs no faster than the
+        clock while the window is open, so a person sees the motion; closing the window ends
+        the wait. Options go to :class:`~sim_node.view.window.Window`.
+        """
+        self.window = self.world.view(**options)
+        self._paced = (time.monotonic(), self.world.time) if real_time else None
+        return self.window
+
+    def _pace(self) -> None:
+        if self._paced is None:
+            return
+        if not self.window.is_open:
+            self._paced = None
+            return
+        wall, sim = self._paced
+        now = time.monotonic()
+        ahead = (self.world.time - sim) - (now - wall)
+        if ahead > 0:
+            time.sleep(ahead)
+        elif ahead < -FRAME_SEC:  # the script was busy between steps: no burst to catch up
+            self._paced = (now, self.world.time)
 
     def steps_for(self, dt: float) -> int:
         """Return the number of timesteps ``step(dt=dt)`` runs: the nearest, halves rounded up."""

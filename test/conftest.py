@@ -335,7 +335,7 @@ def watcher(rclpy_context):
 
 @pytest.fixture(scope='module')
 def display():
-    """A virtual X display (Xvfb) for a module's windows; skipped where xvfb is missing."""
+    """Start a virtual X screen (Xvfb) for a module's windows; skip where xvfb is missing."""
     from sim_node.view.xvfb import VirtualDisplay
     if not VirtualDisplay.available():
         pytest.skip("needs a virtual display: Debian's xvfb (sudo apt-get install xvfb, or "

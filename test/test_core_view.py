@@ -159,3 +159,33 @@ def save_picture(img, name: str) -> None:
     if folder:
         from PIL import Image
         Image.fromarray(img).save(Path(folder) / name)
+
+
+def test_the_stepping_api_shows_its_world_in_real_time_until_the_window_closes(display):
+    """The lab's ``C.view()``: a person sees the motion, not a jump, then scripts run free."""
+    from sim_node.simulation import Simulation
+    sim = Simulation.empty()
+    sim.add_object('ball', 'sphere', [0.05], position=[0, 0, 1.0], mass=0.2)
+    window = sim.view(show_ui=False)
+    assert until(lambda: window.frames > 3)
+    t0 = time.monotonic()
+    sim.step(dt=0.5)
+    assert time.monotonic() - t0 >= 0.45  # simulated time no faster than the clock
+    window._handle.close()  # the user closes it
+    assert until(lambda: not window.is_open)
+    t0 = time.monotonic()
+    sim.step(dt=0.5)
+    assert time.monotonic() - t0 < 0.2
+    window.close()
+
+
+def test_a_tutorial_takes_view(display):
+    import subprocess
+    import sys
+    example = Path(__file__).resolve().parent.parent / 'examples' / 'block_gets_mass.py'
+    t0 = time.monotonic()
+    out = subprocess.run([sys.executable, str(example), '--view'], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert 'after 1 s without mass' in out.stdout
+    assert time.monotonic() - t0 >= 2.0  # its 2 simulated seconds, watched in real time

@@ -67,3 +67,22 @@ class RateMeter:
         if t1 - t0 < 0.2:
             return '-'
         return f'{(s1 - s0) / (t1 - t0):.2f}x'
+
+
+def framing(m, d) -> tuple:
+    """
+    Return ``(lookat, distance, azimuth, elevation)`` of a camera that frames the world.
+
+    Everything but planes (an infinite floor would frame nothing), seen from the front left
+    and above, as a person first wants to see a scene.
+    """
+    import numpy as np
+    keep = m.geom_type != 0  # mjGEOM_PLANE
+    if not keep.any():
+        return np.zeros(3), 5.0, 135.0, -25.0
+    centres, radii = d.geom_xpos[keep], m.geom_rbound[keep]
+    lo = (centres - radii[:, None]).min(axis=0)
+    hi = (centres + radii[:, None]).max(axis=0)
+    lookat = (lo + hi) / 2
+    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.5)
+    return lookat, 2.2 * radius, 135.0, -25.0

@@ -24,10 +24,11 @@ import os
 import threading
 import time
 from typing import Callable, Optional
+import weakref
 
 import mujoco
 
-from .source import RateMeter, Source
+from .source import framing, RateMeter, Source
 from ..core.errors import SimError
 
 log = logging.getLogger(__name__)
@@ -61,6 +62,15 @@ def check_display() -> None:
             why=f'the display {os.environ.get("DISPLAY", "")!r} cannot be opened'))
 
 
+_open: 'weakref.WeakSet[Window]' = weakref.WeakSet()
+
+
+def close_all() -> None:
+    """Close every window this process opened (before its display goes away)."""
+    for window in list(_open):
+        window.close()
+
+
 class Window:
     """
     MuJoCo's viewer on a session, a loop or a world (see the module docstring).
@@ -76,6 +86,10 @@ class Window:
     def __init__(self, target, on_closed: Optional[Callable[[], None]] = None,
                  fps: float = FPS, show_ui: bool = True, camera: str = ''):
         check_display()
+        # Mesa's software renderer (no GPU) draws on every core by default, taking the
+        # physics' core on a small machine: one thread is enough for a window (set it to
+        # override; a GPU ignores it).
+        os.environ.setdefault('LP_NUM_THREADS', '1')
         self._camera = camera
         self._source = Source(target)
         self._on_closed = on_closed
@@ -94,6 +108,7 @@ class Window:
         self.reload_seconds: list = []
         self.frames = 0
         self._thread = threading.Thread(target=self._run, name='sim-viewer', daemon=True)
+        _open.add(self)
         self._thread.start()
 
     @property
@@ -106,6 +121,7 @@ class Window:
         self._thread.join(5.0)
         if self._handle is not None:
             self._handle.close()
+        _open.discard(self)
 
     def __enter__(self) -> 'Window':
         return self
@@ -152,7 +168,8 @@ class Window:
         self._release()
         model, generation = world.observe(lambda m, d, gen: (_copy_model(m), gen))
         data = mujoco.MjData(model)
-        if self._handle is None:
+        opened = self._handle is None
+        if opened:
             from mujoco import viewer  # here: it loads GLFW, which a node without one skips
             self._handle = viewer.launch_passive(
                 model, data, key_callback=self._on_key, show_left_ui=self._show_ui,
@@ -169,6 +186,10 @@ class Window:
         if cam >= 0:
             self._handle.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
             self._handle.cam.fixedcamid = cam
+        elif opened:  # the first model: frame it (later ones keep the user's camera)
+            free = self._handle.cam
+            lookat, free.distance, free.azimuth, free.elevation = world.read(framing)
+            free.lookat[:] = lookat
         self.reload_seconds.append(time.perf_counter() - started)
 
     def _copy(self, world) -> bool:

@@ -58,6 +58,8 @@ class VirtualDisplay:
         if self._proc is None:
             return
         import sys
+        if 'sim_node.view.window' in sys.modules:
+            sys.modules['sim_node.view.window'].close_all()
         if 'glfw' in sys.modules:
             # GLFW keeps its connection to the display after its windows close; with the
             # display gone, the next GLFW call (at exit, at the latest) kills the process.
