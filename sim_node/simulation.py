@@ -170,9 +170,9 @@ class Simulation:
         """
         Open MuJoCo's viewer on this simulation and return the window.
 
-        What the lab's ``C.view`` did. With `real_time`, :meth:`step` waits so that simulated time runs no faster than the
-        clock while the window is open, so a person sees the motion; closing the window ends
-        the wait. Options go to :class:`~sim_node.view.window.Window`.
+        What the lab's ``C.view`` did. With `real_time`, :meth:`step` waits so that simulated
+        time runs no faster than the clock while the window is open, so a person sees the
+        motion; closing the window ends the wait. Options go to :class:`~sim_node.view.window.Window`.
         """
         self.window = self.world.view(**options)
         self._paced = (time.monotonic(), self.world.time) if real_time else None
