@@ -172,7 +172,8 @@ class Simulation:
 
         What the lab's ``C.view`` did. With `real_time`, :meth:`step` waits so that simulated
         time runs no faster than the clock while the window is open, so a person sees the
-        motion; closing the window ends the wait. Options go to :class:`~sim_node.view.window.Window`.
+        motion; closing the window ends the wait. Options go to
+        :class:`~sim_node.view.window.Window`.
         """
         self.window = self.world.view(**options)
         self._paced = (time.monotonic(), self.world.time) if real_time else None
