@@ -204,7 +204,8 @@ def write_gym_autoload(python: Path) -> None:
 #: through llvmpipe, no display or GPU needed).
 GL_PACKAGES = ['libegl1', 'libegl-mesa0', 'libgl1-mesa-dri']
 #: A virtual display for the viewer window's tests (and for a viewer on a machine without one).
-DISPLAY_PACKAGES = ['xvfb', 'libgl1', 'libglx-mesa0']
+DISPLAY_PACKAGES = ['xvfb', 'libgl1', 'libglx-mesa0', 'libxrandr2', 'libxinerama1', 'libxcursor1',
+                    'libxi6']
 
 
 def ensure_headless_gl() -> None:
@@ -226,6 +227,22 @@ def ensure_virtual_display() -> None:
     if not apt_install(DISPLAY_PACKAGES, "a virtual display for the viewer window's tests"):
         say('note: no Xvfb: the viewer window tests will skip. Install it with: '
             f'sudo apt-get install {" ".join(DISPLAY_PACKAGES)}')
+
+
+#: A browser for the browser view's tests (headless, WebGL in software).
+BROWSER_PACKAGES = ['chromium']
+
+
+def ensure_browser() -> None:
+    """Install Chromium for the browser view's tests in CI (a large package: only on ask)."""
+    if shutil.which('chromium') or shutil.which('chromium-browser'):
+        say('headless browser (chromium): present')
+        return
+    if os.environ.get('CI') or os.environ.get('SIM_INSTALL_BROWSER'):
+        if apt_install(BROWSER_PACKAGES, "a headless browser for the browser view's tests"):
+            return
+    say("note: no chromium: the browser view's tests will skip. Install it with: sudo "
+        'apt-get install chromium (or SIM_INSTALL_BROWSER=1 make setup as root)')
 
 
 def apt_install(packages: list, why: str) -> bool:
@@ -251,6 +268,7 @@ def main() -> None:
     (BUILD / 'COLCON_IGNORE').touch()
     ensure_headless_gl()
     ensure_virtual_display()
+    ensure_browser()
     pyver = f'python{sys.version_info.major}.{sys.version_info.minor}'
     if system_ros_sourced():
         say('using the sourced ROS 2 Jazzy installation (no venv)')
