@@ -92,3 +92,35 @@ def test_the_node_serves_the_live_world_to_a_browser(start_node, client):
         sim.spawn('box', resource_string=GREEN_BOX, position=(-0.8, 0.0, 0.3))
         assert wait_for(lambda: seen(browser, 1, -1.0), timeout=15)
     assert f'the browser view is at http://127.0.0.1:{port}' in node.output()
+
+
+@needs_chromium
+def test_a_recorded_run_replays_into_the_browser(tmp_path):
+    """A node's bag (its markers and frames), played back with no ROS: the scene's boxes."""
+    import os
+    import subprocess
+    import sys
+    from conftest import NodeProcess
+    node = NodeProcess(f'record:={tmp_path / "run"}', 'record_topics:=["/tf*", "/markers"]')
+    try:
+        wait_for(lambda: list((tmp_path / 'run').glob('*/*.mcap')), timeout=30)
+        time.sleep(2.0)
+        node.interrupt()
+    finally:
+        node.close()
+    port = free_port()
+    replay = subprocess.Popen([sys.executable, '-m', 'sim_node.record.replay', '--web',
+                               str(port), '--hold', '60', str(tmp_path / 'run')],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              env=dict(os.environ))
+    try:
+        assert wait_for(lambda: replay.stdout.readline().startswith('replaying into'),
+                        timeout=30)
+        with Browser() as browser:
+            browser.load(f'http://127.0.0.1:{port}')
+            # the default scene's red and green boxes on the table, from the bag alone
+            assert wait_for(lambda: where(browser.screenshot(), 0)[0] > 0, timeout=30)
+            assert where(browser.screenshot(), 1)[0] > 0
+    finally:
+        replay.terminate()
+        replay.wait(10)

@@ -1,9 +1,12 @@
 """
-``python -m sim_node.record.replay [--wait S] <bag or folder>``: what a recording holds.
+``python -m sim_node.record.replay [--wait S] [--web PORT] <bag or folder>``: see a recording.
 
 Prints each bag's topics with their types, message counts and durability, its simulated
 duration and its first and last log times; with ``--echo TOPIC``, the first message of that
-topic too. For a user without ROS: ``ros2 bag play`` and Foxglove open the same bags.
+topic too. With ``--web PORT``, plays a node's recording into a browser page at
+http://localhost:PORT in its simulated time (:mod:`.playback`), then keeps the last picture for
+``--hold`` seconds (default: until Ctrl-C). For a user with ROS: ``ros2 bag play`` and Foxglove
+open the same bags.
 """
 
 import argparse
@@ -86,12 +89,34 @@ def main(argv=None) -> int:
     p.add_argument('--echo', default='', help='print the first message of this topic')
     p.add_argument('--wait', type=float, default=0.0,
                    help='seconds to wait for a bag to appear (a recording about to start)')
+    p.add_argument('--web', type=int, default=0,
+                   help='play it into a browser page on this port (0: only the summary)')
+    p.add_argument('--speed', type=float, default=1.0, help='playback speed (1: real time)')
+    p.add_argument('--hold', type=float, default=-1.0,
+                   help='seconds to keep the page after the end (default: until Ctrl-C)')
     args = p.parse_args(argv)
     deadline = time.monotonic() + args.wait
     while not any(f.stat().st_size for b in bags_in(args.path) for f in b.glob('*.mcap')) \
             and time.monotonic() < deadline:
         time.sleep(0.2)
-    print(summary(args.path, args.echo))
+    print(summary(args.path, args.echo), flush=True)
+    if args.web:
+        return _play(bags_in(args.path), args)
+    return 0
+
+
+def _play(bags: list, args) -> int:
+    from .playback import BagPlayer
+    player = BagPlayer(bags, port=args.web, speed=args.speed)
+    print(f'replaying into {player.url} (Ctrl-C ends)', flush=True)
+    try:
+        length = player.play()
+        print(f'replayed {length:.3f} s of simulated time', flush=True)
+        time.sleep(args.hold if args.hold >= 0 else 1e9)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        player.close()
     return 0
 
 

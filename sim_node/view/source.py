@@ -76,13 +76,25 @@ def framing(m, d) -> tuple:
     Everything but planes (an infinite floor would frame nothing), seen from the front left
     and above, as a person first wants to see a scene.
     """
-    import numpy as np
     keep = m.geom_type != 0  # mjGEOM_PLANE
-    if not keep.any():
+    return framing_of(d.geom_xpos[keep], m.geom_rbound[keep])
+
+
+def framing_of(centres, radii) -> tuple:
+    """Return :func:`framing`'s camera for balls at `centres` (n, 3) of `radii` (n,)."""
+    import numpy as np
+    if len(centres) == 0:
         return np.zeros(3), 5.0, 135.0, -25.0
-    centres, radii = d.geom_xpos[keep], m.geom_rbound[keep]
+    centres, radii = np.asarray(centres, dtype=float), np.asarray(radii, dtype=float)
     lo = (centres - radii[:, None]).min(axis=0)
     hi = (centres + radii[:, None]).max(axis=0)
-    lookat = (lo + hi) / 2
     radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.5)
-    return lookat, 2.2 * radius, 135.0, -25.0
+    return (lo + hi) / 2, 2.2 * radius, 135.0, -25.0
+
+
+def camera_position(lookat, distance: float, azimuth: float, elevation: float):
+    """Return where a camera with MuJoCo's free-camera angles (degrees) stands."""
+    import numpy as np
+    a, e = np.radians(azimuth), np.radians(elevation)
+    return np.asarray(lookat) - distance * np.array(
+        [np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])

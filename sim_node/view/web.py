@@ -21,7 +21,7 @@ from typing import Optional
 
 import numpy as np
 
-from .source import framing, RateMeter, Source
+from .source import camera_position, framing, RateMeter, Source
 from ..core.errors import SimError
 
 log = logging.getLogger(__name__)
@@ -133,10 +133,9 @@ class WebView:
         cam = self.server.initial_camera
         pose = world.read(lambda m, d: _camera_pose(m, d, self._camera))
         if pose is None:  # as the viewer window frames it
-            lookat, distance, azimuth, elevation = world.read(framing)
-            a, e = np.radians(azimuth), np.radians(elevation)
-            back = -np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-            cam.position, cam.look_at, cam.up = lookat + distance * back, lookat, (0, 0, 1)
+            lookat, *angles = world.read(framing)
+            cam.position, cam.look_at = camera_position(lookat, *angles), lookat
+            cam.up = (0, 0, 1)
             cam.fov = np.radians(45.0)  # MuJoCo's free camera's
             return
         position, forward, up, fovy = pose
