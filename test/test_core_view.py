@@ -40,6 +40,8 @@ def drawn(display, channel: int) -> tuple:
     """
     img = display.grab().astype(int)
     inside = np.nonzero(img.sum(axis=2) > 30)  # the window; the screen around it is black
+    if len(inside[0]) == 0:
+        return 0, None, 1.0  # no window (yet)
     x0, x1 = inside[1].min(), inside[1].max()
     aspect = (x1 - x0 + 1) / (inside[0].max() - inside[0].min() + 1)
     others = [c for c in range(3) if c != channel]

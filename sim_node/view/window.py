@@ -97,6 +97,7 @@ class Window:
         self._show_ui = bool(show_ui)
         self._stop = threading.Event()
         self._handle = None
+        self._ui_threads: set = set()
         self._shown: tuple = (None, -1)  # (world, generation) in the window
         self._model: Optional[mujoco.MjModel] = None
         self._data: Optional[mujoco.MjData] = None
@@ -118,9 +119,12 @@ class Window:
 
     def close(self) -> None:
         self._stop.set()
-        self._thread.join(5.0)
+        if threading.current_thread() is not self._thread:  # on_closed may call it
+            self._thread.join(5.0)
         if self._handle is not None:
             self._handle.close()
+            for thread in self._ui_threads:
+                thread.join(5.0)
         _open.discard(self)
 
     def __enter__(self) -> 'Window':
@@ -171,9 +175,14 @@ class Window:
         opened = self._handle is None
         if opened:
             from mujoco import viewer  # here: it loads GLFW, which a node without one skips
+            before = set(threading.enumerate())
             self._handle = viewer.launch_passive(
                 model, data, key_callback=self._on_key, show_left_ui=self._show_ui,
                 show_right_ui=self._show_ui)
+            # MuJoCo's render thread: close() waits for it, so that nothing tears GLFW
+            # down (a display that goes, the interpreter's exit) while it still draws.
+            self._ui_threads = {t for t in set(threading.enumerate()) - before
+                                if '_launch_internal' in t.name}
         else:
             sim = self._handle._get_sim()  # the passive viewer's own reload (no public API)
             if sim is None:
