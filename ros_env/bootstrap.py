@@ -205,7 +205,7 @@ def write_gym_autoload(python: Path) -> None:
 GL_PACKAGES = ['libegl1', 'libegl-mesa0', 'libgl1-mesa-dri']
 #: A virtual display for the viewer window's tests (and for a viewer on a machine without one).
 DISPLAY_PACKAGES = ['xvfb', 'libgl1', 'libglx-mesa0', 'libxrandr2', 'libxinerama1', 'libxcursor1',
-                    'libxi6']
+                    'libxi6', 'xdotool']
 
 
 def ensure_headless_gl() -> None:

@@ -191,3 +191,52 @@ def test_a_tutorial_takes_view(display):
     assert out.returncode == 0, out.stderr[-2000:]
     assert 'after 1 s without mass' in out.stdout
     assert time.monotonic() - t0 >= 2.0  # its 2 simulated seconds, watched in real time
+
+
+def test_keys_and_mouse_in_the_window_act_on_the_session(display):
+    """Space pauses and plays, the right arrow steps, a Ctrl right-drag pushes the ball."""
+    import shutil
+    import subprocess
+    if not shutil.which('xdotool'):
+        pytest.skip("needs Debian's xdotool to press keys and drag the mouse (make setup as "
+                    'root installs it)')
+
+    def xdo(*args):
+        return subprocess.run(['xdotool', *map(str, args)], check=True, capture_output=True,
+                              text=True).stdout
+    with Session() as session:
+        session.load_file(str(PROBE), WorldConfig(real_time_factor=1.0))
+        with Window(session, show_ui=False, camera='top') as window:
+            assert until(lambda: window.frames > 3)
+            wid = xdo('search', '--name', 'MuJoCo').split()[-1]
+            xdo('windowfocus', '--sync', wid)
+            xdo('key', 'space')
+            assert until(lambda: session.state == 'paused')
+            steps = session.world.step_count
+            xdo('key', 'Right')
+            assert until(lambda: session.world.step_count == steps + 1)
+            time.sleep(0.3)
+            assert session.world.step_count == steps + 1  # one step, and paused still
+            xdo('key', 'space')
+            assert until(lambda: session.state == 'playing')
+            # the ball is drawn right of the centre: double-click selects it, Ctrl and the
+            # right button drag it (MuJoCo's simulate's gestures)
+            _, x, aspect = drawn(display, 0)
+            w, h = 480 * aspect, 480
+            bx, by = int(w / 2 * (1 + x)), h // 2
+            xdo('mousemove', '--window', wid, bx, by)
+            xdo('click', '--repeat', '2', '--delay', '80', '1')
+            ball = session.world.read(lambda m, d: m.body('ball').id)
+            assert until(lambda: window._handle.perturb.select == ball)
+            xdo('keydown', 'ctrl')
+            xdo('mousedown', '3')
+            try:
+                for k in range(15):
+                    xdo('mousemove', '--window', wid, bx, by - 6 * k)
+                    time.sleep(0.03)
+                assert until(lambda: session.world.read(
+                    lambda m, d: np.abs(d.xfrc_applied[ball]).max()) > 1.0)
+            finally:
+                xdo('mouseup', '3')
+                xdo('keyup', 'ctrl')
+            assert until(lambda: not session.world.read(lambda m, d: d.xfrc_applied.any()))

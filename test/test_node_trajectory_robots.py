@@ -77,8 +77,14 @@ def robot(sim, watch, request):
               and 'slide' not in n][:7]  # the arm's seven joints, not the pusher's puck
 
     def at_rest() -> bool:
-        a, b = positions(watch, joints), (time.sleep(0.3), positions(watch, joints))[1]
-        return np.abs(a - b).max() < 1e-3
+        # Still over half a second of simulated time (a wall-clock pause proves nothing on a
+        # loaded host: joint_states may not have come at all), by the messages' own stamps.
+        time.sleep(0.1)
+        stamp, last = watch.history[-1]
+        before = [m for s, m in watch.history if s <= stamp - 0.5 and joints[0] in m]
+        if not before or joints[0] not in last:
+            return False
+        return max(abs(last[j][0] - before[-1][j][0]) for j in joints) < 1e-3
     wait_for(at_rest, timeout=20, interval=0.0)
     client = ActionClient(watch.node, FollowJointTrajectory, f'{name}/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=15)

@@ -12,8 +12,9 @@ the world.
 What the window does acts on the simulation through the world's own API, under its lock, like
 a joint command: a body dragged with Ctrl and the right (force) or left (torque) mouse button
 is pushed with the viewer's spring force (:meth:`World.push`), released when the mouse is;
-the space bar and the Pause/Run button pause and play the session or loop (and the window shows
-the pause that an API call or a service made); the right arrow steps a paused one by one step.
+the space bar pauses and plays the session or loop (the overlay shows the pause that an API
+call or a service made; the side panel's Pause/Run belongs to MuJoCo's passive viewer and does
+not reach the simulation); the right arrow steps a paused one by one step.
 An overlay (bottom left) shows the simulated time, the measured real-time factor, the state and
 the number of entities. Closing the window leaves the simulation running.
 """
@@ -35,8 +36,8 @@ log = logging.getLogger(__name__)
 
 #: How often the window is brought up to date from the world.
 FPS = 30.0
-#: GLFW's key codes for the keys the window reads itself (the space bar is MuJoCo's).
-KEY_RIGHT = 262
+#: GLFW's key codes of the keys the window acts on (its passive mode leaves them to us).
+KEY_SPACE, KEY_RIGHT = 32, 262
 
 ERR_NO_DISPLAY = ('the viewer needs a display, and {why}. Run it under a virtual one '
                   '(Debian package xvfb: xvfb-run -a make run ARGS="--ros-args -p '
@@ -101,7 +102,7 @@ class Window:
         self._shown: tuple = (None, -1)  # (world, generation) in the window
         self._model: Optional[mujoco.MjModel] = None
         self._data: Optional[mujoco.MjData] = None
-        self._run_shown: Optional[bool] = None  # the viewer's Run flag at the last frame
+        self._toggles_asked = 0  # space bar presses not yet acted on
         self._steps_asked = 0
         self._pushed: Optional[tuple] = None  # (world, body) the mouse is pushing
         self._rate = RateMeter()
@@ -217,16 +218,10 @@ class Window:
 
     def _act(self, world, loop) -> None:
         """Apply what the user did in the window; show the state and the overlay."""
-        sim = self._handle._get_sim()
-        if sim is None:
-            return
         if loop is not None:
-            # The viewer's Run flag cannot be set from Python: a change of it (space, the
-            # Run/Pause button) toggles the simulation, and the overlay shows which it is.
-            run = bool(sim.run)
-            if self._run_shown is not None and run != self._run_shown:
+            while self._toggles_asked > 0:  # the space bar: pause or play
+                self._toggles_asked -= 1
                 self._source.set_paused(not loop.paused)
-            self._run_shown = run
             while self._steps_asked > 0:
                 self._steps_asked -= 1
                 if loop.paused:
@@ -270,6 +265,8 @@ class Window:
         """Note a key pressed in the window (on MuJoCo's render thread: note it, no more)."""
         if key == KEY_RIGHT:
             self._steps_asked += 1
+        elif key == KEY_SPACE:
+            self._toggles_asked += 1
 
 
 def _copy_model(m: mujoco.MjModel) -> mujoco.MjModel:
