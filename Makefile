@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-vec bench-edits bench-storm snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -67,6 +67,9 @@ bench-bases: setup
 
 bench-viewer: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/viewer.py
+
+bench-record: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/recording.py
 
 # A PNG of a scene: make snapshot [SCENE=default] [OUT=snapshot.png] [ARGS='--camera overview']
 SCENE ?= default

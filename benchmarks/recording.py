@@ -1,0 +1,125 @@
+"""
+Recording: what writing the run into a bag costs the loop, and how much it writes.
+
+A node on the default scene at real_time_factor 0 (as fast as it goes): simulated seconds per
+wall second from /clock without recording, then with ``record`` (every topic but images), each
+measured twice, alternating, so that the machine's drift falls on both; then the same with the
+scene's one camera published, without and with ``record_cameras``. Each run's bag is weighed:
+bytes written per simulated second.
+
+    make bench-record
+"""
+
+import os
+from pathlib import Path
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / 'benchmarks'))
+from verdict import summary, verdict  # noqa: E402, I100
+
+TARGET = 0.95  # steps per second recording over not, default scene
+TARGET_CAMERA = 0.9  # the same with the camera published and recorded
+SECONDS = 5.0
+
+
+class Node:
+    """A node on the default scene, and /clock as this process hears it."""
+
+    def __init__(self, *params: str):
+        import rclpy
+        from rosgraph_msgs.msg import Clock
+        exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
+        args = [str(exe), '--ros-args', '-p', 'real_time_factor:=0.0']
+        for p in params:
+            args += ['-p', p]
+        self.proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+        if not rclpy.ok():
+            rclpy.init()
+        self.node = rclpy.create_node(f'bench_record_{os.getpid()}_{id(self)}')
+        self.clock: list = []
+        self.node.create_subscription(Clock, '/clock', lambda m: self.clock.append(
+            (time.perf_counter(), m.clock.sec + m.clock.nanosec * 1e-9)), 100)
+        self._stop = False
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+        deadline = time.monotonic() + 60
+        while not self.clock and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(1.5)
+
+    def _spin(self) -> None:
+        import rclpy
+        while not self._stop:
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+
+    def rate(self, seconds: float) -> float:
+        """Return simulated seconds per wall second over the next `seconds`."""
+        t0 = time.perf_counter()
+        time.sleep(seconds)
+        window = [(w, s) for w, s in list(self.clock) if w >= t0]
+        (w0, s0), (w1, s1) = window[0], window[-1]
+        return (s1 - s0) / (w1 - w0)
+
+    def close(self) -> float:
+        """Stop the node (SIGINT: the bag closes); return the last simulated time heard."""
+        self._stop = True
+        self.thread.join(2)
+        self.node.destroy_node()
+        self.proc.send_signal(2)
+        self.proc.wait(20)
+        return self.clock[-1][1] if self.clock else 0.0
+
+
+def measure(folder: Path, camera: bool, record: bool) -> tuple:
+    """Return (simulated s per wall s, bytes per simulated s or 0) of one node's run."""
+    params = [f'cameras:=[{"overview" if camera else "none"}]']
+    if record:
+        params += [f'record:={folder}', f'record_cameras:={str(camera).lower()}']
+    node = Node(*params)
+    try:
+        rate = node.rate(SECONDS)
+    finally:
+        end = node.close()
+    written = sum(f.stat().st_size for f in folder.rglob('*') if f.is_file()) if record else 0
+    return rate, (written / end if end > 0 else 0.0)
+
+
+def main() -> int:
+    import rclpy
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.setdefault('ROS_DOMAIN_ID', str(50 + os.getpid() % 50))
+    print(f'[record] the default scene at real_time_factor 0; {os.cpu_count()} cores')
+    results = {}
+    with tempfile.TemporaryDirectory(prefix='sim_bench_record_') as tmp:
+        for camera in (False, True):
+            for i, record in enumerate((False, True, False, True)):
+                folder = Path(tmp) / f'run_{camera}_{i}'
+                rate, per_s = measure(folder, camera, record)
+                results.setdefault((camera, record), []).append((rate, per_s))
+                print(f'  camera {"on " if camera else "off"} record {"on " if record else "off"}'
+                      f': {rate / 0.002:9.0f} steps/s'
+                      + (f', {per_s / 1e6:8.3f} MB per simulated s' if record else ''),
+                      flush=True)
+    rclpy.shutdown()
+
+    def mean(key, k=0):
+        return sum(r[k] for r in results[key]) / len(results[key])
+    plain = mean((False, True)) / mean((False, False))
+    camera = mean((True, True)) / mean((True, False))
+    print(f'bytes per simulated second: {mean((False, True), 1) / 1e3:.0f} kB without images, '
+          f'{mean((True, True), 1) / 1e6:.2f} MB with the camera')
+    verdict(plain >= TARGET, f'steps/s recording over not, default scene: {plain:.2f}x '
+            f'(target >= {TARGET}x)')
+    verdict(camera >= TARGET_CAMERA, f'steps/s recording over not, one camera recorded: '
+            f'{camera:.2f}x (target >= {TARGET_CAMERA}x)')
+    summary()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
