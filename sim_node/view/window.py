@@ -19,6 +19,7 @@ An overlay (bottom left) shows the simulated time, the measured real-time factor
 the number of entities. Closing the window leaves the simulation running.
 """
 
+import atexit
 import copy
 import logging
 import os
@@ -127,6 +128,7 @@ class Window:
             for thread in self._ui_threads:
                 thread.join(5.0)
         _open.discard(self)
+        atexit.unregister(self.close)
 
     def __enter__(self) -> 'Window':
         return self
@@ -184,6 +186,9 @@ class Window:
             # down (a display that goes, the interpreter's exit) while it still draws.
             self._ui_threads = {t for t in set(threading.enumerate()) - before
                                 if '_launch_internal' in t.name}
+            # At exit, before MuJoCo's own handlers (registered at its launch, so run after
+            # this one) terminate GLFW: a script that never closed its window ends cleanly.
+            atexit.register(self.close)
         else:
             sim = self._handle._get_sim()  # the passive viewer's own reload (no public API)
             if sim is None:

@@ -44,6 +44,15 @@ def server(rclpy_context):
     proc = NodeProcess(f'scene:={WORLD}', 'cmd_vel_timeout:=0.0', namespace=NS,
                        remaps=('vehicle/cmd_vel:=/cmd_vel',))
     node = rclpy.create_node('test_interfaces')
+    # Up and answering: a request sent the moment a service is discovered can be lost on a
+    # loaded host (the server's reader not yet matched), as with any DDS service.
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        try:
+            call(node, si.GetSimulationState, 'get_simulation_state', timeout=2.0)
+            break
+        except AssertionError:
+            continue
     yield node
     node.destroy_node()
     code, _ = proc.interrupt()
