@@ -11,24 +11,15 @@ world frame, each marker drawn in its frame, moved at the messages' simulated ti
 import time
 from typing import Optional
 
+from msg_adapters.markers import CUBE, CYLINDER, DELETEALL, SPHERE, TRIANGLE_LIST
 import numpy as np
 
-#: visualization_msgs/Marker types and actions drawn.
-CUBE, SPHERE, CYLINDER, TRIANGLE_LIST = 1, 2, 3, 11
-DELETE, DELETEALL = 2, 3
+from ..core import quat as quat_maths
+
+#: visualization_msgs/Marker's DELETE action (the node's markers write ADD and DELETEALL).
+DELETE = 2
 #: Most page updates per second of wall time.
 FPS = 30.0
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return _quat_mul(_quat_mul(q, np.array([0.0, *v])), q * np.array([1, -1, -1, -1]))[1:]
 
 
 class Frames:
@@ -53,7 +44,7 @@ class Frames:
             return np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
         parent, pos, quat = link
         ppos, pquat = self.in_world(parent, depth + 1)
-        return ppos + _rotate(pquat, pos), _quat_mul(pquat, quat)
+        return quat_maths.from_frame(ppos, pquat, pos, quat)
 
 
 def _colour(marker) -> tuple:
@@ -181,7 +172,7 @@ class BagPlayer:
                 continue  # planes (a floor would frame nothing)
             pos, quat = self.frames.in_world(marker.header.frame_id)
             p = marker.pose.position
-            centres.append(pos + _rotate(quat, np.array([p.x, p.y, p.z])))
+            centres.append(pos + quat_maths.rotate(quat, np.array([p.x, p.y, p.z])))
             radii.append(0.5 * float(np.linalg.norm([s.x, s.y, s.z])))
         lookat, *angles = framing_of(centres, radii)
         cam = self.server.initial_camera
