@@ -13,14 +13,13 @@ held (messages per wall second over the 50 asked).
 
 import os
 from pathlib import Path
-import subprocess
 import sys
-import threading
 import time
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'benchmarks'))
-from verdict import verdict  # noqa: E402, I100
+from clocked_node import ClockedNode  # noqa: E402, I100
+from verdict import verdict  # noqa: E402
 
 TARGET_RATIO = 0.95  # driven over idle, steps per second
 TARGET_ODOM = 0.9  # odometry messages per second over odom_rate_hz, at real_time_factor 1
@@ -42,28 +41,17 @@ def bare_steps_per_second(scene: Path) -> float:
     return n / (time.perf_counter() - t0)
 
 
-class Node:
+class Node(ClockedNode):
     """A node on the mobile scene, and a client that drives its rover."""
 
     def __init__(self, rtf: float):
-        import rclpy
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
-        from rosgraph_msgs.msg import Clock
-        exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
-        self.proc = subprocess.Popen([str(exe), '--ros-args', '-p', 'scene:=mobile', '-p',
-                                      f'real_time_factor:={rtf}', '-p', 'cameras:=[none]'],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-        if not rclpy.ok():
-            rclpy.init()
-        self.node = rclpy.create_node(f'bench_bases_{os.getpid()}')
-        self.clock, self.odom = [], []
-        self.node.create_subscription(
-            Clock, '/clock', lambda m: self.clock.append(
-                (time.perf_counter(), m.clock.sec + m.clock.nanosec * 1e-9)), 100)
+        from sensor_msgs.msg import JointState
+        super().__init__('scene:=mobile', f'real_time_factor:={rtf}', 'cameras:=[none]')
+        self.odom = []
         self.node.create_subscription(Odometry, 'rover/odom',
                                       lambda m: self.odom.append(time.perf_counter()), 100)
-        from sensor_msgs.msg import JointState
         self.pub = self.node.create_publisher(Twist, 'rover/cmd_vel', 10)
         self.twist = Twist()
         self.twist.linear.x, self.twist.angular.z = 0.3, 0.6  # circles: never meets a wall
@@ -72,40 +60,16 @@ class Node:
         self.joints = JointState(name=['left_wheel_joint', 'right_wheel_joint'],
                                  velocity=[WHEELS[0], WHEELS[1]])
         self.mode = ''  # 'joints', 'cmd_vel' or '' (idle)
-        self._stop = False
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-        deadline = time.monotonic() + 60
-        while not self.clock and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(1.0)
+        self._last = 0.0
+        self.start()
 
-    def _spin(self):
-        import rclpy
-        last = 0.0
-        while not self._stop:
-            rclpy.spin_once(self.node, timeout_sec=0.01)
-            if self.mode and time.perf_counter() - last > 0.05:
-                if self.mode == 'cmd_vel':
-                    self.pub.publish(self.twist)
-                else:
-                    self.joints_pub.publish(self.joints)
-                last = time.perf_counter()
-
-    def rate(self, seconds: float) -> float:
-        """Return simulated seconds per wall second over the next `seconds`."""
-        t0 = time.perf_counter()
-        time.sleep(seconds)
-        window = [(w, s) for w, s in list(self.clock) if w >= t0]
-        (w0, s0), (w1, s1) = window[0], window[-1]
-        return (s1 - s0) / (w1 - w0)
-
-    def close(self):
-        self._stop = True
-        self.thread.join(2)
-        self.node.destroy_node()
-        self.proc.terminate()
-        self.proc.wait(10)
+    def tick(self) -> None:
+        if self.mode and time.perf_counter() - self._last > 0.05:
+            if self.mode == 'cmd_vel':
+                self.pub.publish(self.twist)
+            else:
+                self.joints_pub.publish(self.joints)
+            self._last = time.perf_counter()
 
 
 def main() -> int:

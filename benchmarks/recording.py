@@ -12,67 +12,18 @@ bytes written per simulated second.
 
 import os
 from pathlib import Path
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'benchmarks'))
-from verdict import summary, verdict  # noqa: E402, I100
+from clocked_node import ClockedNode  # noqa: E402, I100
+from verdict import summary, verdict  # noqa: E402
 
 TARGET = 0.95  # steps per second recording over not, default scene
 TARGET_CAMERA = 0.9  # the same with the camera published and recorded
 SECONDS = 5.0
-
-
-class Node:
-    """A node on the default scene, and /clock as this process hears it."""
-
-    def __init__(self, *params: str):
-        import rclpy
-        from rosgraph_msgs.msg import Clock
-        exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'node'
-        args = [str(exe), '--ros-args', '-p', 'real_time_factor:=0.0']
-        for p in params:
-            args += ['-p', p]
-        self.proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-        if not rclpy.ok():
-            rclpy.init()
-        self.node = rclpy.create_node(f'bench_record_{os.getpid()}_{id(self)}')
-        self.clock: list = []
-        self.node.create_subscription(Clock, '/clock', lambda m: self.clock.append(
-            (time.perf_counter(), m.clock.sec + m.clock.nanosec * 1e-9)), 100)
-        self._stop = False
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-        deadline = time.monotonic() + 60
-        while not self.clock and time.monotonic() < deadline:
-            time.sleep(0.1)
-        time.sleep(1.5)
-
-    def _spin(self) -> None:
-        import rclpy
-        while not self._stop:
-            rclpy.spin_once(self.node, timeout_sec=0.01)
-
-    def rate(self, seconds: float) -> float:
-        """Return simulated seconds per wall second over the next `seconds`."""
-        t0 = time.perf_counter()
-        time.sleep(seconds)
-        window = [(w, s) for w, s in list(self.clock) if w >= t0]
-        (w0, s0), (w1, s1) = window[0], window[-1]
-        return (s1 - s0) / (w1 - w0)
-
-    def close(self) -> float:
-        """Stop the node (SIGINT: the bag closes); return the last simulated time heard."""
-        self._stop = True
-        self.thread.join(2)
-        self.node.destroy_node()
-        self.proc.send_signal(2)
-        self.proc.wait(20)
-        return self.clock[-1][1] if self.clock else 0.0
 
 
 def measure(folder: Path, camera: bool, record: bool) -> tuple:
@@ -81,7 +32,8 @@ def measure(folder: Path, camera: bool, record: bool) -> tuple:
     if record:
         params += [f'record:={folder}', f'record_cameras:={str(camera).lower()}']
     started = time.perf_counter()
-    node = Node(*params)
+    node = ClockedNode('real_time_factor:=0.0', *params)
+    node.start(settle=1.5)
     try:
         rate = node.rate(SECONDS)
     finally:
