@@ -62,12 +62,19 @@ ERR_ALREADY = 'already in that state'
 
 #: Freed heap goes back to the system every TRIM_PERIOD_SEC; while the model keeps changing, only
 #: once BUSY_TRIM_BYTES are free (a trim stalled every allocating thread for up to 66 ms under a
-#: storm of edits); once the model has stood still QUIET_SEC, whatever is free.
+#: storm of edits); once the model has stood still QUIET_SEC, once QUIET_TRIM_BYTES are. Not
+#: less: memory given back is faulted in again, a page at a time, by the next edit (a small
+#: robot's spawn took 2,600 page faults, 3-5 ms of its 20, after each trim of everything).
 TRIM_PERIOD_SEC = 2.0
 BUSY_TRIM_BYTES = 64 << 20
+QUIET_TRIM_BYTES = 16 << 20
 QUIET_SEC = 0.5
 #: How often the session's thread looks for a new world or model when nothing wakes it.
 WATCH_SEC = 0.05
+#: How long the session's thread lets an edit's caller have the process before it reacts to
+#: the new model: the listeners' work (Python, holding the interpreter's lock) delayed the
+#: spawn's answer by 4-5 ms, more than a fifth of a small robot's round trip.
+SETTLE_SEC = 0.01
 
 Listener = Callable[[Optional['Loaded'], Optional[Snapshot]], None]
 
@@ -356,8 +363,8 @@ class Session:
         if not behind:  # wait for a new model, a load or an unload
             if loaded is None:
                 self._wake.wait(WATCH_SEC)
-            else:
-                loaded.world.wait_new_model(key[1], WATCH_SEC)
+            elif loaded.world.wait_new_model(key[1], WATCH_SEC) != key[1]:
+                self._closing.wait(SETTLE_SEC)  # the editor answers its caller first
             self._wake.clear()
             self._maybe_trim(key[1])
             return
@@ -413,4 +420,5 @@ class _TrimPolicy:
         if now - self.trimmed >= TRIM_PERIOD_SEC or (quiet and self.owed):
             self.trimmed = now
             # Skipped while busy: owed, and made as soon as the model stands still.
-            self.owed = not release_free_memory(at_least=0 if quiet else BUSY_TRIM_BYTES)
+            self.owed = not release_free_memory(
+                at_least=QUIET_TRIM_BYTES if quiet else BUSY_TRIM_BYTES)

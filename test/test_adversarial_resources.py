@@ -92,6 +92,45 @@ def test_a_fifo_among_the_assets_is_refused_at_once(tmp_path, world):
     assert_intact(world, names)
 
 
+def test_links_and_dot_dots_are_judged_by_where_they_really_lead(tmp_path, world):
+    from sim_node.core.models.paths import real_path
+    root, outside = tmp_path / 'root', tmp_path / 'outside'
+    root.mkdir()
+    outside.mkdir()
+    corners = [(0, 0, 0), (.1, 0, 0), (0, .1, 0), (0, 0, .1)]
+    faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+    tetra = b'\0' * 80 + struct.pack('<I', 4) + b''.join(
+        struct.pack('<12fH', 0, 0, 0, *[c for i in f for c in corners[i]], 0) for f in faces)
+    (outside / 'secret.stl').write_bytes(tetra)
+    (root / 'part.stl').write_bytes(tetra)
+    (root / 'away.stl').symlink_to(outside / 'secret.stl')  # a link out of the root
+    (root / 'here.stl').symlink_to(root / 'part.stl')  # a link within it
+    (root / 'door').symlink_to(outside)  # a folder link out
+    os.mkfifo(root / 'pipe')
+    (root / 'loop').symlink_to(root / 'loop')
+    roots = [str(root)]
+
+    def mesh_model(name: str) -> str:
+        return (f'<mujoco><asset><mesh name="m" file="{name}"/></asset><worldbody><body '
+                f'name="b"><freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+
+    names = [e.name for e in world.entities()]
+    for escape in ('away.stl', 'door/secret.stl', '../outside/secret.stl',
+                   str(root / 'door' / '..' / 'outside' / 'secret.stl')):
+        (root / 'm.xml').write_text(mesh_model(escape))
+        refused(lambda: sources.from_file(str(root / 'm.xml'), allowed_roots=roots),
+                MissingAssetsError)
+    (root / 'm.xml').write_text(mesh_model('here.stl'))
+    world.spawn('linked', sources.from_file(str(root / 'm.xml'), allowed_roots=roots),
+                position=(2, 2, 1))
+    assert_intact(world, names + ['linked'])
+    # the same answer as os.path.realpath, for existing paths and every other kind
+    for path in (root / 'here.stl', root / 'away.stl', root / 'door' / 'secret.stl',
+                 root / 'door' / '..' / 'part.stl', root / 'part.stl' / '..', root / 'pipe',
+                 root / 'missing' / 'x.stl', root / 'loop', str(root) + '//part.stl', root):
+        assert real_path(str(path)) == os.path.realpath(path), path
+
+
 def test_includes_are_expanded_here_and_checked_like_any_file(tmp_path, world):
     (tmp_path / 'parts').mkdir()
     (tmp_path / 'parts' / 'body.xml').write_text(

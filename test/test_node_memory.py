@@ -90,6 +90,42 @@ def test_the_node_loads_its_fast_dds_profiles_only_where_the_user_set_none(given
         assert middleware.PROFILES.is_file()
 
 
+_FAULTS_PER_COPY = """
+import resource, sys
+import mujoco
+from sim_node.core import memory
+if sys.argv[1] == 'node':
+    memory.keep_large_blocks_mapped()
+spec = mujoco.MjSpec.from_file(sys.argv[2])
+model = spec.copy().compile()
+sky = spec.textures[0]  # baked to its pixels, as a world holds it (1.2 MB)
+w, h, n = (int(model.tex_width[0]), int(model.tex_height[0]), int(model.tex_nchannel[0]))
+sky.builtin = mujoco.mjtBuiltin.mjBUILTIN_NONE
+sky.width, sky.height, sky.nchannel = w, h, n
+sky.data = model.tex_data[:w * h * n].tobytes()
+for _ in range(5):
+    spec.copy()
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(50):
+    spec.copy()  # every edit copies the world's spec, and frees the copy
+print((resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / 50)
+"""
+
+
+@pytest.mark.parametrize('settings', ['glibc', 'node'])
+def test_copying_the_default_worlds_spec_faults_no_page_in_with_the_nodes_heap_settings(
+        settings):
+    # The node fixes glibc's thresholds (large blocks mapped apart, so that freed ones go
+    # back). Fixed too low, each copy of the sky texture (every edit makes two) was a fresh
+    # mapping, 289 pages faulted in one by one: 0.9 ms a copy instead of 0.06.
+    import subprocess
+    import sys
+    scene = Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml'
+    out = subprocess.run([sys.executable, '-c', _FAULTS_PER_COPY, settings, str(scene)],
+                         check=True, capture_output=True, text=True, timeout=120)
+    assert float(out.stdout.split()[-1]) < 10, f'page faults per copy: {out.stdout}'
+
+
 def test_a_storm_of_eight_spawning_and_deleting_clients_leaves_at_most_50_mib(warm):
     from sim_node.ros.client import SimClient
     node, client, before = warm

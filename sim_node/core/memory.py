@@ -8,8 +8,12 @@ import ctypes
 from typing import Optional
 
 #: Blocks this large or larger get a mapping of their own (glibc's M_MMAP_THRESHOLD, fixed).
-MMAP_THRESHOLD_BYTES = 1 << 20
-_M_MMAP_THRESHOLD = -3  # from glibc's malloc.h
+MMAP_THRESHOLD_BYTES = 4 << 20
+#: Free memory at the top of the heap is given back by free() only past this much (glibc's
+#: M_TRIM_THRESHOLD, fixed with the other); the session gives it back on its own schedule.
+TRIM_THRESHOLD_BYTES = 32 << 20
+_M_TRIM_THRESHOLD = -1  # from glibc's malloc.h
+_M_MMAP_THRESHOLD = -3
 
 
 class _MallInfo2(ctypes.Structure):
@@ -68,7 +72,13 @@ def keep_large_blocks_mapped() -> None:
 
     glibc raises its threshold after a large block is freed, so later ones land in the heap
     and stay there: six refused 10 MB names left the node 51-67 MiB larger, measured; with the
-    threshold fixed, 1 MiB.
+    threshold fixed, 1 MiB. Not lower: a mapping of its own costs a page fault per 4 kB on
+    every use, and the default scene's sky texture (1.2 MB) is copied with every edit's spec
+    and compiled into every model: at 1 MiB each copy took 0.9 ms instead of 0.06 ms. Fixing
+    one threshold fixes glibc's other (trim on free, 128 kB), which gave the heap's top back
+    and faulted it in again at each such copy (0.45 ms): it is set to
+    :data:`TRIM_THRESHOLD_BYTES`, and :func:`release_free_memory` gives the rest back.
     """
     if _LIBC is not None:
         _LIBC.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+        _LIBC.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES)

@@ -37,6 +37,7 @@ import defusedxml
 import defusedxml.ElementTree as SafeET
 import mujoco
 
+from .paths import inside_real_roots, real_path, real_roots
 from ..errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
                       UnsupportedFormatError)
 
@@ -109,18 +110,6 @@ def parse(text: str) -> ET.Element:
             raise ResourceParseError(ERR_DEPTH.format(limit=MAX_DEPTH))
         stack.extend((child, depth + 1) for child in elem)
     return root
-
-
-def inside_roots(path, roots: Sequence[str]) -> bool:
-    """
-    Return True if `path`, resolved, is one of `roots` or inside one.
-
-    ``..`` components and symbolic links are resolved first (``os.path.realpath``), so
-    ``meshes/../../scene/table.xml`` is judged by where it really is.
-    """
-    real = Path(os.path.realpath(path))
-    reals = [Path(os.path.realpath(r)) for r in roots]
-    return any(real == r or r in real.parents for r in reals)
 
 
 # ------------------------------------------------------------------------- the store
@@ -436,6 +425,7 @@ class Reader:
 
     def __init__(self, allowed_roots: Optional[Sequence[str]], budget: Budget):
         self.roots = allowed_roots
+        self._real_roots = None if allowed_roots is None else real_roots(allowed_roots)
         self.budget = budget
         self._total = 0
         #: The copies this reader returned, each held in the store until :meth:`settle`.
@@ -488,11 +478,11 @@ class Reader:
         limit = self.budget.max_file_bytes if limit is None else limit
         for path in candidates:
             try:
-                real = os.path.realpath(path)
+                real = real_path(path)
             except (OSError, ValueError):
                 continue
             # Judged before existence: a refusal says nothing about what exists outside.
-            if self.roots is not None and not inside_roots(real, self.roots):
+            if self._real_roots is not None and not inside_real_roots(real, self._real_roots):
                 raise MissingAssetsError(msg.get('outside') or ERR_OUTSIDE.format(value=value))
             try:
                 st = os.stat(real)

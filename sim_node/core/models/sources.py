@@ -19,7 +19,8 @@ import xml.etree.ElementTree as ET
 import mujoco
 
 from . import assets, meshes, urdf, xacro_files
-from .assets import inside_roots, Reader  # noqa: F401 (inside_roots: this module's too)
+from .assets import Reader
+from .paths import inside_roots  # noqa: F401 (this module's too)
 from .urdf import Prepared
 from ..config import WorldConfig
 from ..errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
