@@ -7,14 +7,14 @@ its ``<include>`` elements are expanded here (an included file's root may be ``<
 texture's ``fileright`` ...: every attribute whose name starts with ``file``) is resolved here,
 once: the name is resolved (``..`` and symbolic links included) and accepted only when the real
 file lies inside the allowed directories, is a regular file and stays within the size, face and
-pixel budgets. The file is then copied into the :class:`AssetStore`, a private folder named by
-content, and the attribute is rewritten to that copy's absolute path. MuJoCo reads nothing else.
+pixel budgets. The file is then copied into the :class:`AssetStore`, a private folder, named by
+the file's identity, and the attribute is rewritten to that copy's absolute path. MuJoCo reads nothing else.
 
 Why copies on disk and not ``MjSpec.from_string(text, assets=...)``: MuJoCo's mesh cache works
 for files (a second compile of a 58-mesh arm: 62 ms, against 225 ms from an asset dict), and a
 compile that reads files releases the GIL throughout, while one that reads an asset dict held
 it for 160-330 ms at a time (measured), stalling every other Python thread, the stepping loop
-included. Copies named by content also let MuJoCo's cache serve a second spawn of the same
+included. A copy per file identity also lets MuJoCo's cache serve a second spawn of the same
 robot, and the store remembers each checked file by (path, inode, size, mtime), so a second
 spawn reads and checks nothing again.
 """
@@ -128,41 +128,43 @@ class StoredFile:
 _SAFE_NAME = re.compile(r'[^A-Za-z0-9._-]')
 
 
-def strip_mtllib(data: bytes) -> bytes:
+def strip_mtllib(data: bytes) -> list:
     """
-    Return OBJ text without its ``mtllib`` lines (each emptied, its line break kept).
+    Return OBJ text without its ``mtllib`` lines (each emptied, its line break kept), in pieces.
 
     By plain searches for the word: a multi-line regular expression took 140 ms over a robot's
-    58 OBJ files (most of its spawn's reading).
+    58 OBJ files (most of its spawn's reading). The pieces are views of `data`, written one
+    after the other, never joined (a copy of the whole text). No line is joined to another,
+    so the faces are those of `data`.
     """
-    parts, start = [], 0
+    view, parts, start = memoryview(data), [], 0
     i = data.find(b'mtllib')
     while i >= 0:
         line = data.rfind(b'\n', 0, i) + 1
         after = data[i + 6:i + 7]
         if not data[line:i].strip(b' \t') and not (after.isalnum() or after == b'_'):
             end = data.find(b'\n', i)
-            parts.append(data[start:line])
+            parts.append(view[start:line])
             start = len(data) if end < 0 else end
         i = data.find(b'mtllib', i + 6)
-    parts.append(data[start:])
-    return b''.join(parts)
+    parts.append(view[start:])
+    return parts
 
 
 class AssetStore:
     """
-    Checked copies of model files in a private folder, named by content; thread-safe.
+    Checked copies of model files in a private folder, one per file identity; thread-safe.
 
     One per process (:func:`store`). Files are only ever added: a copy is immutable once
     written, so MuJoCo's own cache of processed meshes (keyed by file) stays right, and the
-    same content spawned twice is the same copy. The folder (mode 0700) is removed at exit.
+    same file spawned twice is the same copy. The folder (mode 0700) is removed at exit.
     """
 
     def __init__(self, folder: Optional[str] = None):
         self._folder = folder
         self._lock = threading.Lock()
         self._by_file: dict = {}  # (real path, dev, inode, size, mtime_ns) -> StoredFile
-        self._by_digest: dict = {}  # content digest -> StoredFile
+        self._digests: dict = {}  # copy path -> content digest (see digest)
         self._pending: dict = {}  # path -> models being read or spawned that use it
         self._kept: set = set()  # paths an entity or a world was made with
 
@@ -193,8 +195,7 @@ class AssetStore:
             if gone:
                 dead = set(gone)
                 self._by_file = {k: v for k, v in self._by_file.items() if v.path not in dead}
-                self._by_digest = {k: v for k, v in self._by_digest.items()
-                                   if v.path not in dead}
+                self._digests = {k: v for k, v in self._digests.items() if k not in dead}
         for path in gone:
             try:
                 os.unlink(path)
@@ -207,7 +208,7 @@ class AssetStore:
         with self._lock:
             folder, self._folder = self._folder, None
             self._by_file.clear()
-            self._by_digest.clear()
+            self._digests.clear()
         if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)
 
@@ -225,34 +226,49 @@ class AssetStore:
         with self._lock:
             return self._by_file.get(key)
 
-    def put(self, key: Optional[tuple], name: str, data: bytes) -> StoredFile:
+    def put(self, key: tuple, name: str, data: bytes) -> StoredFile:
         """
-        Store `data` (the bytes of a file called `name`) and return its copy.
+        Store `data` (the bytes of the file `name` whose identity is `key`) and return its copy.
+
+        Copies are named by the file's identity (path, device, inode, size, modification time),
+        not by their content: hashing every byte took a quarter of reading a robot's 50 MB of
+        meshes. A file changed since is another identity, so another copy (MuJoCo's mesh cache
+        never serves the old one); what is converted is named by content (:meth:`digest`).
 
         An OBJ's ``mtllib`` lines are left out of its copy: MuJoCo would open the material
         library beside it (a FIFO put there would block it forever), and draws none of it.
         """
-        if Path(name).suffix.lower() == '.obj':
-            data = strip_mtllib(data)
-        digest = hashlib.blake2b(data, digest_size=16).hexdigest()
         with self._lock:
-            found = self._by_digest.get(digest)
+            found = self._by_file.get(key)
+        if found is not None:
+            return found
+        suffix = Path(name).suffix.lower()
+        parts = strip_mtllib(data) if suffix == '.obj' else [data]
+        size = sum(len(p) for p in parts)
+        ident = hashlib.blake2b(repr(key).encode(), digest_size=16).hexdigest()
+        base = _SAFE_NAME.sub('_', Path(name).name)[-80:] or 'file'
+        path = os.path.join(self.folder, f'{ident}_{base}')
+        if not os.path.exists(path):
+            fd, tmp = tempfile.mkstemp(dir=self.folder)
+            with os.fdopen(fd, 'wb') as f:
+                f.writelines(parts)  # not joined: one copy of a 5 MB OBJ fewer
+            os.replace(tmp, path)  # atomic: MuJoCo never sees half a file
+        found = StoredFile(path, size, mesh_faces(suffix, data), image_pixels(data))
+        with self._lock:
+            return self._by_file.setdefault(key, found)
+
+    def digest(self, path: str) -> str:
+        """Return the content digest of the copy at `path` (read once; copies never change)."""
+        with self._lock:
+            found = self._digests.get(path)
         if found is None:
-            suffix = Path(name).suffix.lower()
-            found = StoredFile(path='', size=len(data), faces=mesh_faces(suffix, data),
-                               pixels=image_pixels(data))
-            base = _SAFE_NAME.sub('_', Path(name).name)[-80:] or 'file'
-            path = os.path.join(self.folder, f'{digest}_{base}')
-            if not os.path.exists(path):
-                fd, tmp = tempfile.mkstemp(dir=self.folder)
-                with os.fdopen(fd, 'wb') as f:
-                    f.write(data)
-                os.replace(tmp, path)  # atomic: MuJoCo never sees half a file
-            found = StoredFile(path, found.size, found.faces, found.pixels)
-        with self._lock:
-            self._by_digest.setdefault(digest, found)
-            if key is not None:
-                self._by_file[key] = found
+            h = hashlib.blake2b(digest_size=16)
+            with open(path, 'rb') as f:
+                for chunk in iter(lambda: f.read(1 << 20), b''):
+                    h.update(chunk)
+            found = h.hexdigest()
+            with self._lock:
+                self._digests[path] = found
         return found
 
 

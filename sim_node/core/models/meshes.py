@@ -123,7 +123,7 @@ def convert(items: Sequence[tuple], max_faces: int = MUJOCO_MAX_FACES) -> list:
     todo, first = [], {}  # one job per distinct content: a mesh many links use is one file
     folder = cache_dir()
     for k, (value, stored) in enumerate(items):
-        digest = Path(stored.path).name.split('_')[0]  # the store names copies by content
+        digest = assets.store().digest(stored.path)  # conversions are named by content
         key = (digest, max_faces)
         with _lock:
             found = _done.get(key)
