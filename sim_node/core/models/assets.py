@@ -8,7 +8,8 @@ texture's ``fileright`` ...: every attribute whose name starts with ``file``) is
 once: the name is resolved (``..`` and symbolic links included) and accepted only when the real
 file lies inside the allowed directories, is a regular file and stays within the size, face and
 pixel budgets. The file is then copied into the :class:`AssetStore`, a private folder, named by
-the file's identity, and the attribute is rewritten to that copy's absolute path. MuJoCo reads nothing else.
+the file's identity, and the attribute is rewritten to that copy's absolute path. MuJoCo reads
+nothing else.
 
 Why copies on disk and not ``MjSpec.from_string(text, assets=...)``: MuJoCo's mesh cache works
 for files (a second compile of a 58-mesh arm: 62 ms, against 225 ms from an asset dict), and a
