@@ -107,6 +107,19 @@ class Browser:
         data = base64.b64decode(self.call('Page.captureScreenshot', format='png')['data'])
         return np.asarray(Image.open(io.BytesIO(data)).convert('RGB'))
 
+    def drag(self, start: tuple, end: tuple, steps: int = 20) -> None:
+        """Drag with the left button held from `start` to `end` (page pixels), as a hand does."""
+        def mouse(kind: str, x: float, y: float, **more) -> None:
+            self.call('Input.dispatchMouseEvent', type=kind, x=x, y=y, button='left', **more)
+        mouse('mouseMoved', *start)
+        mouse('mousePressed', *start, clickCount=1, buttons=1)
+        for k in range(1, steps + 1):
+            f = k / steps
+            mouse('mouseMoved', start[0] + f * (end[0] - start[0]),
+                  start[1] + f * (end[1] - start[1]), buttons=1)
+            time.sleep(0.02)
+        mouse('mouseReleased', *end, clickCount=1)
+
     def save(self, path: Path) -> None:
         from PIL import Image
         Image.fromarray(self.screenshot()).save(path)

@@ -63,6 +63,34 @@ def test_a_session_in_the_browser_shows_the_ball_and_a_spawned_box():
                             timeout=15)
 
 
+def test_the_view_starts_and_stops_without_writing_to_standard_output(capfd):
+    with Session() as session:
+        session.load_file(str(SCENES / 'view_probe.xml'))
+        with WebView(session, port=free_port()) as view:
+            assert wait_for(lambda: view.rebuilds >= 1, timeout=10)
+    assert capfd.readouterr().out == ''  # a node's log, or a script's own output, stays its own
+
+
+@needs_chromium
+def test_a_view_a_person_turned_stays_turned_when_the_world_changes():
+    with Session() as session:
+        session.load_file(str(SCENES / 'view_probe.xml'), WorldConfig(real_time_factor=1.0))
+        with WebView(session, port=free_port(), camera='top') as view, Browser() as browser:
+            browser.load(view.url)
+            assert wait_for(lambda: seen(browser, 0, +1.0), timeout=30)
+            start = where(browser.screenshot(), 0)[1]
+            browser.drag((480, 300), (440, 300))  # orbit: the ball moves across the page
+            assert wait_for(lambda: abs(where(browser.screenshot(), 0)[1] - start) > 0.1,
+                            timeout=10)
+            time.sleep(1.0)  # the camera settles (camera-controls smooths its moves)
+            turned = where(browser.screenshot(), 0)[1]
+            session.world.spawn('box', sources.primitive('box', [0.1, 0.1, 0.1]),
+                                position=[0.0, -1.5, 0.1])
+            assert wait_for(lambda: view.rebuilds >= 2, timeout=10)
+            time.sleep(1.5)
+            assert where(browser.screenshot(), 0)[1] == pytest.approx(turned, abs=0.05)
+
+
 @needs_chromium
 def test_the_default_scene_in_the_browser_as_a_person_sees_it():
     """Show the default scene and the overlay panel in a browser: the README's picture."""

@@ -14,6 +14,8 @@ It listens on 127.0.0.1 unless told otherwise; another address lets other machin
 :func:`serve` warns about.
 """
 
+import contextlib
+import io
 import logging
 import threading
 import time
@@ -54,7 +56,8 @@ class WebView:
         if host not in LOOPBACK:
             log.warning('the browser view listens on %s: every machine that reaches this one '
                         'can watch the simulation', host)
-        self.server = viser.ViserServer(host=host, port=int(port), verbose=False)
+        with _quiet():
+            self.server = viser.ViserServer(host=host, port=int(port), verbose=False)
         self.port = int(self.server.get_port())
         self.url = f'http://{host if ":" not in host else f"[{host}]"}:{self.port}'
         self._panel = self.server.gui.add_markdown('loading...')
@@ -71,7 +74,8 @@ class WebView:
     def close(self) -> None:
         self._stop.set()
         self._thread.join(5.0)
-        self.server.stop()
+        with _quiet():
+            self.server.stop()
 
     def __enter__(self) -> 'WebView':
         return self
@@ -126,25 +130,30 @@ class WebView:
                     frame = scene.add_frame(f'{prefix}/b{geom.body}', show_axes=False)
                     self._frames[geom.body] = frame
                 _add_geom(scene, f'{prefix}/b{geom.body}/g{i}', geom)
+        new_world = world is not self._shown[0]
         self._shown = (world, snap.generation)
-        self._look(world)
+        self._look(world, new_world)
 
-    def _look(self, world) -> None:
-        cam = self.server.initial_camera
+    def _look(self, world, new_world: bool) -> None:
+        """
+        Aim the page's camera, for who connects from now on (and who watches, at a new world).
+
+        Browsers already watching are aimed only when the world itself is new: a spawn or a
+        delete leaves a view a person turned alone.
+        """
         pose = world.read(lambda m, d: _camera_pose(m, d, self._camera))
-        if pose is None:  # as the viewer window frames it
+        if pose is None:  # as the viewer window frames it, with MuJoCo's free camera's fovy
             lookat, *angles = world.read(framing)
-            cam.position, cam.look_at = camera_position(lookat, *angles), lookat
-            cam.up = (0, 0, 1)
-            cam.fov = np.radians(45.0)  # MuJoCo's free camera's
-            return
-        position, forward, up, fovy = pose
-        cam.position, cam.look_at, cam.up = position, position + forward, up
-        cam.fov = np.radians(fovy)
-        for client in self.server.get_clients().values():  # those already watching too
-            client.camera.position, client.camera.look_at = position, position + forward
+            position, look_at, up, fov = camera_position(lookat, *angles), lookat, (0, 0, 1), 45.0
+        else:
+            position, forward, up, fov = pose
+            look_at = position + forward
+        cam = self.server.initial_camera
+        cam.position, cam.look_at, cam.up, cam.fov = position, look_at, up, np.radians(fov)
+        for client in self.server.get_clients().values() if new_world else ():
+            client.camera.position, client.camera.look_at = position, look_at
             client.camera.up_direction = up
-            client.camera.fov = np.radians(fovy)
+            client.camera.fov = np.radians(fov)
 
     def _move(self, snap) -> None:
         moved = []
@@ -201,6 +210,16 @@ def _camera_pose(m, d, name: str) -> Optional[tuple]:
         return None
     rot = d.cam_xmat[cam].reshape(3, 3)  # columns: the camera's x, y (up), z (backwards)
     return d.cam_xpos[cam].copy(), -rot[:, 2].copy(), rot[:, 1].copy(), float(m.cam_fovy[cam])
+
+
+def _quiet():
+    """
+    Keep viser's banners (a boxed table at start, a line at stop) off standard output.
+
+    They are printed whatever ``verbose`` says (viser 1.1), in the middle of a node's log; the
+    view logs its own address instead (:func:`serve`).
+    """
+    return contextlib.redirect_stdout(io.StringIO())
 
 
 def serve(target, port: int, host: str = '127.0.0.1', camera: str = '') -> WebView:
