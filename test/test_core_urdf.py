@@ -139,6 +139,21 @@ def test_collada_meshes_spawn_in_metres_with_their_own_colour(world, tmp_path):
     assert visual[1] == pytest.approx([200 / 255, 30 / 255, 30 / 255, 1.0], abs=0.01)
 
 
+def test_one_collada_mesh_a_visual_and_a_collision_share_is_converted_once(world, tmp_path,
+                                                                          monkeypatch):
+    collada(tmp_path / 'part.dae')
+    jobs = []
+    run = meshes._POOL.run
+
+    def counted(batch):
+        jobs.extend(batch)
+        return run(batch)
+    monkeypatch.setattr(meshes._POOL, 'run', counted)
+    spawn_file(world, tmp_path, robot(link('base', mesh_part('visual', 'part.dae')
+                                           + mesh_part('collision', 'part.dae'))))
+    assert len(mesh_extents(world, 'r')) == 2 and len(jobs) <= 1  # none: an earlier run's
+
+
 def test_a_urdf_mesh_scale_applies_to_a_converted_mesh(world, tmp_path):
     collada(tmp_path / 'part.dae')
     spawn_file(world, tmp_path,

@@ -122,8 +122,10 @@ def convert(items: Sequence[tuple], max_faces: int = MUJOCO_MAX_FACES) -> list:
     out: list = [None] * len(items)
     todo, first = [], {}  # one job per distinct content: a mesh many links use is one file
     folder = cache_dir()
+    # conversions are named by content: a mesh many files (or runs) have is converted once
+    digests = [assets.store().digest(stored.path) for _, stored in items]
     for k, (value, stored) in enumerate(items):
-        digest = assets.store().digest(stored.path)  # conversions are named by content
+        digest = digests[k]
         key = (digest, max_faces)
         with _lock:
             found = _done.get(key)
@@ -158,9 +160,9 @@ def convert(items: Sequence[tuple], max_faces: int = MUJOCO_MAX_FACES) -> list:
         with _lock:
             _done[key] = converted
         out[k] = converted
-    for k, (value, stored) in enumerate(items):
+    for k in range(len(items)):
         if out[k] is None:
-            out[k] = out[first[(Path(stored.path).name.split('_')[0], max_faces)]]
+            out[k] = out[first[(digests[k], max_faces)]]
     return out
 
 
