@@ -139,8 +139,8 @@ def test_collada_meshes_spawn_in_metres_with_their_own_colour(world, tmp_path):
     assert visual[1] == pytest.approx([200 / 255, 30 / 255, 30 / 255, 1.0], abs=0.01)
 
 
-def test_one_collada_mesh_a_visual_and_a_collision_share_is_converted_once(world, tmp_path,
-                                                                          monkeypatch):
+def test_one_collada_mesh_a_visual_and_a_collision_share_is_converted_once(
+        world, tmp_path, monkeypatch):
     collada(tmp_path / 'part.dae')
     jobs = []
     run = meshes._POOL.run
