@@ -19,6 +19,7 @@ from sim_node.core.errors import (MissingAssetsError, NameInvalidError, Resource
 from sim_node.core.memory import release_free_memory
 from sim_node.core.models import sources
 from sim_node.core.world import World
+import trimesh
 
 BODY = '<worldbody><body name="b"><freejoint/><geom size=".05"/></body></worldbody>'
 
@@ -97,12 +98,9 @@ def test_links_and_dot_dots_are_judged_by_where_they_really_lead(tmp_path, world
     root, outside = tmp_path / 'root', tmp_path / 'outside'
     root.mkdir()
     outside.mkdir()
-    corners = [(0, 0, 0), (.1, 0, 0), (0, .1, 0), (0, 0, .1)]
-    faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
-    tetra = b'\0' * 80 + struct.pack('<I', 4) + b''.join(
-        struct.pack('<12fH', 0, 0, 0, *[c for i in f for c in corners[i]], 0) for f in faces)
-    (outside / 'secret.stl').write_bytes(tetra)
-    (root / 'part.stl').write_bytes(tetra)
+    box = trimesh.creation.box((0.1, 0.1, 0.1)).export(file_type='stl')  # binary STL
+    (outside / 'secret.stl').write_bytes(box)
+    (root / 'part.stl').write_bytes(box)
     (root / 'away.stl').symlink_to(outside / 'secret.stl')  # a link out of the root
     (root / 'here.stl').symlink_to(root / 'part.stl')  # a link within it
     (root / 'door').symlink_to(outside)  # a folder link out

@@ -9,6 +9,7 @@ from pathlib import Path
 import threading
 import time
 
+from conftest import DEFAULT_SCENE
 import pytest
 
 #: How long after the last request the node has had to give freed memory back (the node
@@ -120,8 +121,7 @@ def test_copying_the_default_worlds_spec_faults_no_page_in_with_the_nodes_heap_s
     # mapping, 289 pages faulted in one by one: 0.9 ms a copy instead of 0.06.
     import subprocess
     import sys
-    scene = Path(__file__).resolve().parent.parent / 'scenes' / 'default.xml'
-    out = subprocess.run([sys.executable, '-c', _FAULTS_PER_COPY, settings, str(scene)],
+    out = subprocess.run([sys.executable, '-c', _FAULTS_PER_COPY, settings, str(DEFAULT_SCENE)],
                          check=True, capture_output=True, text=True, timeout=120)
     assert float(out.stdout.split()[-1]) < 10, f'page faults per copy: {out.stdout}'
 

@@ -239,10 +239,6 @@ class AssetStore:
         An OBJ's ``mtllib`` lines are left out of its copy: MuJoCo would open the material
         library beside it (a FIFO put there would block it forever), and draws none of it.
         """
-        with self._lock:
-            found = self._by_file.get(key)
-        if found is not None:
-            return found
         suffix = Path(name).suffix.lower()
         parts = strip_mtllib(data) if suffix == '.obj' else [data]
         size = sum(len(p) for p in parts)
@@ -255,7 +251,7 @@ class AssetStore:
                 f.writelines(parts)  # not joined: one copy of a 5 MB OBJ fewer
             os.replace(tmp, path)  # atomic: MuJoCo never sees half a file
         found = StoredFile(path, size, mesh_faces(suffix, data), image_pixels(data))
-        with self._lock:
+        with self._lock:  # a reader that read the same file meanwhile gets the same copy
             return self._by_file.setdefault(key, found)
 
     def digest(self, path: str) -> str:
