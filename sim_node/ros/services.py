@@ -8,6 +8,7 @@ and answered as an internal error, never let out to stop the executor.
 """
 
 import threading
+import time
 import traceback
 from typing import Callable
 
@@ -34,6 +35,11 @@ from ..session import Loaded, Session
 MAX_RESOURCE_STRING_BYTES = 5_000_000
 #: Most steps simulate_steps runs between two looks for a cancel (a few ms of physics).
 SIMULATE_CHUNK_STEPS = 200
+#: Between a goal's last feedback and its result (s). rclpy's ActionClient takes a ready
+#: feedback message and a ready result in one pass and drops the goal's feedback once its result
+#: is in: without this pause a client whose executor is slow (a loaded host) sees one message
+#: of a goal, or none.
+SIMULATE_RESULT_SETTLE_SEC = 0.05
 QUIT_DELAY_SEC = 0.3  # after the QUITTING answer, before the process ends
 ERR_TOO_MANY_STEPS = ('{n} steps is more than one step_simulation request may take '
                       '(max_steps_per_request {limit}): use the simulate_steps action '
@@ -371,6 +377,7 @@ class Services:
             goal_handle.abort()
             result.result = convert.result_for(exc)
             return result
+        time.sleep(SIMULATE_RESULT_SETTLE_SEC)
         goal_handle.succeed()
         result.result = convert.ok()
         return result
