@@ -15,14 +15,14 @@ import subprocess
 import sys
 import time
 
-from conftest import DEFAULT_SCENE, ROOT
+from conftest import DEFAULT_SCENE, ROOT, wait_for
 import mujoco
 import numpy as np
 import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (CapacityError, FeatureUnsupportedError, MissingAssetsError,
                                   ResourceParseError, UnsupportedAssetsError)
-from sim_node.core.models import assets, meshes, resources, sources, urdf
+from sim_node.core.models import assets, meshes, resources, sources, urdf, xacro_files
 from sim_node.core.world import World
 import trimesh
 
@@ -452,6 +452,27 @@ def test_xacro_sees_an_empty_environment(tmp_path):
                        'nothing)"/></joint>')
     src = sources.from_file(str(path), allowed_roots=[str(tmp_path)])
     assert 'home_/nonexistent' in src.text
+
+
+def test_the_xacro_and_mesh_workers_run_below_the_nodes_priority(tmp_path):
+    # On two cores their work took the CPU from the node's stepping and /clock threads.
+    below = min(os.getpriority(os.PRIO_PROCESS, 0) + 10, 19)
+    niceness = ESCAPE.format(call="[U+'import'+U]('os').getpriority(0, 0)")
+    path = write_xacro(tmp_path, f'<link name="nice_{niceness}"/>')
+    assert f'nice_{below}' in xacro_files.expand([str(tmp_path)], path=str(path))
+    meshes.warm()
+
+    def worker_priorities():
+        found = []
+        for proc in Path('/proc').iterdir():
+            try:
+                parent = int((proc / 'stat').read_text().rsplit(')', 1)[1].split()[1])
+                if parent == os.getpid() and b'mesh_worker' in (proc / 'cmdline').read_bytes():
+                    found.append(os.getpriority(os.PRIO_PROCESS, int(proc.name)))
+            except (OSError, ValueError):
+                continue  # not a process, or gone
+        return found
+    assert wait_for(lambda: set(worker_priorities()) == {below}, timeout=30)
 
 
 def test_a_bad_xacro_argument_or_spawn_option_is_refused():

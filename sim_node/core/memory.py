@@ -5,6 +5,7 @@ No-ops where the C library is not glibc.
 """
 
 import ctypes
+import gc
 from typing import Optional
 
 #: Blocks this large or larger get a mapping of their own (glibc's M_MMAP_THRESHOLD, fixed).
@@ -82,3 +83,20 @@ def keep_large_blocks_mapped() -> None:
     if _LIBC is not None:
         _LIBC.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
         _LIBC.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES)
+
+
+def freeze_long_lived() -> int:
+    """
+    Leave the objects alive now out of every later garbage collection (``gc.freeze``).
+
+    For a process that has just started: its modules, classes and first world stay for its life.
+    Python's full collection walks every object it tracks with the GIL held: in the node (72,000
+    objects after start-up) one took 42 ms during a spawn, and /clock stood still for 47 ms.
+    Frozen, they are still freed when nothing refers to them; only a reference cycle among them
+    outlives its last use.
+
+    :returns: how many objects were frozen.
+    """
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()
