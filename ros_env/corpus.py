@@ -185,11 +185,12 @@ def write_own(folder: Path) -> Path:
     cart = folder / 'cart_description'
     (cart / 'meshes').mkdir(parents=True, exist_ok=True)
     (cart / 'urdf').mkdir(parents=True, exist_ok=True)
-    chassis = trimesh.creation.box((400.0, 300.0, 100.0))
-    chassis.visual.face_colors = (40, 90, 200, 255)
-    dae = trimesh.exchange.dae.export_collada(chassis).replace(
-        b'<up_axis>', b'<unit meter="0.001" name="millimeter"/><up_axis>')
-    _write(cart / 'meshes' / 'chassis.dae', dae)
+    if not (cart / 'meshes' / 'chassis.dae').is_file():  # once: each export has new ids and
+        chassis = trimesh.creation.box((400.0, 300.0, 100.0))  # times, a new mesh to a cache
+        chassis.visual.face_colors = (40, 90, 200, 255)
+        dae = trimesh.exchange.dae.export_collada(chassis).replace(
+            b'<up_axis>', b'<unit meter="0.001" name="millimeter"/><up_axis>')
+        _write(cart / 'meshes' / 'chassis.dae', dae)
     _write(cart / 'urdf' / 'cart.urdf', CART_URDF.encode())
     gripper = folder / 'gripper_description' / 'urdf'
     gripper.mkdir(parents=True, exist_ok=True)

@@ -201,6 +201,37 @@ def test_a_second_spawn_of_a_robot_converts_nothing(world, tmp_path, monkeypatch
     assert {'first', 'second'} <= {e.name for e in world.entities()}
 
 
+_READ_IN_A_NEW_PROCESS = """
+import os, sys
+from sim_node.core.models import sources
+opened = []  # for reading (an O_PATH open, to resolve the name, reads nothing)
+sys.addaudithook(lambda event, args: opened.append(args[0]) if event == 'open'
+                 and str(args[0]).endswith('part.dae') and not (args[2] or 0) & os.O_PATH
+                 else None)
+src = sources.from_file(sys.argv[1], allowed_roots=[sys.argv[2]])
+print(len(opened), src.spec.meshes[0].file)
+"""
+
+
+def test_a_new_process_takes_an_earlier_runs_conversion_without_reading_the_collada_file(
+        tmp_path):
+    collada(tmp_path / 'part.dae')
+    (tmp_path / 'r.urdf').write_text(robot(link('base', mesh_part('visual', 'part.dae'))))
+
+    def read() -> tuple:
+        out = subprocess.run([sys.executable, '-c', _READ_IN_A_NEW_PROCESS,
+                              str(tmp_path / 'r.urdf'), str(tmp_path)], check=True, text=True,
+                             capture_output=True, timeout=120,
+                             env={**os.environ, 'SIM_MESH_CACHE': str(tmp_path / 'cache')})
+        opened, mesh = out.stdout.split()
+        return int(opened), mesh
+    first, again = read(), read()
+    assert first[0] >= 1 and again == (0, first[1])
+    collada(tmp_path / 'part.dae', extents=(0.4, 0.1, 0.05))  # changed: read and converted
+    changed = read()
+    assert changed[0] >= 1 and changed[1] != first[1]
+
+
 # ----------------------------------------------------------------------------- inertia, root
 
 

@@ -52,6 +52,8 @@ _DIR_ATTRIBUTES = ('meshdir', 'texturedir', 'assetdir')
 _MESH_TAGS = ('mesh', 'skin', 'flexcomp')
 #: The mesh files MuJoCo decodes itself (a <mesh> may name another kind with content_type).
 MUJOCO_MESH_SUFFIXES = ('.stl', '.obj', '.msh')
+#: Mesh suffixes converted to STL whatever their content (:mod:`.meshes`).
+CONVERTED_SUFFIXES = ('.dae', '.ply', '.glb', '.gltf', '.off')
 _IMAGE_TAGS = ('texture', 'hfield')
 #: Root elements an included file may have (MuJoCo accepts both).
 INCLUDE_ROOTS = ('mujoco', 'mujocoinclude')
@@ -124,6 +126,11 @@ class StoredFile:
     size: int
     faces: Optional[int]  # meshes (STL, OBJ)
     pixels: Optional[int]  # PNG images
+    #: The identity of the file it is a copy of (path, device, inode, size, modification time).
+    source: Optional[tuple] = None
+    #: Its conversion (a ``meshes.Converted``), when one made in an earlier run is known by
+    #: `source`: then nothing was read or copied, and `path` is the file itself.
+    converted: Optional[object] = None
 
 
 _SAFE_NAME = re.compile(r'[^A-Za-z0-9._-]')
@@ -250,7 +257,7 @@ class AssetStore:
             with os.fdopen(fd, 'wb') as f:
                 f.writelines(parts)  # not joined: one copy of a 5 MB OBJ fewer
             os.replace(tmp, path)  # atomic: MuJoCo never sees half a file
-        found = StoredFile(path, size, mesh_faces(suffix, data), image_pixels(data))
+        found = StoredFile(path, size, mesh_faces(suffix, data), image_pixels(data), key)
         with self._lock:  # a reader that read the same file meanwhile gets the same copy
             return self._by_file.setdefault(key, found)
 
@@ -393,12 +400,18 @@ def package_folders(package: str, roots: Sequence[str]) -> list:
     path, as on a machine without ROS), then the package's share folder in the ament index.
     """
     out = [Path(r) / package for r in roots]
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        out.append(Path(get_package_share_directory(package)))
-    except (ImportError, LookupError, ValueError, OSError):
-        pass
-    return out
+    share = _SHARES.get(package)
+    if share is None:
+        try:
+            from ament_index_python.packages import get_package_share_directory
+            share = _SHARES.setdefault(package, Path(get_package_share_directory(package)))
+        except (ImportError, LookupError, ValueError, OSError):
+            return out  # not remembered: a package installed later is found then
+    return out + [share]
+
+
+#: Packages found in the ament index: their share folders (a lookup per mesh was 0.2 ms).
+_SHARES: dict = {}
 
 
 def _expand_includes(elem: ET.Element, base: Optional[Path], reader: 'Reader', depth: int,
@@ -450,6 +463,13 @@ class Reader:
         limit = self.budget.mesh_bytes if tag in _MESH_TAGS else self.budget.max_file_bytes
         real, st = self.resolve(value, candidates, limit=limit)
         key = (real, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+        if urdf_mesh and Path(value).suffix.lower() in CONVERTED_SUFFIXES:
+            from . import meshes
+            done = meshes.converted_before(value, key)
+            if done is not None:  # a Collada file converted in an earlier run: not read again
+                self._count(st.st_size)
+                return StoredFile(real, st.st_size, None, None, key, done)
+            meshes.warm()  # the converters start while the rest of the files are read
         stored = _STORE.cached(key)
         if stored is None:
             stored = _STORE.put(key, real, self._read_bytes(value, real, st, limit))

@@ -152,7 +152,7 @@ def _read_trimesh(data: bytes, kind: str):
 
 
 def main() -> None:
-    os.nice(NICE)  # the node's physics and publishers first, whatever this costs
+    os.nice(NICE)  # the physics of the node that asked goes first, from the imports on
     import numpy  # noqa: F401 (imported before the limits: they refuse opening modules' data)
     import collada_fast  # noqa: F401
     import trimesh  # noqa: F401
@@ -163,7 +163,6 @@ def main() -> None:
     except ImportError:
         pass  # said per file below
     _limit()
-    os.nice(5)  # the physics of the node that asked goes first
     for line in sys.stdin:
         try:
             item = json.loads(line)

@@ -292,9 +292,6 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     prepared = None
     try:
         if is_urdf:
-            if any(Path(m.get('filename', '')).suffix.lower() in meshes.CONVERTED_SUFFIXES
-                   for m in root.iter('mesh')):
-                meshes.warm()  # the converters start while the files are read
             prepared = urdf.prepare(root, max_bodies, fixed)
         found = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
                                budget, reader)
