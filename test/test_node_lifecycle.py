@@ -131,7 +131,7 @@ def test_a_second_simulator_in_the_same_namespace_refuses_to_start(start_node, c
     first = start_node()
     client.entities()  # the first is up and answering
     second = start_node()
-    assert second.proc.wait(30) == 2
+    assert second.proc.wait(45) == 2
     out = second.output()
     assert 'another simulator already runs' in out and '__ns:=' in out, out
     assert first.proc.poll() is None, first.output()  # the older one stays
@@ -140,6 +140,17 @@ def test_a_second_simulator_in_the_same_namespace_refuses_to_start(start_node, c
     import time
     time.sleep(3.0)
     assert third.proc.poll() is None, third.output()  # allowed: it runs
+
+
+def test_a_young_node_says_again_every_second_that_it_runs(start_node, watcher):
+    """A node that starts beside it hears it even if the latched message missed that node."""
+    from std_msgs.msg import String
+    heard = []  # a volatile reader: only what is said after it joined
+    watcher.node.create_subscription(String, '/_sim_instances', lambda m: heard.append(m.data),
+                                     10)
+    start_node()
+    wait_for(lambda: len(heard) >= 3, timeout=30)
+    assert len(set(heard)) == 1, heard
 
 
 def test_a_killed_test_run_leaves_no_node_running(tmp_path):

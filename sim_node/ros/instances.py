@@ -20,7 +20,10 @@ from std_msgs.msg import String
 
 from .qos import LATCHED_QOS
 
-DUPLICATE_WINDOW_SEC = 15.0
+DUPLICATE_WINDOW_SEC = 30.0
+#: During its window a node says it again this often: a node that starts beside it hears it
+#: even if the latched message missed it (a CI run once saw a second node hear nothing in 15 s).
+REANNOUNCE_SEC = 1.0
 ERR_SECOND_SIMULATOR = ('another simulator already runs in namespace {ns!r}: start '
                         'this one in a namespace of its own with a frame prefix (--ros-args -r '
                         '__ns:=/sim2 -p frame_prefix:=sim2/ -p publish_clock:=false, see the '
@@ -55,3 +58,10 @@ def announce(node: Node, callback_group, leave: Callable[[str], None], listen: b
             threading.Thread(target=leave, args=(why,), name='sim-leave', daemon=True).start()
     node.create_subscription(String, '_sim_instances', heard, LATCHED_QOS,
                              callback_group=callback_group)
+
+    def again() -> None:
+        if time.monotonic() > deadline or left.is_set():
+            timer.cancel()
+            return
+        pub.publish(String(data=me))
+    timer = node.create_timer(REANNOUNCE_SEC, again, callback_group=callback_group)
