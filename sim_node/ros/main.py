@@ -26,7 +26,7 @@ def main(args=None) -> int:
         executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         node.start()  # the loop thread starts here, not in __init__
-        memory.freeze_long_lived()  # full collections, now of what came after: ~1 ms
+        memory.freeze_long_lived()  # later full collections walk only what came after
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -249,9 +249,8 @@ class AssetStore:
         suffix = Path(name).suffix.lower()
         parts = strip_mtllib(data) if suffix == '.obj' else [data]
         size = sum(len(p) for p in parts)
-        ident = hashlib.blake2b(repr(key).encode(), digest_size=16).hexdigest()
         base = _SAFE_NAME.sub('_', Path(name).name)[-80:] or 'file'
-        path = os.path.join(self.folder, f'{ident}_{base}')
+        path = os.path.join(self.folder, f'{identity_name(key)}_{base}')
         if not os.path.exists(path):
             fd, tmp = tempfile.mkstemp(dir=self.folder)
             with os.fdopen(fd, 'wb') as f:
@@ -274,6 +273,11 @@ class AssetStore:
             with self._lock:
                 self._digests[path] = found
         return found
+
+
+def identity_name(key: tuple) -> str:
+    """Return a file name for a file identity (path, device, inode, size, modification time)."""
+    return hashlib.blake2b(repr(key).encode(), digest_size=16).hexdigest()
 
 
 #: The store's folder is ``<tmp>/sim_assets_<pid>_<random>``.
@@ -465,7 +469,7 @@ class Reader:
         key = (real, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
         if urdf_mesh and Path(value).suffix.lower() in CONVERTED_SUFFIXES:
             from . import meshes
-            done = meshes.converted_before(value, key)
+            done = meshes.converted_before(key)
             if done is not None:  # a Collada file converted in an earlier run: not read again
                 self._count(st.st_size)
                 return StoredFile(real, st.st_size, None, None, key, done)

@@ -18,7 +18,6 @@ cache keeps at most :data:`CACHE_BYTES`, oldest first out.
 """
 
 from dataclasses import dataclass
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -71,6 +70,7 @@ class Converted:
 
 _lock = threading.Lock()
 _done: dict = {}  # (source digest, max faces) -> Converted
+_sources: dict = {}  # file identity -> content digest, as the cache folder records it
 
 
 def needs_conversion(name: str, stored: assets.StoredFile, max_faces: int = MUJOCO_MAX_FACES
@@ -174,8 +174,7 @@ def convert(items: Sequence[tuple], max_faces: int = MUJOCO_MAX_FACES) -> list:
     return out
 
 
-def converted_before(name: str, source: tuple, max_faces: int = MUJOCO_MAX_FACES
-                     ) -> Optional[Converted]:
+def converted_before(source: tuple, max_faces: int = MUJOCO_MAX_FACES) -> Optional[Converted]:
     """
     Return the cached conversion of the file with identity `source`, or None.
 
@@ -185,14 +184,19 @@ def converted_before(name: str, source: tuple, max_faces: int = MUJOCO_MAX_FACES
     since has another identity (its size or modification time), so it is read and converted.
     """
     folder = cache_dir()
-    if folder is None or Path(name).suffix.lower() not in CONVERTED_SUFFIXES:
+    if folder is None:
         return None
-    try:
-        digest = (folder / _source_name(source)).read_text()
-    except (OSError, UnicodeDecodeError):
-        return None
-    if len(digest) != 32 or not all(c in '0123456789abcdef' for c in digest):
-        return None
+    with _lock:
+        digest = _sources.get(source)
+    if digest is None:  # first in this process: the cache folder's record
+        try:
+            digest = (folder / _source_name(source)).read_text()
+        except (OSError, UnicodeDecodeError):
+            return None
+        if len(digest) != 32 or not all(c in '0123456789abcdef' for c in digest):
+            return None
+        with _lock:
+            _sources[source] = digest
     key = (digest, max_faces)
     with _lock:
         found = _done.get(key)
@@ -205,12 +209,15 @@ def converted_before(name: str, source: tuple, max_faces: int = MUJOCO_MAX_FACES
 
 
 def _source_name(source: tuple) -> str:
-    ident = hashlib.blake2b(repr(source).encode(), digest_size=16).hexdigest()
-    return f'{ident}_v{_VERSION}.source'
+    return f'{assets.identity_name(source)}_v{_VERSION}.source'
 
 
 def _remember_source(folder: Path, source: tuple, digest: str) -> None:
     """Remember the content digest of the file with identity `source` (see converted_before)."""
+    with _lock:
+        if _sources.get(source) == digest:
+            return
+        _sources[source] = digest
     path = folder / _source_name(source)
     if path.exists():
         return
