@@ -10,7 +10,7 @@ import sys
 import time
 
 from sim_node.core.config import WorldConfig
-from sim_node.core.loop import SimLoop
+from sim_node.session import Session
 from sim_node.simulation import Simulation
 
 VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a display)
@@ -18,8 +18,12 @@ VIEW = '--view' in sys.argv  # MuJoCo's viewer on the world, in real time (a dis
 
 def main() -> dict:
     sim = Simulation.empty(real_time_factor=4.0)
-    loop = SimLoop(sim.world, WorldConfig(real_time_factor=4.0), viewer=VIEW)
-    loop.start()  # the world is running from here on
+    session = Session()
+    session.load(sim.world, config=WorldConfig(real_time_factor=4.0))  # running from here on
+    window = None
+    if VIEW:
+        from sim_node.view.window import Window
+        window = Window(session)
     try:
         sim.add_object('base', 'box', [0.1, 0.1, 0.1], position=[0, 0, 0.1], mass=0)
         time.sleep(0.1)
@@ -38,7 +42,9 @@ def main() -> dict:
             errors.append(abs(q - target))
         crate_z = sim.world.get_entity_state('crate').position[2]
     finally:
-        loop.stop()
+        if window is not None:
+            window.close()
+        session.close()
     entities = {e.name: e.category for e in sim.world.entities()}
     tail = errors[len(errors) // 2:]
     print(f'entities {entities}; crate rests at z = {crate_z:.3f} m; '

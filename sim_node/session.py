@@ -37,7 +37,7 @@ import time
 from typing import Callable, Iterator, NamedTuple, Optional
 
 from .core.config import WorldConfig
-from .core.errors import (AlreadyInStateError, IncorrectTransitionError, InvalidArgumentError,
+from .core.errors import (AlreadyInStateError, IncorrectStateError, IncorrectTransitionError,
                           NoWorldError, StateTransitionError)
 from .core.loop import SimLoop
 from .core.memory import release_free_memory
@@ -59,6 +59,8 @@ ERR_LOADING = 'a world is loading (LOADING_WORLD): ask again when load_world has
 ERR_NOT_REQUESTABLE = ('cannot set state {target!r}: ask for playing, paused or stopped (or '
                        'quit the simulator)')
 ERR_ALREADY = 'already in that state'
+ERR_HELD = ('this world is stepped by its owner (Session.hold), not by a loop: step it from '
+            'the script that holds it')
 
 #: Freed heap goes back to the system every TRIM_PERIOD_SEC; while the model keeps changing, only
 #: once BUSY_TRIM_BYTES are free (a trim stalled every allocating thread for up to 66 ms under a
@@ -80,10 +82,10 @@ Listener = Callable[[Optional['Loaded'], Optional[Snapshot]], None]
 
 
 class Loaded(NamedTuple):
-    """A loaded world, its loop, and where it came from."""
+    """A loaded world, its loop (None: its owner steps it, :meth:`Session.hold`), its origin."""
 
     world: World
-    loop: SimLoop
+    loop: Optional[SimLoop]
     name: str
     uri: str
 
@@ -134,7 +136,11 @@ class Session:
 
     @property
     def loop(self) -> SimLoop:
-        return self.require().loop
+        """Return the loaded world's loop; :raises IncorrectStateError: its owner steps it."""
+        loop = self.require().loop
+        if loop is None:
+            raise IncorrectStateError(ERR_HELD)
+        return loop
 
     def load(self, world: World, name: str = '', uri: str = '', stopped: bool = False,
              config: Optional[WorldConfig] = None) -> Loaded:
@@ -150,13 +156,30 @@ class Session:
         with self._lock:
             old, self._loaded = self._loaded, Loaded(world, loop, name, uri)
             self._stopped = stopped
-        if old is not None:
+        if old is not None and old.loop is not None:
             old.loop.stop()
         loop.start()
         self._wake.set()
         self._start_thread()
         log.info('world %r loaded from %s: %d entities, dt=%g s, %s', name, uri or '(text)',
                  len(world.entities()), world.timestep, self.state)
+        return self._loaded
+
+    def hold(self, world: World, name: str = '', uri: str = '') -> Loaded:
+        """
+        Make `world` the loaded one, stepped by its owner (a script, a Gym env): no loop.
+
+        The front-ends follow it as they follow a looped world (a window on a script's world);
+        its state is PLAYING, and pausing, playing, stepping or stopping it is refused
+        (:data:`ERR_HELD`): its owner decides. The old loop, if any, is stopped.
+        """
+        with self._lock:
+            old, self._loaded = self._loaded, Loaded(world, None, name, uri)
+            self._stopped = False
+        if old is not None and old.loop is not None:
+            old.loop.stop()
+        self._wake.set()
+        self._start_thread()
         return self._loaded
 
     def load_file(self, path: str, config: WorldConfig = WorldConfig(),
@@ -184,7 +207,8 @@ class Session:
             self._stopped = False
         if old is None:
             raise NoWorldError(ERR_NO_WORLD)
-        old.loop.stop()
+        if old.loop is not None:
+            old.loop.stop()
         self._wake.set()
         return old
 
@@ -192,7 +216,7 @@ class Session:
         """Stop the loop and the session's thread (a world stays loaded, not stepping)."""
         self._closing.set()
         loaded = self._loaded
-        if loaded is not None:
+        if loaded is not None and loaded.loop is not None:
             # Short: a spawn still compiling holds the world lock and the loop waits for it.
             loaded.loop.stop(timeout=0.5)
         thread = self._thread
@@ -210,6 +234,8 @@ class Session:
             loaded = self._loaded
             if loaded is None:
                 return NO_WORLD
+            if loaded.loop is None:  # its owner steps it
+                return PLAYING
             if self._stopped or loaded.loop.failure:
                 return STOPPED
             return PAUSED if loaded.loop.paused else PLAYING
@@ -217,7 +243,7 @@ class Session:
     def status_message(self) -> str:
         """Why the simulation stopped or paused by itself, or a word when it lags; else ''."""
         loaded = self._loaded
-        if loaded is None:
+        if loaded is None or loaded.loop is None:
             return ''
         status = loaded.loop.status()
         return status.stop_reason or status.lag
@@ -238,9 +264,9 @@ class Session:
         with self._lock:
             if self._loading:  # the standard: not until the world has loaded
                 raise IncorrectTransitionError(ERR_LOADING)
-            loaded = self.require()
-            loaded.loop.cancel_steps()
-            failure = loaded.loop.failure
+            loop = self.loop
+            loop.cancel_steps()
+            failure = loop.failure
             if self.state == target and not failure:  # STOPPED after a failure: reset
                 raise AlreadyInStateError(ERR_ALREADY)
             if failure and target != STOPPED:
@@ -251,13 +277,13 @@ class Session:
     def play(self) -> None:
         """Play (from STOPPED too); :raises IncorrectStateError: the loop failed."""
         with self._lock:
-            loop = self.require().loop
+            loop = self.loop
             loop.play()
             self._stopped = False
 
     def pause(self) -> None:
         with self._lock:
-            loop = self.require().loop
+            loop = self.loop
             loop.pause()
             self._stopped = False
 
@@ -265,7 +291,7 @@ class Session:
         """Stop: pause and reset everything (time, state, spawned); a failed loop recovers."""
         with self._lock:
             loaded = self.require()
-            loaded.loop.pause()
+            self.loop.pause()
             loaded.loop.cancel_steps()
         loaded.world.reset(RESET_ALL)
         loaded.loop.recover()
@@ -279,8 +305,7 @@ class Session:
 
         Returns the steps taken; raises as :meth:`SimLoop.step <sim_node.core.loop.SimLoop.step>`.
         """
-        loop = self.require().loop
-        done = loop.step(n, feedback=feedback)
+        done = self.loop.step(n, feedback=feedback)
         with self._lock:
             self._stopped = False  # no longer at the reset state
         return done
@@ -289,19 +314,15 @@ class Session:
         """Reset by scope bits (:meth:`World.reset`); a failed loop comes back, paused."""
         loaded = self.require()
         loaded.world.reset(scope)
-        loaded.loop.recover()
-        loaded.loop.refresh_snapshot()
+        if loaded.loop is not None:
+            loaded.loop.recover()
+            loaded.loop.refresh_snapshot()
 
     def changed(self) -> None:
         """Say the world was written outside the loop: consumers get a fresh snapshot now."""
         loaded = self._loaded
-        if loaded is not None:
+        if loaded is not None and loaded.loop is not None:
             loaded.loop.refresh_snapshot()
-
-    def set_real_time_factor(self, rtf: float) -> None:
-        if not rtf >= 0:
-            raise InvalidArgumentError(f'real_time_factor must be >= 0, got {rtf}')
-        self.require().loop.set_real_time_factor(rtf)
 
     # ---------------------------------------------------------------- listeners
 
@@ -319,8 +340,9 @@ class Session:
         self._start_thread()
 
     def remove_listener(self, listener: Listener) -> None:
+        """Stop calling `listener` (compared by equality: the same bound method detaches)."""
         with self._lock:
-            self._listeners = [r for r in self._listeners if r.listener is not listener]
+            self._listeners = [r for r in self._listeners if r.listener != listener]
 
     def sync(self, timeout: float = 10.0) -> bool:
         """Wait until every listener has seen the model that is current now; False on timeout."""
@@ -369,11 +391,14 @@ class Session:
             self._maybe_trim(key[1])
             return
         snap = None
-        if loaded is not None:
+        if loaded is not None and loaded.loop is not None:
             # The consumers of snapshots (the publishers) see the new model now, not at the
             # next batch of a paused loop.
             loaded.loop.refresh_snapshot()
             snap = loaded.loop.latest_snapshot()
+        elif loaded is not None:
+            snap = loaded.world.snapshot()
+        if snap is not None:
             key = (loaded.world, snap.info.generation)
         for registered in behind:
             try:

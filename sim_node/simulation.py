@@ -48,6 +48,7 @@ class Simulation:
     def __init__(self, world: World):
         self.world = world
         self.window = None  # MuJoCo's viewer on this world, once view() opened it
+        self._viewed = None  # the Session that holds this world for the window
         self._paced: Optional[tuple] = None  # (wall, simulated) time when pacing began
 
     @classmethod
@@ -175,7 +176,13 @@ class Simulation:
         motion; closing the window ends the wait. Options go to
         :class:`~sim_node.view.window.Window`.
         """
-        self.window = self.world.view(**options)
+        from .session import Session  # above the core: a window attaches from here
+        from .view.window import Window
+        if self._viewed is not None:
+            self._viewed.close()
+        self._viewed = Session(trim_memory=False)
+        self._viewed.hold(self.world)
+        self.window = Window(self._viewed, **options)
         self._paced = (time.monotonic(), self.world.time) if real_time else None
         return self.window
 
@@ -184,6 +191,7 @@ class Simulation:
             return
         if not self.window.is_open:
             self._paced = None
+            self._viewed.close()
             return
         wall, sim = self._paced
         now = time.monotonic()

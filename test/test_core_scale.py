@@ -136,12 +136,12 @@ def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping
 @pytest.mark.parametrize('edit', ['add_body', 'set_default_contact', 'delete'])
 def test_other_edits_compile_outside_the_world_lock_too(slow_source, edit):
     """With MuJoCo's mesh cache off, every compile of this world takes seconds: no stall."""
-    from sim_node.core.models import assets, sources
+    from sim_node.core.models import asset_store, sources
     loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1.0)))
     w = loop.world
     w.spawn('big', slow_source, position=[0, 2, 1])
     w.spawn('crate', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
-    assets.set_mesh_cache(0)  # every compile processes the big mesh again
+    asset_store.set_mesh_cache(0)  # every compile processes the big mesh again
     edits = {'add_body': lambda: w.add_body('lid', 'crate', 'box', [0.05, 0.05, 0.01],
                                             position=(0, 0, 0.06)),
              'set_default_contact': lambda: w.set_default_contact(friction=[0.8, 0.01, 0.001]),
@@ -151,7 +151,7 @@ def test_other_edits_compile_outside_the_world_lock_too(slow_source, edit):
         assert_the_loop_keeps_stepping(loop, edits[edit], edit)
     finally:
         loop.stop()
-        assets.set_mesh_cache(WorldConfig().mesh_cache_mb)
+        asset_store.set_mesh_cache(WorldConfig().mesh_cache_mb)
 
 
 def test_an_edit_during_a_slow_spawn_is_kept_and_the_spawn_lands_on_the_new_world(slow_source):
@@ -234,7 +234,7 @@ def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
     """Run `edits` (name -> callable) on threads of their own while a slow spawn compiles."""
     import threading
 
-    from sim_node.core.models import assets
+    from sim_node.core.models import asset_store
     answers: dict = {}
 
     def run(name, edit):
@@ -243,7 +243,7 @@ def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
         except Exception as exc:  # noqa: B902 (the answer this caller got)
             answers[name] = exc
     slow = threading.Thread(target=lambda: world.spawn('big', slow_source, position=[0, 2, 1]))
-    assets.set_mesh_cache(0)  # compiled before by another test: slow all the same
+    asset_store.set_mesh_cache(0)  # compiled before by another test: slow all the same
     try:
         slow.start()
         time.sleep(0.3)  # compiling: the edits below queue behind it
@@ -254,7 +254,7 @@ def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
         for t in threads:
             t.join()
     finally:
-        assets.set_mesh_cache(WorldConfig().mesh_cache_mb)
+        asset_store.set_mesh_cache(WorldConfig().mesh_cache_mb)
     return answers
 
 
@@ -302,10 +302,10 @@ def test_a_spawn_whose_world_changed_while_it_compiled_is_planned_again(slow_sou
     """A delete made inside locked() while the spawn compiles: the deleted box stays deleted."""
     import threading
 
-    from sim_node.core.models import assets, sources
+    from sim_node.core.models import asset_store, sources
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('victim', sources.primitive('box', [0.05] * 3), position=[1.5, 1.5, 1])
-    assets.set_mesh_cache(0)  # compiled before by another test: slow all the same
+    asset_store.set_mesh_cache(0)  # compiled before by another test: slow all the same
     try:
         spawner = threading.Thread(target=lambda: w.spawn('big', slow_source,
                                                           position=[0, 2, 1]))
@@ -315,6 +315,6 @@ def test_a_spawn_whose_world_changed_while_it_compiled_is_planned_again(slow_sou
             w.delete('victim')  # made at once, under the lock: a new generation
         spawner.join()
     finally:
-        assets.set_mesh_cache(WorldConfig().mesh_cache_mb)
+        asset_store.set_mesh_cache(WorldConfig().mesh_cache_mb)
     names = [e.name for e in w.entities()]
     assert 'big' in names and 'victim' not in names

@@ -22,7 +22,7 @@ import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (CapacityError, FeatureUnsupportedError, MissingAssetsError,
                                   ResourceParseError, UnsupportedAssetsError)
-from sim_node.core.models import assets, meshes, resources, sources, urdf, xacro_files
+from sim_node.core.models import asset_store, meshes, resources, sources, urdf, xacro_files
 from sim_node.core.world import World
 import trimesh
 
@@ -376,7 +376,7 @@ def test_a_5000_link_chain_is_refused_before_mujoco_reads_it(tmp_path):
 
 
 def stored_files() -> set:
-    return set(os.listdir(assets.store().folder))
+    return set(os.listdir(asset_store.store().folder))
 
 
 def test_a_refused_urdf_leaves_no_copy_of_its_meshes_behind(world, tmp_path):
@@ -393,8 +393,8 @@ def test_a_refused_urdf_leaves_no_copy_of_its_meshes_behind(world, tmp_path):
 
 
 def test_the_asset_folder_goes_at_exit_and_a_killed_process_s_at_the_next_start(tmp_path):
-    code = ('import sys, time; from sim_node.core.models import assets; '
-            'print(assets.store().folder, flush=True); '
+    code = ('import sys, time; from sim_node.core.models import asset_store; '
+            'print(asset_store.store().folder, flush=True); '
             'time.sleep(60) if sys.argv[1] == "hang" else None')
     out = subprocess.run([sys.executable, '-c', code, 'exit'], cwd=ROOT, capture_output=True,
                          text=True, timeout=60)

@@ -1,5 +1,5 @@
 """
-MuJoCo's viewer window on a world, a loop and a session, looked at on a virtual display.
+MuJoCo's viewer window on a session (a script's own world held by one), on a virtual display.
 
 Each test opens the window on Xvfb (Debian's xvfb; skipped with the package's name where it is
 missing) and reads the screen's pixels: the probe scene's red ball is drawn right of the top
@@ -14,13 +14,19 @@ import mujoco
 import numpy as np
 import pytest
 from sim_node.core.config import WorldConfig
-from sim_node.core.loop import SimLoop
 from sim_node.core.models import sources
 from sim_node.core.world import World
 from sim_node.session import Session
 from sim_node.view.window import check_display, ViewerUnavailableError, Window
 
 PROBE = Path(__file__).resolve().parent / 'scenes' / 'view_probe.xml'
+
+
+def held(world: World, **options) -> Window:
+    """A window on a world its script steps, as a script opens one: a session holds the world."""
+    session = Session(trim_memory=False)
+    session.hold(world)
+    return Window(session, **options)
 
 
 def until(condition, timeout: float = 10.0) -> bool:
@@ -57,13 +63,13 @@ def test_no_display_is_one_clear_error(monkeypatch):
     monkeypatch.delenv('WAYLAND_DISPLAY', raising=False)
     with pytest.raises(ViewerUnavailableError, match='xvfb-run'):
         check_display()
-    with pytest.raises(ViewerUnavailableError):
-        SimLoop(World.from_file(str(PROBE)), viewer=True)
+    with pytest.raises(ViewerUnavailableError), Session() as session:
+        Window(session)
 
 
 def test_a_world_you_step_shows_the_ball_where_the_scene_puts_it(display):
     world = World.from_file(str(PROBE))
-    with world.view(show_ui=False, camera='top') as window:
+    with held(world, show_ui=False, camera='top') as window:
         assert until(lambda: window.frames > 3)
         world.step(100)
         n, x, aspect = drawn(display, 0)
@@ -75,7 +81,7 @@ def test_a_world_you_step_shows_the_ball_where_the_scene_puts_it(display):
 def test_a_drag_pushes_the_body_and_letting_go_releases_it(display):
     world = World.from_file(str(PROBE))
     ball = world.read(lambda m, d: m.body('ball').id)
-    with world.view(show_ui=False, camera='top') as window:
+    with held(world, show_ui=False, camera='top') as window:
         assert until(lambda: window.frames > 3)
         pert = window._handle.perturb  # what MuJoCo's mouse handling sets on a Ctrl-drag
         pert.select, pert.localmass = ball, 1.0
@@ -126,18 +132,6 @@ def test_closing_the_window_leaves_the_simulation_running(display):
         assert session.world.time > t + 0.3 and session.state == 'playing'
         assert closed == [1]
         window.close()
-
-
-def test_a_loop_with_viewer_opens_it_on_start_and_closes_it_on_stop(display):
-    loop = SimLoop(World.from_file(str(PROBE)), WorldConfig(real_time_factor=1.0), viewer=True)
-    loop.start()
-    try:
-        assert until(lambda: loop.window.frames > 3)
-        window = loop.window
-        assert window.is_open
-    finally:
-        loop.stop()
-    assert loop.window is None and not window.is_open
 
 
 def test_the_default_scene_in_the_window_as_a_person_sees_it(display):

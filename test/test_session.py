@@ -207,3 +207,25 @@ def test_step_inside_the_world_lock_is_refused_not_a_deadlock(session):
     with session.world.locked():
         with pytest.raises(IncorrectStateError):
             session.step(1)
+
+
+def test_a_held_world_is_stepped_by_its_owner_alone_and_its_listeners_follow_it(session):
+    """What a window on a script's world sees: the script steps it, the session only shows it."""
+    seen = []
+    session.add_listener(lambda loaded, snap: seen.append(
+        snap and (loaded.loop, [e.name for e in snap.info.entities if e.spawned])))
+    world = World.from_file(str(DEFAULT_SCENE), FAST)
+    assert session.hold(world, 'script').loop is None
+    assert session.state == lifecycle.PLAYING and session.world is world
+    for request in (session.pause, session.play, session.stop, lambda: session.step(1),
+                    lambda: session.set_state(lifecycle.PAUSED)):
+        with pytest.raises(IncorrectStateError, match='stepped by its owner'):
+            request()
+    world.step(10)
+    time.sleep(0.2)  # nothing but its owner steps it
+    assert world.step_count == 10
+    world.spawn('crate', box(), position=[2, 0, 0.5])
+    assert session.sync()
+    assert seen[-1] == (None, ['crate'])
+    session.load(World.from_file(str(DEFAULT_SCENE), FAST), 'looped')
+    assert session.sync() and seen[-1][0] is session.loop and session.loop.running

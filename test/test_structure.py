@@ -142,3 +142,114 @@ def test_the_import_paths_older_code_uses_still_work(old, new, name):
     import importlib
     assert getattr(importlib.import_module(old), name) is \
         getattr(importlib.import_module(new), name)
+
+
+# ------------------------------------------------------------------ dependencies point up (B7)
+
+#: What the core may import of the package: only itself. Never a front-end (view, record), the
+#: ROS skin, the Gym envs, the Session or the Simulation, not even inside a function.
+CORE = 'sim_node.core'
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    parts = list(path.relative_to(root).with_suffix('').parts)
+    return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+
+
+def package_imports(paths: list, root: Path = ROOT) -> dict:
+    """
+    Return {module: {(line, imported module)}} for every import of the package's own modules.
+
+    Every import statement counts, at module level or inside a function or a branch; ``from
+    a import b`` names ``a.b`` when that is a module, else ``a``.
+    """
+    names = {module_name(p, root): p for p in paths}
+
+    def own(name: str):
+        while name and name not in names:
+            name = name.rpartition('.')[0]
+        return name or None
+
+    found = {}
+    for mod, path in names.items():
+        package = mod if path.name == '__init__.py' else mod.rpartition('.')[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package.split('.')[:len(package.split('.')) - node.level + 1]
+                    base_name = '.'.join(base + ([node.module] if node.module else []))
+                else:
+                    base_name = node.module
+                targets = [f'{base_name}.{a.name}' if f'{base_name}.{a.name}' in names
+                           else base_name for a in node.names]
+            else:
+                continue
+            deps |= {(node.lineno, t) for t in map(own, targets) if t and t != mod}
+        found[mod] = deps
+    return found
+
+
+def import_cycles(graph: dict) -> list:
+    """Return the import cycles of `graph` ({module: {(line, module)}}): sorted module lists."""
+    edges = {m: sorted({d for _, d in deps}) for m, deps in graph.items()}
+    order, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):  # Tarjan's strongly connected components
+        order[v] = low[v] = len(order)
+        stack.append(v)
+        on_stack.add(v)
+        for w in edges.get(v, ()):
+            if w not in order:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], order[w])
+        if low[v] == order[v]:
+            part = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                part.append(w)
+                if w == v:
+                    break
+            if len(part) > 1:
+                cycles.append(sorted(part))
+    for v in sorted(edges):
+        if v not in order:
+            visit(v)
+    return cycles
+
+
+def core_upward_imports(graph: dict) -> list:
+    """Return 'module:line imports name' for every import from the core to outside it."""
+    return [f'{m}:{line} imports {d}' for m, deps in sorted(graph.items())
+            if m == CORE or m.startswith(CORE + '.')
+            for line, d in sorted(deps) if not (d == CORE or d.startswith(CORE + '.'))]
+
+
+def test_the_core_imports_nothing_above_it_and_no_module_is_in_an_import_cycle():
+    graph = package_imports(modules())
+    assert len(graph) > 90 and any(m.startswith(CORE + '.') for m in graph)
+    assert core_upward_imports(graph) == []
+    assert import_cycles(graph) == []
+
+
+def test_the_import_check_sees_a_function_level_import_and_a_cycle(tmp_path):
+    """The checker itself, on a package shaped like the one before issue 41."""
+    core = tmp_path / 'sim_node' / 'core'
+    core.mkdir(parents=True)
+    (tmp_path / 'sim_node' / '__init__.py').write_text('')
+    (core / '__init__.py').write_text('')
+    (core / 'loop.py').write_text('from .world import World\n\n\ndef start():\n'
+                                  '    from ..view.window import Window\n')
+    (core / 'world.py').write_text('import numpy\n')
+    view = tmp_path / 'sim_node' / 'view'
+    view.mkdir()
+    (view / '__init__.py').write_text('')
+    (view / 'window.py').write_text('from ..core import loop\n')
+    graph = package_imports(sorted(tmp_path.rglob('*.py')), tmp_path)
+    assert core_upward_imports(graph) == ['sim_node.core.loop:5 imports sim_node.view.window']
+    assert import_cycles(graph) == [['sim_node.core.loop', 'sim_node.view.window']]

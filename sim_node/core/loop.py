@@ -86,20 +86,13 @@ class SimLoop:
     """
     Steps a world on its own thread.
 
-    Start with :meth:`start`, end with :meth:`stop`. With ``viewer=True``, :meth:`start` opens
-    MuJoCo's viewer on the world (:attr:`window`, a :class:`~sim_node.view.window.Window`:
-    its pause, step and mouse act on this loop) and :meth:`stop` closes it.
+    Start with :meth:`start`, end with :meth:`stop`. What watches it (a window, a browser
+    view, a recorder) attaches from above, through a :class:`~sim_node.session.Session`.
     """
 
-    def __init__(self, world: World, config: Optional[WorldConfig] = None,
-                 viewer: bool = False):
+    def __init__(self, world: World, config: Optional[WorldConfig] = None):
         cfg = config or world.config
         self.world = world
-        self._viewer = bool(viewer)
-        self.window = None
-        if self._viewer:  # no display: say so now, not from start()
-            from ..view.window import check_display
-            check_display()
         self._rtf = float(cfg.real_time_factor)
         self._max_steps = int(cfg.max_steps)
         self._max_sim_time = float(cfg.max_sim_time)
@@ -142,14 +135,8 @@ class SimLoop:
         self._thread = threading.Thread(target=self._run, name='sim-loop', daemon=True)
         _RUNNING.add(self)
         self._thread.start()
-        if self._viewer and self.window is None:
-            from ..view.window import Window
-            self.window = Window(self)
 
     def stop(self, timeout: float = 2.0) -> None:
-        if self.window is not None:
-            self.window.close()
-            self.window = None
         with self._cv:
             self._stopping = True
             self._cv.notify_all()

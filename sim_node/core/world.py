@@ -27,7 +27,7 @@ from .errors import (FeatureUnsupportedError, IncorrectStateError, InvalidArgume
 from .guard import clean
 from .index import STATE_SPEC
 from .live import Live
-from .models import assets, description, sources
+from .models import asset_store, description, sources
 from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
                       RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
 from .stepping import ERR_STEPS, Stepping
@@ -64,7 +64,7 @@ class World:
         if config.timestep > 0:
             spec.option.timestep = float(config.timestep)
         guard.route_mujoco_warnings()
-        assets.set_mesh_cache(config.mesh_cache_mb)
+        asset_store.set_mesh_cache(config.mesh_cache_mb)
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
         arena = ((config.arena_base_bytes, config.arena_bytes_per_body)
@@ -456,18 +456,6 @@ class World:
         live = self._live
         with live.lock:
             live.data.xfrc_applied[live.index.body(body)] = wrench
-
-    def view(self, **options) -> 'Window':  # noqa: F821 (sim_node.view, imported when used)
-        """
-        Open MuJoCo's viewer on this world: a window that follows it as you step it.
-
-        As the lab's ``C.view()``: ``window = world.view()``, step, ``window.close()``. Options
-        go to :class:`~sim_node.view.window.Window`.
-
-        :raises ViewerUnavailableError: no display (the message says how to get one).
-        """
-        from ..view.window import Window
-        return Window(self, **options)
 
     def set_gains(self, kp: float, kd: float) -> None:
         """PD gains for joints commanded without a matching actuator."""

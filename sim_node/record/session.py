@@ -33,12 +33,22 @@ class SessionRecorder:
         self.writer = BagWriter(folder, limits, name='session')
         self._stop = threading.Event()
         self._last: Optional[float] = None
+        self._loaded = session.loaded  # the newest world, recorded by the listener
+        self._changed = threading.Event()
+        session.add_listener(self._on_model)
         self._thread = threading.Thread(target=self._run, name='sim-session-recorder',
                                         daemon=True)
         self._thread.start()
 
+    def _on_model(self, loaded, snap) -> None:
+        """The session's listener: note the world; the recorder's thread acts on it."""
+        self._loaded = loaded
+        self._changed.set()
+
     def close(self) -> None:
+        self._session.remove_listener(self._on_model)
         self._stop.set()
+        self._changed.set()
         self._thread.join(5)
         self.writer.close()
 
@@ -50,12 +60,16 @@ class SessionRecorder:
 
     def _run(self) -> None:
         seq = -1
+        loop = None
         while not self._stop.is_set():
-            loaded = self._session.loaded
-            if loaded is None:
-                self._stop.wait(0.05)
+            loaded = self._loaded
+            if loaded is None or loaded.loop is None:  # nothing, or a world its owner steps
+                self._changed.wait()
+                self._changed.clear()
                 continue
-            seq, snap = loaded.loop.wait_snapshot(seq, 0.1)
+            if loaded.loop is not loop:  # another world: its snapshots count from its own
+                loop, seq = loaded.loop, -1
+            seq, snap = loop.wait_snapshot(seq, 0.1)
             if self._last is not None and 0 <= snap.time - self._last < self._period:
                 continue
             self._last = snap.time

@@ -12,7 +12,7 @@ from . import middleware
 from .params import parameter_error
 from ..core import memory
 from ..core.errors import SimError
-from ..core.models import assets
+from ..core.models import asset_store
 
 
 def main(args=None) -> int:
@@ -68,7 +68,7 @@ def _exit_if_busy(code: int) -> None:
     if busy:
         sys.stdout.flush()
         sys.stderr.flush()
-        assets.store().remove()  # os._exit runs no atexit: the copies of model files go here
+        asset_store.store().remove()  # os._exit runs no atexit: the copies of model files go here
         os._exit(code)
 
 

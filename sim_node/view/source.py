@@ -1,53 +1,56 @@
 """
-What a view shows: the world now, its state, how to pause, play and step it; the measured rate.
+What a view shows: the session's world now, its state, how to pause, play and step it; the rate.
 
-Shared by the viewer window (:mod:`.window`) and the browser view (:mod:`.web`), which show a
-:class:`~sim_node.session.Session`, a :class:`~sim_node.core.loop.SimLoop` or a bare
-:class:`~sim_node.core.world.World` alike.
+Shared by the viewer window (:mod:`.window`) and the browser view (:mod:`.web`). Their one kind
+of target is a :class:`~sim_node.session.Session`: a script's own world is shown through one
+too (:meth:`Session.hold <sim_node.session.Session.hold>`), as MuJoCo's passive viewer is handed
+its model and data from above.
 """
 
 import time
+from typing import Optional
+
+from ..session import Loaded, Session
+
+#: What a view shows as the state of a world its owner steps (no loop to pause or step).
+OWNER_STEPPED = 'stepped by its owner'
 
 
 class Source:
-    """A view's target: the world now, its state, and how to pause, play and step it."""
+    """
+    A view's target: a session's listener that records which world is loaded.
 
-    def __init__(self, target):
-        from ..core.loop import SimLoop
-        from ..core.world import World
-        from ..session import Session
-        self._session = target if isinstance(target, Session) else None
-        self._loop = target if isinstance(target, SimLoop) else None
-        self._world = target if isinstance(target, World) else None
-        if self._session is None and self._loop is None and self._world is None:
-            raise TypeError(f'a view shows a Session, a SimLoop or a World, not {target!r}')
+    The session's thread tells it of every new model (:meth:`Session.add_listener`); it only
+    records it, and the view's own thread acts on it at its next frame. :meth:`close` detaches.
+    """
+
+    def __init__(self, session: Session):
+        if not isinstance(session, Session):
+            raise TypeError(f'a view shows a Session, not {session!r} (a script shows its own '
+                            'world with Session.hold(world))')
+        self.session = session
+        self._loaded: Optional[Loaded] = session.loaded
+        session.add_listener(self._on_model)
+
+    def _on_model(self, loaded: Optional[Loaded], snap) -> None:
+        self._loaded = loaded
+
+    def close(self) -> None:
+        self.session.remove_listener(self._on_model)
 
     def current(self) -> tuple:
-        """Return ``(world, loop)``; either may be None (nothing loaded; a bare world)."""
-        if self._session is not None:
-            loaded = self._session.loaded
-            return (loaded.world, loaded.loop) if loaded is not None else (None, None)
-        if self._loop is not None:
-            return self._loop.world, self._loop
-        return self._world, None
+        """Return ``(world, loop)``; either may be None (nothing loaded; its owner steps it)."""
+        loaded = self._loaded
+        return (loaded.world, loaded.loop) if loaded is not None else (None, None)
 
     def state(self, loop) -> str:
-        if self._session is not None:
-            return self._session.state
-        if loop is None:
-            return 'stepped by its owner'
-        return 'paused' if loop.paused else 'playing'
+        return self.session.state if loop is not None else OWNER_STEPPED
 
     def set_paused(self, paused: bool) -> None:
-        owner = self._session or self._loop
-        if owner is not None:
-            owner.pause() if paused else owner.play()
+        self.session.pause() if paused else self.session.play()
 
     def step(self) -> None:
-        if self._session is not None:
-            self._session.step(1)
-        elif self._loop is not None:
-            self._loop.step(1)
+        self.session.step(1)
 
 
 class RateMeter:

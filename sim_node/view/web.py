@@ -1,8 +1,8 @@
 """
 The live world in a web browser, for machines without a display or without ROS. No ROS.
 
-A :class:`WebView` serves a :class:`~sim_node.session.Session`, a
-:class:`~sim_node.core.loop.SimLoop` or a :class:`~sim_node.core.world.World` with ``viser``
+A :class:`WebView` serves a :class:`~sim_node.session.Session` (a script's own world through
+``session.hold(world)``) with ``viser``
 (its three.js client comes in its wheel: the page needs no network). Every visible geom of the
 model (primitives with their sizes, meshes with their vertices, each in its colour) hangs from a
 frame per body; a thread of its own moves those frames from the loop's snapshots at up to
@@ -43,14 +43,14 @@ class WebView:
         at an angle).
     """
 
-    def __init__(self, target, port: int = 8080, host: str = '127.0.0.1', camera: str = '',
+    def __init__(self, session, port: int = 8080, host: str = '127.0.0.1', camera: str = '',
                  fps: float = FPS):
         try:
             import viser
         except ImportError as exc:
             raise SimError('the browser view needs the viser package: pip install viser') \
                 from exc
-        self._source = Source(target)
+        self._source = Source(session)
         self._camera = camera
         self._period = 1.0 / float(fps)
         if host not in LOOPBACK:
@@ -73,6 +73,7 @@ class WebView:
 
     def close(self) -> None:
         self._stop.set()
+        self._source.close()
         self._thread.join(5.0)
         with _quiet():
             self.server.stop()
@@ -222,9 +223,9 @@ def _quiet():
     return contextlib.redirect_stdout(io.StringIO())
 
 
-def serve(target, port: int, host: str = '127.0.0.1', camera: str = '') -> WebView:
+def serve(session, port: int, host: str = '127.0.0.1', camera: str = '') -> WebView:
     """Start a :class:`WebView`; log where to open it."""
-    view = WebView(target, port=port, host=host, camera=camera)
+    view = WebView(session, port=port, host=host, camera=camera)
     if view.port != int(port):
         log.warning('port %d was taken: the browser view is on %d instead', port, view.port)
     log.info('the browser view is at %s', view.url)

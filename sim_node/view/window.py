@@ -2,17 +2,17 @@
 MuJoCo's own viewer window on a live world, kept in step from a thread of its own. No ROS.
 
 A :class:`Window` shows a :class:`~sim_node.session.Session` (it follows loads, spawns, deletes
-and resets: each new model is copied and handed to the open window), a
-:class:`~sim_node.core.loop.SimLoop`, or a bare :class:`~sim_node.core.world.World` that the
-caller steps itself. The window has its own copy of the model and data: at :data:`FPS` its
-thread takes the world's lock only for ``mj_copyData`` (tens of microseconds on the default
-scene), so the physics never waits for drawing, and the window's render thread never touches
-the world.
+and resets: the session tells it of each new model, which its thread copies and hands to the
+open window); a script shows the world it steps itself through a session that holds it
+(``session.hold(world)``; ``Simulation.view()`` does that). The window has its own copy of
+the model and data: at :data:`FPS` its thread takes the world's lock only for ``mj_copyData``
+(tens of microseconds on the default scene), so the physics never waits for drawing, and the
+window's render thread never touches the world.
 
 What the window does acts on the simulation through the world's own API, under its lock, like
 a joint command: a body dragged with Ctrl and the right (force) or left (torque) mouse button
 is pushed with the viewer's spring force (:meth:`World.push`), released when the mouse is;
-the space bar pauses and plays the session or loop (the overlay shows the pause that an API
+the space bar pauses and plays the session (the overlay shows the pause that an API
 call or a service made; the side panel's Pause/Run belongs to MuJoCo's passive viewer and does
 not reach the simulation); the right arrow steps a paused one by one step.
 An overlay (bottom left) shows the simulated time, the measured real-time factor, the state and
@@ -75,17 +75,16 @@ def close_all() -> None:
 
 class Window:
     """
-    MuJoCo's viewer on a session, a loop or a world (see the module docstring).
+    MuJoCo's viewer on a session (see the module docstring).
 
-    :param target: a :class:`~sim_node.session.Session`, a :class:`~sim_node.core.loop.SimLoop`
-        or a :class:`~sim_node.core.world.World`.
+    :param session: the :class:`~sim_node.session.Session` to show.
     :param on_closed: called once, from the window's thread, when the user closes the window.
     :param show_ui: MuJoCo's side panels (off: the scene fills the window).
     :param camera: look through this camera of the model ('' or missing: the free camera).
     :raises ViewerUnavailableError: no display.
     """
 
-    def __init__(self, target, on_closed: Optional[Callable[[], None]] = None,
+    def __init__(self, session, on_closed: Optional[Callable[[], None]] = None,
                  fps: float = FPS, show_ui: bool = True, camera: str = ''):
         check_display()
         # Mesa's software renderer (no GPU) draws on every core by default, taking the
@@ -93,7 +92,7 @@ class Window:
         # override; a GPU ignores it).
         os.environ.setdefault('LP_NUM_THREADS', '1')
         self._camera = camera
-        self._source = Source(target)
+        self._source = Source(session)
         self._on_closed = on_closed
         self._period = 1.0 / float(fps)
         self._show_ui = bool(show_ui)
@@ -121,6 +120,7 @@ class Window:
 
     def close(self) -> None:
         self._stop.set()
+        self._source.close()
         if threading.current_thread() is not self._thread:  # on_closed may call it
             self._thread.join(5.0)
         if self._handle is not None:

@@ -4,7 +4,7 @@ A virtual X display (Debian's ``xvfb``) for windows on machines without a screen
 The viewer's tests and benchmark open MuJoCo's window on one, as ``xvfb-run`` would::
 
     with VirtualDisplay() as display:   # sets DISPLAY for this process and its children
-        window = world.view()
+        window = Simulation.from_file('scenes/default.xml').view()
 """
 
 import os

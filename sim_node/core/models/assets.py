@@ -20,24 +20,19 @@ robot, and the store remembers each checked file by (path, inode, size, mtime), 
 spawn reads and checks nothing again.
 """
 
-import atexit
 from dataclasses import dataclass
-import hashlib
 import os
 from pathlib import Path
-import re
-import shutil
 import stat
-import struct
-import tempfile
-import threading
 from typing import Optional, Sequence
 import xml.etree.ElementTree as ET
 
 import defusedxml
 import defusedxml.ElementTree as SafeET
-import mujoco
 
+from . import meshes
+from .asset_store import store, StoredFile
+from .meshes import CONVERTED_SUFFIXES
 from .paths import inside_real_roots, real_path, real_roots
 from ..errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
                       UnsupportedFormatError)
@@ -53,7 +48,6 @@ _MESH_TAGS = ('mesh', 'skin', 'flexcomp')
 #: The mesh files MuJoCo decodes itself (a <mesh> may name another kind with content_type).
 MUJOCO_MESH_SUFFIXES = ('.stl', '.obj', '.msh')
 #: Mesh suffixes converted to STL whatever their content (:mod:`.meshes`).
-CONVERTED_SUFFIXES = ('.dae', '.ply', '.glb', '.gltf', '.off')
 _IMAGE_TAGS = ('texture', 'hfield')
 #: Root elements an included file may have (MuJoCo accepts both).
 INCLUDE_ROOTS = ('mujoco', 'mujocoinclude')
@@ -116,202 +110,6 @@ def parse(text: str) -> ET.Element:
 
 
 # ------------------------------------------------------------------------- the store
-
-
-@dataclass(frozen=True)
-class StoredFile:
-    """A checked copy of one file: where it is and what was measured of it."""
-
-    path: str
-    size: int
-    faces: Optional[int]  # meshes (STL, OBJ)
-    pixels: Optional[int]  # PNG images
-    #: The identity of the file it is a copy of (path, device, inode, size, modification time).
-    source: Optional[tuple] = None
-    #: Its conversion (a ``meshes.Converted``), when one made in an earlier run is known by
-    #: `source`: then nothing was read or copied, and `path` is the file itself.
-    converted: Optional[object] = None
-
-
-_SAFE_NAME = re.compile(r'[^A-Za-z0-9._-]')
-
-
-def strip_mtllib(data: bytes) -> list:
-    """
-    Return OBJ text without its ``mtllib`` lines (each emptied, its line break kept), in pieces.
-
-    By plain searches for the word: a multi-line regular expression took 140 ms over a robot's
-    58 OBJ files (most of its spawn's reading). The pieces are views of `data`, written one
-    after the other, never joined (a copy of the whole text). No line is joined to another,
-    so the faces are those of `data`.
-    """
-    view, parts, start = memoryview(data), [], 0
-    i = data.find(b'mtllib')
-    while i >= 0:
-        line = data.rfind(b'\n', 0, i) + 1
-        after = data[i + 6:i + 7]
-        if not data[line:i].strip(b' \t') and not (after.isalnum() or after == b'_'):
-            end = data.find(b'\n', i)
-            parts.append(view[start:line])
-            start = len(data) if end < 0 else end
-        i = data.find(b'mtllib', i + 6)
-    parts.append(view[start:])
-    return parts
-
-
-class AssetStore:
-    """
-    Checked copies of model files in a private folder, one per file identity; thread-safe.
-
-    One per process (:func:`store`). Files are only ever added: a copy is immutable once
-    written, so MuJoCo's own cache of processed meshes (keyed by file) stays right, and the
-    same file spawned twice is the same copy. The folder (mode 0700) is removed at exit.
-    """
-
-    def __init__(self, folder: Optional[str] = None):
-        self._folder = folder
-        self._lock = threading.Lock()
-        self._by_file: dict = {}  # (real path, dev, inode, size, mtime_ns) -> StoredFile
-        self._digests: dict = {}  # copy path -> content digest (see digest)
-        self._pending: dict = {}  # path -> models being read or spawned that use it
-        self._kept: set = set()  # paths an entity or a world was made with
-
-    def hold(self, path: str) -> None:
-        """Count a model being made that uses the copy at `path` (see :meth:`settle`)."""
-        with self._lock:
-            self._pending[path] = self._pending.get(path, 0) + 1
-
-    def settle(self, paths: Sequence[str], keep: bool) -> list:
-        """
-        Release `paths` held by a model that was made (`keep`) or refused; refused copies go.
-
-        A copy goes when no model being made holds it and nothing made was made with it: a
-        refused spawn leaves no file behind. Returns the paths removed.
-        """
-        gone = []
-        with self._lock:
-            for path in paths:
-                left = self._pending.get(path, 0) - 1
-                if left > 0:
-                    self._pending[path] = left
-                else:
-                    self._pending.pop(path, None)
-                if keep:
-                    self._kept.add(path)
-                elif left <= 0 and path not in self._kept:
-                    gone.append(path)
-            if gone:
-                dead = set(gone)
-                self._by_file = {k: v for k, v in self._by_file.items() if v.path not in dead}
-                self._digests = {k: v for k, v in self._digests.items() if k not in dead}
-        for path in gone:
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
-        return gone
-
-    def remove(self) -> None:
-        """Remove the folder and everything in it (at exit)."""
-        with self._lock:
-            folder, self._folder = self._folder, None
-            self._by_file.clear()
-            self._digests.clear()
-        if folder is not None:
-            shutil.rmtree(folder, ignore_errors=True)
-
-    @property
-    def folder(self) -> str:
-        with self._lock:
-            if self._folder is None:
-                _sweep_dead_folders()
-                self._folder = tempfile.mkdtemp(prefix=f'{FOLDER_PREFIX}{os.getpid()}_')
-                atexit.register(self.remove)
-            return self._folder
-
-    def cached(self, key: tuple) -> Optional[StoredFile]:
-        """Return the copy of a file already checked with this identity (None: read it)."""
-        with self._lock:
-            return self._by_file.get(key)
-
-    def put(self, key: tuple, name: str, data: bytes) -> StoredFile:
-        """
-        Store `data` (the bytes of the file `name` whose identity is `key`) and return its copy.
-
-        Copies are named by the file's identity (path, device, inode, size, modification time),
-        not by their content: hashing every byte took a quarter of reading a robot's 50 MB of
-        meshes. A file changed since is another identity, so another copy (MuJoCo's mesh cache
-        never serves the old one); what is converted is named by content (:meth:`digest`).
-
-        An OBJ's ``mtllib`` lines are left out of its copy: MuJoCo would open the material
-        library beside it (a FIFO put there would block it forever), and draws none of it.
-        """
-        suffix = Path(name).suffix.lower()
-        parts = strip_mtllib(data) if suffix == '.obj' else [data]
-        size = sum(len(p) for p in parts)
-        base = _SAFE_NAME.sub('_', Path(name).name)[-80:] or 'file'
-        path = os.path.join(self.folder, f'{identity_name(key)}_{base}')
-        if not os.path.exists(path):
-            fd, tmp = tempfile.mkstemp(dir=self.folder)
-            with os.fdopen(fd, 'wb') as f:
-                f.writelines(parts)  # not joined: one copy of a 5 MB OBJ fewer
-            os.replace(tmp, path)  # atomic: MuJoCo never sees half a file
-        found = StoredFile(path, size, mesh_faces(suffix, data), image_pixels(data), key)
-        with self._lock:  # a reader that read the same file meanwhile gets the same copy
-            return self._by_file.setdefault(key, found)
-
-    def digest(self, path: str) -> str:
-        """Return the content digest of the copy at `path` (read once; copies never change)."""
-        with self._lock:
-            found = self._digests.get(path)
-        if found is None:
-            h = hashlib.blake2b(digest_size=16)
-            with open(path, 'rb') as f:
-                for chunk in iter(lambda: f.read(1 << 20), b''):
-                    h.update(chunk)
-            found = h.hexdigest()
-            with self._lock:
-                self._digests[path] = found
-        return found
-
-
-def identity_name(key: tuple) -> str:
-    """Return a file name for a file identity (path, device, inode, size, modification time)."""
-    return hashlib.blake2b(repr(key).encode(), digest_size=16).hexdigest()
-
-
-#: The store's folder is ``<tmp>/sim_assets_<pid>_<random>``.
-FOLDER_PREFIX = 'sim_assets_'
-
-
-def _sweep_dead_folders() -> None:
-    """Remove store folders left by processes of ours that are gone (a node killed with -9)."""
-    tmp = Path(tempfile.gettempdir())
-    for folder in tmp.glob(f'{FOLDER_PREFIX}*_*'):
-        pid = folder.name[len(FOLDER_PREFIX):].split('_')[0]
-        if not pid.isdigit() or folder.is_symlink() or not folder.is_dir():
-            continue
-        try:
-            if folder.stat().st_uid != os.getuid():
-                continue
-            os.kill(int(pid), 0)  # alive: its folder stays
-        except ProcessLookupError:
-            shutil.rmtree(folder, ignore_errors=True)
-        except OSError:
-            continue
-
-
-_STORE = AssetStore()
-
-
-def set_mesh_cache(capacity_mib: int) -> None:
-    """Size MuJoCo's process-wide cache of processed meshes (``WorldConfig.mesh_cache_mb``)."""
-    mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), int(capacity_mib) * 2 ** 20)
-
-
-def store() -> AssetStore:
-    """Return the process's asset store."""
-    return _STORE
 
 
 # ------------------------------------------------------------------------- one model
@@ -468,15 +266,14 @@ class Reader:
         real, st = self.resolve(value, candidates, limit=limit)
         key = (real, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
         if urdf_mesh and Path(value).suffix.lower() in CONVERTED_SUFFIXES:
-            from . import meshes
             done = meshes.converted_before(key)
             if done is not None:  # a Collada file converted in an earlier run: not read again
                 self._count(st.st_size)
                 return StoredFile(real, st.st_size, None, None, key, done)
             meshes.warm()  # the converters start while the rest of the files are read
-        stored = _STORE.cached(key)
+        stored = store().cached(key)
         if stored is None:
-            stored = _STORE.put(key, real, self._read_bytes(value, real, st, limit))
+            stored = store().put(key, real, self._read_bytes(value, real, st, limit))
         self.hold(stored.path)
         self._count(stored.size)
         self._check_content(value, tag, stored)
@@ -484,15 +281,15 @@ class Reader:
 
     def hold(self, path: str) -> None:
         """Hold a file made for this model (a copy, a conversion) until :meth:`settle`."""
-        _STORE.hold(path)
+        store().hold(path)
         self.held.append(path)
 
     def settle(self, keep: bool) -> list:
         """Release the files held: the model was made (`keep`) or refused (AssetStore.settle)."""
         held, self.held = self.held, []
-        gone = _STORE.settle(held, keep)
+        gone = store().settle(held, keep)
         if gone:
-            from . import meshes  # the conversions of gone files are gone too
+            # the conversions of gone files are gone too
             meshes.forget(gone)
         return gone
 
@@ -569,29 +366,3 @@ class Reader:
         if tag in _IMAGE_TAGS and stored.pixels is not None and stored.pixels > MAX_IMAGE_PIXELS:
             raise UnsupportedAssetsError(ERR_PIXELS.format(value=value, n=stored.pixels,
                                                            limit=MAX_IMAGE_PIXELS))
-
-
-def image_pixels(data: bytes) -> Optional[int]:
-    """Return the pixel count of a PNG from its header (None: not a PNG)."""
-    if data[:8] == b'\x89PNG\r\n\x1a\n' and len(data) >= 24:
-        width, height = struct.unpack('>II', data[16:24])
-        return width * height
-    return None
-
-
-def mesh_faces(suffix: str, data: bytes) -> Optional[int]:
-    """
-    Return the number of faces of an STL or OBJ file from its bytes (None: another kind).
-
-    Counted without building the mesh: a binary STL says it in its header; text is counted
-    with ``bytes.count`` (C speed; 140k faces in a few milliseconds).
-    """
-    if suffix == '.stl':
-        if len(data) >= 84:
-            n = struct.unpack('<I', data[80:84])[0]
-            if 84 + 50 * n == len(data):  # binary STL
-                return n
-        return data.count(b'facet normal')
-    if suffix == '.obj':
-        return data.count(b'\nf ') + int(data.startswith(b'f '))
-    return None

@@ -3,7 +3,7 @@ Meshes MuJoCo cannot read as they are, converted to binary STL in child processe
 
 ROS description packages ship Collada (``.dae``, ``.DAE``) visuals, ASCII STL, and meshes with
 more faces than MuJoCo's STL decoder takes (200,000). :func:`convert` hands such files (their
-checked copies in the :class:`~.assets.AssetStore`) to :mod:`.mesh_worker` processes, which
+checked copies in the :class:`~.asset_store.AssetStore`) to :mod:`.mesh_worker` processes, which
 load them with trimesh and pycollada, keep Collada's ``<unit>``, decimate what is over the
 limit with fast-simplification, and write binary STL. They run as children because the files
 are untrusted and the libraries are pure Python: a child limits its own memory, CPU time, writes
@@ -28,13 +28,14 @@ import threading
 import time
 from typing import Optional, Sequence
 
-from . import assets
+from . import asset_store
 from ..errors import UnsupportedAssetsError
 
 #: The most faces MuJoCo's STL decoder reads; a mesh with more is decimated to this.
 MUJOCO_MAX_FACES = 200_000
 #: Suffixes converted whatever their content (MuJoCo reads STL, OBJ and MSH itself).
-CONVERTED_SUFFIXES = assets.CONVERTED_SUFFIXES
+#: Mesh kinds MuJoCo cannot read, converted to OBJ before it sees them.
+CONVERTED_SUFFIXES = ('.dae', '.ply', '.glb', '.gltf', '.off')
 #: Wall time one file may take to convert (each worker also limits its own CPU time).
 FILE_TIMEOUT_SEC = 120.0
 #: How many workers convert at once, and how long an idle one stays.
@@ -73,7 +74,7 @@ _done: dict = {}  # (source digest, max faces) -> Converted
 _sources: dict = {}  # file identity -> content digest, as the cache folder records it
 
 
-def needs_conversion(name: str, stored: assets.StoredFile, max_faces: int = MUJOCO_MAX_FACES
+def needs_conversion(name: str, stored: asset_store.StoredFile, max_faces: int = MUJOCO_MAX_FACES
                      ) -> bool:
     """Whether MuJoCo cannot read this file (its checked copy) as it is."""
     suffix = Path(name).suffix.lower()
@@ -125,7 +126,7 @@ def convert(items: Sequence[tuple], max_faces: int = MUJOCO_MAX_FACES) -> list:
     todo, first = [], {}  # one job per distinct content: a mesh many links use is one file
     folder = cache_dir()
     # conversions are named by content: a mesh many files (or runs) have is converted once
-    digests = [None if stored.converted else assets.store().digest(stored.path)
+    digests = [None if stored.converted else asset_store.store().digest(stored.path)
                for _, stored in items]
     for k, (value, stored) in enumerate(items):
         if stored.converted is not None:
@@ -209,7 +210,7 @@ def converted_before(source: tuple, max_faces: int = MUJOCO_MAX_FACES) -> Option
 
 
 def _source_name(source: tuple) -> str:
-    return f'{assets.identity_name(source)}_v{_VERSION}.source'
+    return f'{asset_store.identity_name(source)}_v{_VERSION}.source'
 
 
 def _remember_source(folder: Path, source: tuple, digest: str) -> None:

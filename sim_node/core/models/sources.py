@@ -18,7 +18,7 @@ import xml.etree.ElementTree as ET
 
 import mujoco
 
-from . import assets, meshes, urdf, xacro_files
+from . import asset_store, assets, meshes, urdf, xacro_files
 from .assets import Reader
 from .paths import inside_roots  # noqa: F401 (this module's too)
 from .urdf import Prepared
@@ -98,7 +98,7 @@ class SpawnSource:
     A parsed description of one entity, ready to attach to a world.
 
     :param spec: MjSpec with at least one top-level body or worldbody geom; the files it names
-        are checked copies (:class:`.assets.AssetStore`).
+        are checked copies (:class:`.asset_store.AssetStore`).
     :param assets: file name -> bytes for meshes given in memory (a spec built in code).
     :param kind: 'mjcf', 'urdf', 'primitive' or 'mesh'.
     :param description: short text for entity info.
@@ -319,7 +319,7 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
 
 def _hold_if_stored(reader: assets.Reader, path: str) -> None:
     """Hold a conversion in the asset store (not one in the conversion cache, kept by design)."""
-    if Path(path).parent == Path(assets.store().folder):
+    if Path(path).parent == Path(asset_store.store().folder):
         reader.hold(path)
 
 
