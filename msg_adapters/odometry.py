@@ -13,8 +13,8 @@ from typing import Sequence
 from nav_msgs.msg import Odometry
 import numpy as np
 from sim_node.core import quat
-from sim_node.core.bases import Odometry as Integrator
-from sim_node.core.bases import yaw_of
+from sim_node.core.control.bases import Odometry as Integrator
+from sim_node.core.control.bases import yaw_of
 
 from . import convert
 

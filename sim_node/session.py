@@ -2,7 +2,7 @@
 The simulation that is loaded now: one owner for the world, its loop and its lifecycle. No ROS.
 
 A :class:`Session` holds the loaded :class:`~sim_node.core.world.World` and its stepping
-:class:`~sim_node.core.loop.SimLoop`, and swaps them as one (:meth:`Session.load`,
+:class:`~sim_node.core.stepping.loop.SimLoop`, and swaps them as one (:meth:`Session.load`,
 :meth:`Session.unload`). Its state is one machine, the single source of what
 ``get_simulation_state`` answers::
 
@@ -39,9 +39,9 @@ from typing import Callable, Iterator, NamedTuple, Optional
 from .core.config import WorldConfig
 from .core.errors import (AlreadyInStateError, IncorrectStateError, IncorrectTransitionError,
                           NoWorldError, StateTransitionError)
-from .core.loop import SimLoop
 from .core.memory import release_free_memory
 from .core.records import RESET_ALL, Snapshot
+from .core.stepping.loop import SimLoop
 from .core.world import World
 
 log = logging.getLogger(__name__)
@@ -303,7 +303,8 @@ class Session:
         """
         Run `n` steps while paused (or stopped: the simulation is then paused); block until done.
 
-        Returns the steps taken; raises as :meth:`SimLoop.step <sim_node.core.loop.SimLoop.step>`.
+        Returns the steps taken; raises as
+        :meth:`SimLoop.step <sim_node.core.stepping.loop.SimLoop.step>`.
         """
         done = self.loop.step(n, feedback=feedback)
         with self._lock:

@@ -28,9 +28,9 @@ import numpy as np
 
 from .core.config import WorldConfig
 from .core.errors import InvalidArgumentError
-from .core.loop import time_reached
 from .core.models import sources
 from .core.records import RESET_STATE, RESET_TIME
+from .core.stepping.loop import time_reached
 from .core.world import World
 
 #: With a window in real time, a long step is shown in slices of this much simulated time.

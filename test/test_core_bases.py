@@ -14,7 +14,7 @@ import sys
 from conftest import SCENES
 import numpy as np
 import pytest
-from sim_node.core import bases
+from sim_node.core.control import bases
 from sim_node.core.errors import InvalidArgumentError, NotFoundError
 from sim_node.core.models import sources
 from sim_node.core.world import World

@@ -18,9 +18,9 @@ import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (FeatureUnsupportedError, InvalidArgumentError,
                                   InvalidPoseError, NameNotUniqueError, ResourceParseError)
-from sim_node.core.loop import SimLoop
 from sim_node.core.models import sources
 from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
+from sim_node.core.stepping.loop import SimLoop
 from sim_node.core.world import World
 from sim_node.simulation import EMPTY_WORLD, Simulation
 

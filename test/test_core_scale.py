@@ -13,8 +13,9 @@ import time
 from conftest import DEFAULT_SCENE
 import pytest
 from sim_node.core.config import WorldConfig
-from sim_node.core.loop import RATE_WINDOW_SEC, SimLoop
 from sim_node.core.records import RESET_SPAWNED
+from sim_node.core.stepping.loop import SimLoop
+from sim_node.core.stepping.rate import RATE_WINDOW_SEC
 from sim_node.core.world import World
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'benchmarks'))
@@ -48,7 +49,7 @@ def test_a_scene_that_sizes_its_arena_keeps_its_size():
 def test_the_loop_says_once_when_the_physics_cannot_keep_the_factor(caplog):
     w = World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=1000.0))
     loop = SimLoop(w)
-    with caplog.at_level(logging.WARNING, logger='sim_node.core.loop'):
+    with caplog.at_level(logging.WARNING, logger='sim_node.core.stepping'):
         loop.start()
         try:
             time.sleep(2.5 * RATE_WINDOW_SEC + 0.5)

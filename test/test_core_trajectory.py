@@ -9,10 +9,10 @@ and accelerations), not against the implementation. Behaviours use the default s
 from conftest import DEFAULT_SCENE, TWO_JOINT_ARM
 import numpy as np
 import pytest
-from sim_node.core import trajectory
+from sim_node.core.control import trajectory
+from sim_node.core.control.trajectory import TrajectoryError
 from sim_node.core.models import sources
 from sim_node.core.records import RESET_STATE
-from sim_node.core.trajectory import TrajectoryError
 from sim_node.core.world import World
 
 ARM = ['left_shoulder', 'left_elbow']

@@ -10,7 +10,7 @@ import math
 from conftest import DEFAULT_SCENE
 import numpy as np
 import pytest
-from sim_node.core import trajectory
+from sim_node.core.control import trajectory
 from sim_node.core.models import sources
 from sim_node.core.world import World
 

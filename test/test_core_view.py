@@ -23,7 +23,7 @@ PROBE = Path(__file__).resolve().parent / 'scenes' / 'view_probe.xml'
 
 
 def held(world: World, **options) -> Window:
-    """A window on a world its script steps, as a script opens one: a session holds the world."""
+    """Open a window on a world its script steps, as a script does: a session holds the world."""
     session = Session(trim_memory=False)
     session.hold(world)
     return Window(session, **options)

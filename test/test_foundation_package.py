@@ -53,7 +53,7 @@ def test_local_interface_definitions_are_hidden_from_colcon_workspaces():
 
 
 def test_core_imports_no_ros():
-    code = ('import sys; import sim_node.core.world, sim_node.core.loop, '
+    code = ('import sys; import sim_node.core.world, sim_node.core.stepping.loop, '
             'sim_node.core.models.sources, sim_node.core.devices.cameras, '
             'sim_node.core.devices.lidar, sim_node.session, sim_node.simulation; '
             'bad = [m for m in sys.modules if m.split(".")[0] in '

@@ -253,3 +253,45 @@ def test_the_import_check_sees_a_function_level_import_and_a_cycle(tmp_path):
     graph = package_imports(sorted(tmp_path.rglob('*.py')), tmp_path)
     assert core_upward_imports(graph) == ['sim_node.core.loop:5 imports sim_node.view.window']
     assert import_cycles(graph) == [['sim_node.core.loop', 'sim_node.view.window']]
+
+
+# ------------------------------------------------------------------ core/ by job, with maps
+
+def docstring_map(package: Path) -> set:
+    """Return the children a package's docstring names as ``:mod:`.name``` (first part)."""
+    doc = ast.get_docstring(ast.parse((package / '__init__.py').read_text())) or ''
+    return {m.split('.')[0] for m in re.findall(r':mod:`\.([\w.]+)`', doc)}
+
+
+def children(package: Path) -> set:
+    """Return the modules and subpackages a package holds (not its ``__init__``)."""
+    return {p.stem for p in package.glob('*.py') if p.name != '__init__.py'} | \
+        {p.name for p in package.iterdir() if (p / '__init__.py').is_file()}
+
+
+CORE_PACKAGES = sorted(p.parent.relative_to(ROOT).as_posix()
+                       for p in (ROOT / 'sim_node' / 'core').rglob('__init__.py'))
+
+
+@pytest.mark.parametrize('package', CORE_PACKAGES)
+def test_each_core_folder_s_docstring_maps_exactly_the_modules_it_holds(package):
+    folder = ROOT / package
+    named, held = docstring_map(folder), children(folder)
+    assert not held - named, f'{package} holds modules its map leaves out: {sorted(held - named)}'
+    assert not named - held, f'{package} maps modules it does not hold: {sorted(named - held)}'
+
+
+def test_the_core_is_folders_by_job():
+    """The jobs of the core have folders of their own, not files side by side."""
+    core = ROOT / 'sim_node' / 'core'
+    assert {'stepping', 'editing', 'control', 'models', 'devices'} <= children(core)
+    flat = {p.stem for p in core.glob('*.py') if p.name != '__init__.py'}
+    assert len(flat) <= 16, sorted(flat)
+
+
+def test_the_map_check_sees_a_module_left_out_and_one_that_is_gone(tmp_path):
+    (tmp_path / '__init__.py').write_text('"""Jobs: :mod:`.loop` (steps), :mod:`.gone`."""\n')
+    (tmp_path / 'loop.py').write_text('')
+    (tmp_path / 'new.py').write_text('')
+    assert docstring_map(tmp_path) == {'loop', 'gone'}
+    assert children(tmp_path) == {'loop', 'new'}

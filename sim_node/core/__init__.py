@@ -1,16 +1,19 @@
 """
 The ROS-free MuJoCo world: no rclpy or message imports here.
 
-Modules, one job each: :mod:`.world` (the run phase: the lock, the current model and data,
-stepping, reads, reset; public methods lock, validate and delegate), :mod:`.world_edits` (the
-edit phase: every structural edit and its one commit path), :mod:`.design` (what the edit
-phase owns: the spec and its tables, one immutable value), :mod:`.index` (names and
-addresses of one model), :mod:`.control` (joint commands), :mod:`.guard` (divergence),
-:mod:`.editor` (MjSpec edits), :mod:`.state` (reading and writing state), :mod:`.sources`
-(what can be spawned), :mod:`.assets` (model files resolved, checked and copied once),
-:mod:`.trajectory` (joint trajectories in simulated time, driven per step by :mod:`.control`
-under the world lock), :mod:`.loop` (the stepping thread), :mod:`.memory` (freed memory given
-back to the system), :mod:`.checks` and :mod:`.quat` (shared helpers).
+Folders by job, beside the facade :mod:`.world` (what every user of the core talks to: the
+lock, reads, stepping, reset, edits; its public methods lock, validate and delegate):
+:mod:`.stepping` (the world lock, the live state, the steps, divergence, the stepping thread),
+:mod:`.editing` (structural edits and state writes through one commit path), :mod:`.control`
+(joint commands, torques, trajectories, mobile bases), :mod:`.models` (what users bring: model
+files, meshes, assets, URDF and xacro) and :mod:`.devices` (cameras, laser scanners, sensor
+groups). Shared by all of them: :mod:`.config` (the one configuration value), :mod:`.errors`
+(typed errors), :mod:`.records` (immutable values: snapshots, states, entity records),
+:mod:`.index` (names and addresses of one compiled model), :mod:`.state` (reading and writing
+the state of one model and data), :mod:`.query` (which entities match a query),
+:mod:`.checks` and :mod:`.quat` (input checks, quaternions), :mod:`.memory` (freed memory given
+back to the system). Older import paths kept for existing scripts: :mod:`.loop`,
+:mod:`.sources`, :mod:`.cameras`, :mod:`.lidar`.
 
 Threading contract
 ------------------
@@ -18,40 +21,42 @@ Threading contract
   of ``World`` takes it (properties too) and releases it before returning; helpers that assume
   it is held end in ``_locked``. It is reentrant, so code inside ``World.locked()`` may call any
   public method. The order (``docs/threading.md``, with every thread of the node):
-  ``World._edit_lock``, then the world lock, then leaves that are never held while taking
-  another lock: the loop's ``_cv`` and ``_snapshot_cv``, the control's staging lock (commands
-  are staged outside the world lock and applied under it), the lock's own waiter count, the
-  queue of edits waiting for their turn. The loop reads what a batch needs (``World.clock``,
-  or the clock its last batch gave, ``World.clock_since_batch``) before taking its ``_cv``,
-  and takes the world lock once per batch (``World.step_batch``: the steps, the clock and the
-  snapshot, with no MuJoCo call but the steps while the state is clean); a step request's
+  ``Transaction.edit_lock`` (:mod:`.editing.transaction`), then the world lock, then leaves
+  that are never held while taking another lock: the loop's condition and its snapshots'
+  (:class:`~.stepping.snapshots.Snapshots`), the control's staging lock (commands are staged
+  outside the world lock and applied under it), the world lock's own waiter count, the queue
+  of edits waiting for their turn. The loop reads what a batch needs
+  (``world.stepping.clock_since_batch()``, or ``World.clock``) before taking its condition,
+  and takes the world lock once per batch (``world.stepping.batch``: the steps, the clock and
+  the snapshot, with no MuJoCo call but the steps while the state is clean); a step request's
   feedback runs with no lock of the loop held; ``SimLoop.step`` inside ``World.locked()`` is
   refused (the loop could never take its steps).
 * **Who may take it.** Any thread. MuJoCo releases the GIL while stepping and compiling, so the
   lock is what keeps readers from seeing torn state. A plain lock is not fair: the loop calls
-  ``World.wait_for_callers`` before each batch, and callers waiting for the lock go first.
-* **Who steps.** Only the stepping loop (:class:`~.loop.SimLoop`, its own thread) calls
+  ``world.stepping.wait_for_callers`` before each batch, and callers waiting for the lock go first.
+* **Who steps.** Only the stepping loop (:class:`~.stepping.loop.SimLoop`, its own thread) calls
   ``World.step`` in the node; a script or the Gym environment that owns its world steps it
   from its own thread instead. Nobody calls ``mj_step`` outside ``World``.
 * **Changes.** Spawn, delete, reset, set-state and physics parameters are validated, then
-  applied between steps, all or nothing, through one commit path (``WorldEdits._change``,
-  :mod:`.world_edits`, over the edit phase's state :class:`~.design.Design`): under
+  applied between steps, all or nothing, through one commit path (``Transaction.change``,
+  :mod:`.editing.transaction`, over the edit phase's state :class:`~.editing.design.Design`):
+  under
   the lock the edit is planned and the current spec taken; with the lock released a copy of the
   spec is edited and compiled and everything that does not need the live state is prepared
   (index, name matching, new data); under the lock again the state is carried over by names and
   model, data, index, control binding and guard are swapped together (a few milliseconds,
   whatever the model's size), raising the generation. Structural edits take turns on
-  ``World._edit_lock``, which is taken before the world lock, never while holding it (an edit
+  ``Transaction.edit_lock``, which is taken before the world lock, never while holding it (an edit
   called inside ``World.locked()`` is done wholly under the world lock instead). Spawns and
   deletes that queued meanwhile are made together, one compile and one commit for the group,
   or one by one if the group fails anywhere. If the world changed while an edit compiled, it
   is planned again. The world keeps its spec uncompiled (a
   compiled spec holds every processed mesh: copying it took 190 ms with three arms), and MuJoCo
-  reads only checked copies of files (:mod:`.assets`).
-* **Snapshots.** ``World.snapshot`` (and ``World.step_batch``, for the loop) is the one
+  reads only checked copies of files (:mod:`.models.assets`).
+* **Snapshots.** ``World.snapshot`` (and ``world.stepping.batch``, for the loop) is the one
   producer: it copies what publishers need under the lock and numbers it (``seq``). The loop
   makes one per batch at ``snapshot_rate_hz``, and services make one after a change;
-  :class:`~.loop.SimLoop` keeps only the newest by ``seq``, so a consumer never sees time go
-  backwards because two threads raced to publish.
+  :class:`~.stepping.snapshots.Snapshots` keeps only the newest by ``seq``, so a consumer never
+  sees time go backwards because two threads raced to publish.
 * **ROS.** The loop thread never calls rclpy; the node reads snapshots, never MjData.
 """

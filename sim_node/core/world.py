@@ -16,24 +16,27 @@ from typing import Callable, Iterator, Optional, Sequence, TypeVar
 import mujoco
 import numpy as np
 
-from . import bases, checks, editor, guard, state, trajectory
-from .bases import COMMAND_TIMEOUT
+from . import checks, state
 from .checks import check_finite
 from .config import WorldConfig
-from .design import Design
-from .edits import Edits
+from .control import bases, trajectory
+from .control.bases import COMMAND_TIMEOUT
+from .control.trajectory import TrajectoryHandle
+from .editing import editor
+from .editing.design import Design
+from .editing.edits import Edits
+from .editing.transaction import Transaction
+from .editing.writes import Writes
 from .errors import (FeatureUnsupportedError, IncorrectStateError, InvalidArgumentError,
                      ResourceParseError)
-from .guard import clean
 from .index import STATE_SPEC
-from .live import Live
 from .models import asset_store, description, sources
 from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
                       RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
-from .stepping import ERR_STEPS, Stepping
-from .trajectory import TrajectoryHandle
-from .transaction import Transaction
-from .writes import Writes
+from .stepping import guard
+from .stepping.guard import clean
+from .stepping.live import Live
+from .stepping.steps import ERR_STEPS, Stepping
 
 T = TypeVar('T')
 
@@ -330,7 +333,7 @@ class World:
         Stage joint commands.
 
         The next step applies them, and they hold until replaced or until their joint is deleted
-        (see :class:`~sim_node.core.control.Control`).
+        (see :class:`~sim_node.core.control.commands.Control`).
 
         :raises NotFoundError: an unknown joint; nothing is staged.
         :raises InvalidArgumentError: a non-finite value, a length mismatch or a bad mode.

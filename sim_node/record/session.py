@@ -41,7 +41,7 @@ class SessionRecorder:
         self._thread.start()
 
     def _on_model(self, loaded, snap) -> None:
-        """The session's listener: note the world; the recorder's thread acts on it."""
+        """Note the world the session now has (a listener): the recorder's thread acts on it."""
         self._loaded = loaded
         self._changed.set()
 

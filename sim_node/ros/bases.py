@@ -1,7 +1,7 @@
 """
 Mobile bases for nav2: ``<entity>/cmd_vel`` in, ``<entity>/odom`` and the odom TF out.
 
-Every entity with a mobile base (:mod:`sim_node.core.bases`: wheels named left and right,
+Every entity with a mobile base (:mod:`sim_node.core.control.bases`: wheels named left and right,
 planar joints, or a URDF's Gazebo drive plugin) gets, made and removed with it:
 
 * a subscription ``<entity>/cmd_vel``: geometry_msgs/Twist (nav2 Jazzy's default), or
@@ -29,7 +29,7 @@ from rclpy.event_handler import PublisherEventCallbacks
 from tf2_msgs.msg import TFMessage
 
 from .params import Frames
-from ..core import bases
+from ..core.control import bases
 from ..core.errors import SimError
 from ..core.records import Snapshot
 from ..session import Loaded, Session

@@ -27,7 +27,7 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.waitable import NumberOfEntities
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from ..core import trajectory
+from ..core.control import trajectory
 from ..core.errors import SimError
 from ..core.records import ModelInfo, Snapshot
 from ..session import Loaded, Session

@@ -1,7 +1,13 @@
 """
-Reading what users bring: model files and text (MJCF, URDF), their meshes and assets.
+Reading what users bring: model files and text (MJCF, URDF, xacro), their meshes and assets.
 
 :mod:`.sources` (what can be spawned), :mod:`.assets` (untrusted model text: safe XML,
-includes, every file resolved, checked and copied once), :mod:`.resources` (which URIs and
-folders may be read), :mod:`.description` (a URDF of a compiled model, for robot_description).
+includes, every file resolved and checked once), :mod:`.asset_store` (the checked copies
+MuJoCo reads, one per file identity), :mod:`.paths` (where a path really leads),
+:mod:`.resources` (which URIs and folders may be read), :mod:`.urdf` (URDF made ready for
+MuJoCo's importer), :mod:`.urdf_declared` (Gazebo sensors and ros2_control interfaces a URDF
+declares), :mod:`.xacro_files` and :mod:`.xacro_worker` (xacro expanded in an isolated child
+process), :mod:`.meshes`, :mod:`.mesh_worker` and :mod:`.collada_fast` (meshes MuJoCo cannot
+read, converted in child processes), :mod:`.description` (a URDF of a compiled model, for
+robot_description).
 """

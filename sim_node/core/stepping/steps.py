@@ -13,11 +13,11 @@ from typing import Callable, Optional
 import mujoco
 import numpy as np
 
-from .errors import DivergenceError, InvalidArgumentError
 from .guard import clean
-from .index import STATE_SPEC
 from .live import Live
-from .records import Clock, Snapshot
+from ..errors import DivergenceError, InvalidArgumentError
+from ..index import STATE_SPEC
+from ..records import Clock, Snapshot
 
 ERR_STEPS = 'steps must be >= 1, got {n}'
 #: How long the loop lets callers waiting for the world lock go first, at most, per batch. It

@@ -9,13 +9,14 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import checks, editor, quat, state
-from .checks import check_finite, check_pose
+from . import editor
 from .design import Edit
-from .errors import OperationFailedError
-from .live import Live
-from .records import EntityRecord
 from .transaction import Transaction
+from .. import checks, quat, state
+from ..checks import check_finite, check_pose
+from ..errors import OperationFailedError
+from ..records import EntityRecord
+from ..stepping.live import Live
 
 ERR_STATIC_ACCELERATION = ('{name!r} is a {category} entity welded to the world: it cannot '
                            'have an acceleration (only its pose can be set)')

@@ -14,11 +14,11 @@ import warnings
 import mujoco
 import numpy as np
 
-from . import quat
-from .errors import ResourceParseError
-from .index import ModelIndex
-from .models import sources
-from .records import EntityRecord
+from .. import quat
+from ..errors import ResourceParseError
+from ..index import ModelIndex
+from ..models import sources
+from ..records import EntityRecord
 
 log = logging.getLogger(__name__)
 

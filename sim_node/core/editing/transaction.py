@@ -16,11 +16,11 @@ from typing import Callable, Optional, Sequence
 
 import mujoco
 
-from . import index as model_index
 from . import transfer
 from .design import Design, Edit
-from .live import Live
-from .memory import release_free_memory
+from .. import index as model_index
+from ..memory import release_free_memory
+from ..stepping.live import Live
 
 #: Times an edit is built outside the lock before it is done under it (see Transaction.change).
 EDIT_ATTEMPTS = 3

@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from . import editor
-from .errors import ResourceParseError
+from ..errors import ResourceParseError
 
 log = logging.getLogger(__name__)
 

@@ -16,11 +16,11 @@ import numpy as np
 
 from . import bases
 from .actuation import Outputs, times_mass
-from .checks import check_finite
-from .errors import InvalidArgumentError
-from .index import ModelIndex
-from .records import EFFORT, MODES, POSITION, VELOCITY
 from .trajectory import INVALID_GOAL, SUCCESSFUL, Tracker
+from ..checks import check_finite
+from ..errors import InvalidArgumentError
+from ..index import ModelIndex
+from ..records import EFFORT, MODES, POSITION, VELOCITY
 
 ERR_MODE = 'unknown command mode {mode!r}; use one of ' + ', '.join(MODES)
 ERR_LENGTH = '{what}: {n} names but {m} values'

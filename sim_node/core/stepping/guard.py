@@ -13,8 +13,8 @@ from typing import Callable, Optional
 import mujoco
 import numpy as np
 
-from .checks import MAX_ABS_VALUE
-from .index import STATE_SPEC
+from ..checks import MAX_ABS_VALUE
+from ..index import STATE_SPEC
 
 log = logging.getLogger(__name__)
 

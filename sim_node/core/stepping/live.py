@@ -17,16 +17,16 @@ from typing import Optional
 import mujoco
 import numpy as np
 
-from . import index as model_index
-from . import state
-from .config import WorldConfig
-from .control import Control
-from .design import Design
-from .errors import InvalidPoseError
 from .guard import DivergenceGuard
-from .index import ModelIndex, STATE_SPEC
 from .lock import WorldLock
-from .records import Clock, Snapshot
+from .. import index as model_index
+from .. import state
+from ..config import WorldConfig
+from ..control.commands import Control
+from ..editing.design import Design
+from ..errors import InvalidPoseError
+from ..index import ModelIndex, STATE_SPEC
+from ..records import Clock, Snapshot
 
 ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the world frame '
              "('' or 'world') or the name of an entity")

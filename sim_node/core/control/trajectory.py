@@ -18,7 +18,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import checks
+from .. import checks
 
 # FollowJointTrajectory's error codes (the controller's meaning; the node maps them 1:1).
 SUCCESSFUL, INVALID_GOAL, INVALID_JOINTS, OLD_HEADER_TIMESTAMP = 0, -1, -2, -3

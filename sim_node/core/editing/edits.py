@@ -17,15 +17,17 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
-from . import bases, checks, editor, quat, state
-from .checks import check_finite, check_pose
+from . import editor
 from .design import Contact, Edit, NOTHING, Spawned
-from .errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
-                     NameNotUniqueError)
-from .live import Live
-from .models import sources
-from .records import ROBOT, STATIC
 from .transaction import Transaction
+from .. import checks, quat, state
+from ..checks import check_finite, check_pose
+from ..control import bases
+from ..errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
+                      NameNotUniqueError)
+from ..models import sources
+from ..records import ROBOT, STATIC
+from ..stepping.live import Live
 
 ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '
                 'max_bodies): delete entities first, or raise the limit')
