@@ -1,47 +1,44 @@
 """
 The MuJoCo world while it runs: the facade every user of the core talks to.
 
-Its public methods lock, validate and delegate. What is current (the lock, the model, data,
-index, design and generation) is one :class:`~.live.Live`; the steps and the stepping loop's
-protocol are :mod:`.stepping` (``world.stepping``); structural edits are planned in
-:mod:`.edits` and made by the one commit path, :mod:`.transaction`; state writes are
-:mod:`.writes`; addresses come from :mod:`.index`, joint commands go to :mod:`.control`, reads to
-:mod:`.state`. The threading contract is in the package docstring (``sim_node.core``).
+Its public methods lock, validate and delegate: they are the one surface scripts, the Session,
+the Gym envs and the node use, so a method whose work lives in a part still stands here, with
+its contract in its docstring. What is current (the lock, the model, data, index, design and
+generation) is one :class:`~.stepping.live.Live`; the steps and the stepping loop's protocol are
+:mod:`.stepping.steps` (``world.stepping``); structural edits are planned in
+:mod:`.editing.edits` and made by the one commit path, :mod:`.editing.transaction`; state
+writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
+:mod:`.control.motion`; addresses come from :mod:`.index`, reads from :mod:`.state`. The
+threading contract is in the package docstring (``sim_node.core``).
 """
 
 import contextlib
-from pathlib import Path
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
 
 import mujoco
 import numpy as np
 
-from . import checks, state
-from .checks import check_finite
+from . import state
 from .config import WorldConfig
-from .control import bases, trajectory
 from .control.bases import COMMAND_TIMEOUT
+from .control.motion import Motion
 from .control.trajectory import TrajectoryHandle
 from .editing import editor
 from .editing.design import Design
 from .editing.edits import Edits
 from .editing.transaction import Transaction
 from .editing.writes import Writes
-from .errors import (FeatureUnsupportedError, IncorrectStateError, InvalidArgumentError,
-                     ResourceParseError)
+from .errors import FeatureUnsupportedError, InvalidArgumentError, ResourceParseError
 from .index import STATE_SPEC
 from .models import asset_store, description, sources
 from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
                       RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
 from .stepping import guard
-from .stepping.guard import clean
 from .stepping.live import Live
-from .stepping.steps import ERR_STEPS, Stepping
+from .stepping.steps import Stepping
 
 T = TypeVar('T')
 
-ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the world is now at '
-                        'generation {now} (an entity was spawned or deleted since)')
 ERR_SCOPE = ('reset scope {scope} has bits no simulator defines: use 0 (all), 255 (all) or a '
              'combination of 1 (time), 2 (state) and 4 (spawned)')
 ERR_NO_DESCRIPTION = ('entity {name!r} has no hinge or slide joints: only robots have a robot '
@@ -75,13 +72,13 @@ class World:
         # The edit phase's state, replaced whole by each structural edit (.design).
         design, model = Design.start(spec, arena)
         self._live = live = Live(config, design, model)
-        self._descriptions: dict = {}  # entity -> (what it was made of, its URDF text)
-        self._bases: tuple = (-1, {})  # (generation, entity -> BaseSpec)
+        self._descriptions = description.Descriptions()
         #: The stepping loop's way in (:class:`~.stepping.Stepping`).
         self.stepping = Stepping(live)
         self._transaction = Transaction(live)
         self._edits = Edits(live, self._transaction)
         self._writes = Writes(live, self._transaction)
+        self._motion = Motion(live)
 
     @classmethod
     def from_file(cls, path: str, config: WorldConfig = WorldConfig()) -> 'World':
@@ -200,11 +197,6 @@ class World:
         with self._live.lock:
             return list(self._live.design.spawned)
 
-    def spawned_record(self, name: str):
-        """Return what the edit phase keeps of a spawned entity (:class:`~.design.Spawned`)."""
-        with self._live.lock:
-            return self._live.design.spawned.get(name)
-
     def joint_names(self) -> list:
         """Hinge and slide joints, the ones joint commands and joint_states cover."""
         with self._live.lock:
@@ -227,20 +219,7 @@ class World:
             return description.renamed_urdf(spawned.urdf, name)
         if not info.body_alias[rec.root_body]:
             raise InvalidArgumentError(ERR_NO_DESCRIPTION.format(name=name))
-        # Every new model asks again for every entity: write the text only when what it is
-        # made of changed (a spawn elsewhere recompiles the world, not this entity).
-        key = (description.model_key(model, rec.body_ids), info.body_alias[rec.root_body],
-               info.body_mount[rec.root_body], mesh_dir)
-        known = self._descriptions.get(name)
-        if known is not None and known[0] == key:
-            return known[1]
-        text = description.from_model(model, rec.body_ids, info.body_alias[rec.root_body],
-                                      info.body_mount[rec.root_body],
-                                      None if mesh_dir is None else Path(mesh_dir))
-        if len(self._descriptions) > 4 * len(info.entities) + 16:  # of entities gone
-            self._descriptions.clear()
-        self._descriptions[name] = (key, text)
-        return text
+        return self._descriptions.of(name, model, info, rec, mesh_dir)
 
     def entity_bounds(self, name: str, local: bool = False) -> tuple:
         """
@@ -272,16 +251,7 @@ class World:
 
     def set_state(self, physics_state: PhysicsState) -> None:
         """Overwrite the full state with one from :meth:`get_state` of the same generation."""
-        live = self._live
-        with live.lock:
-            if physics_state.generation != live.index.generation:
-                raise IncorrectStateError(ERR_STATE_GENERATION.format(
-                    got=physics_state.generation, now=live.index.generation))
-            values = np.asarray(physics_state.values, dtype=float)
-            if values.shape != (live.index.state_size,) or not clean(values):
-                raise InvalidArgumentError(checks.ERR_NOT_FINITE.format(
-                    what='state values', value=f'{values.size} values'))
-            live.set_state_locked(values, physics_state.step)
+        self._writes.set_state(physics_state)
 
     def get_entity_state(self, name: str, reference: str = '') -> EntityState:
         """
@@ -318,13 +288,6 @@ class World:
                   joint_velocities: Optional[dict] = None) -> None:
         """Overwrite any parts of the state at once, in the world frame (see :mod:`.writes`)."""
         self._writes.overwrite(poses, twists, joint_positions, joint_velocities)
-
-    def set_joint_positions(self, positions: dict) -> None:
-        """Set hinge/slide joint positions by name (velocities are kept)."""
-        self._writes.set_joint_positions(positions)
-
-    def set_joint_velocities(self, velocities: dict) -> None:
-        self._writes.set_joint_velocities(velocities)
 
     # ---------------------------------------------------------------- control
 
@@ -367,16 +330,10 @@ class World:
         :raises TrajectoryError: with FollowJointTrajectory's error code; a point outside a
             joint's range is refused too.
         """
-        live = self._live
-        with live.lock:
-            traj = trajectory.plan(live.index, live.model, live.data, entity, joint_names,
-                                   times, positions, velocities, accelerations, start_time,
-                                   path_tolerance, goal_tolerance, goal_time_tolerance,
-                                   allow_end_velocity)
-            live.control.start_run(entity, trajectory.Tracker(traj), live.index, live.model,
-                                   live.data)
-            live.cached = None
-            return TrajectoryHandle(self, entity, live.control.run_of(entity))
+        run = self._motion.follow(entity, joint_names, times, positions, velocities,
+                                  accelerations, start_time, path_tolerance, goal_tolerance,
+                                  goal_time_tolerance, allow_end_velocity)
+        return TrajectoryHandle(self, entity, run)
 
     def check_trajectory(self, entity: str, joint_names: Sequence[str],
                          times: Sequence[float], positions: Sequence[Sequence[float]],
@@ -388,19 +345,12 @@ class World:
 
         :raises TrajectoryError: with FollowJointTrajectory's error code.
         """
-        live = self._live
-        with live.lock:
-            trajectory.plan(live.index, live.model, live.data, entity, joint_names, times,
-                            positions, velocities, accelerations, start_time, None, None, 0.0,
-                            allow_end_velocity)
+        self._motion.check(entity, joint_names, times, positions, velocities, accelerations,
+                           start_time, allow_end_velocity)
 
     def cancel_trajectory(self, handle: 'TrajectoryHandle') -> None:
         """End a trajectory now; the joints hold where they are (see TrajectoryHandle)."""
-        live = self._live
-        with live.lock:
-            live.control.cancel_run(handle.entity, handle.run, live.data, live.index,
-                                    live.model)
-            live.cached = None
+        self._motion.cancel(handle.entity, handle.run)
 
     def bases(self) -> dict:
         """
@@ -409,16 +359,7 @@ class World:
         Found from each entity's model (wheel joints, planar joints) or its URDF's Gazebo drive
         plugin; measured once per model generation.
         """
-        with self._live.lock:
-            return dict(self._bases_locked())
-
-    def _bases_locked(self) -> dict:
-        live = self._live
-        if self._bases[0] != live.generation:
-            live.kinematics_locked()
-            self._bases = (live.generation, bases.find_all(
-                live.model, live.data, live.index.entities, live.design.spawned))
-        return self._bases[1]
+        return self._motion.bases()
 
     def drive(self, entity: str, vx: float, vy: float = 0.0, wz: float = 0.0,
               timeout: float = COMMAND_TIMEOUT) -> None:
@@ -433,16 +374,7 @@ class World:
         :raises InvalidArgumentError: it has no base; a value not finite or beyond
             :data:`.bases.MAX_SPEED` / :data:`.bases.MAX_TURN`.
         """
-        vx, vy, wz = bases.check_command(vx, vy, wz)
-        live = self._live
-        with live.lock:
-            live.index.entity(entity)
-            spec = self._bases_locked().get(entity)
-            if spec is None:
-                raise InvalidArgumentError(bases.ERR_NO_BASE.format(entity=entity))
-            if live.control.command_base(spec, vx, vy, wz, max(0.0, float(timeout)),
-                                         live.index, live.model, live.data):
-                live.cached = None  # the controls changed: the last batch's state is stale
+        self._motion.drive(entity, vx, vy, wz, timeout)
 
     def push(self, body: str, force: Sequence[float], torque: Sequence[float] = (0, 0, 0)
              ) -> None:
@@ -454,18 +386,11 @@ class World:
 
         :raises NotFoundError: no such body; :raises InvalidArgumentError: not 3 finite values.
         """
-        wrench = np.concatenate([check_finite('force', force, 3),
-                                 check_finite('torque', torque, 3)])
-        live = self._live
-        with live.lock:
-            live.data.xfrc_applied[live.index.body(body)] = wrench
+        self._motion.push(body, force, torque)
 
     def set_gains(self, kp: float, kd: float) -> None:
         """PD gains for joints commanded without a matching actuator."""
-        live = self._live
-        with live.lock:
-            live.control.set_gains(kp, kd, live.index, live.model, live.data)
-            live.cached = None
+        self._motion.set_gains(kp, kd)
 
     # ---------------------------------------------------------------- stepping
 
@@ -490,19 +415,7 @@ class World:
         The named hinge/slide joints take `positions` exactly at every step; returns the step
         count.
         """
-        if n < 1:
-            raise InvalidArgumentError(ERR_STEPS.format(n=n))
-        live = self._live
-        with live.lock:
-            i = live.index.joints(positions.keys())
-            targets = check_finite('joint positions', list(positions.values()))
-            qadr, dadr = live.index.joint_qposadr[i], live.index.joint_dofadr[i]
-            for _ in range(n):
-                state.kinematic_step(live.model, live.data, qadr, dadr, targets)
-            live.step_count += n
-            live.cached = None
-            live.stale_kinematics, live.stale_dynamics = False, True
-            return live.step_count
+        return self.stepping.kinematic(positions, n)
 
     # ---------------------------------------------------------------- reset
 
@@ -529,10 +442,6 @@ class World:
                 live.cached = None
 
     # ---------------------------------------------------------------- edits (see .edits)
-
-    def unique_name(self, base: str) -> str:
-        """Return `base`, or `base_<n>` with the smallest n not taken by an entity or body."""
-        return self._edits.unique_name(base)
 
     def spawn(self, name: str, source: sources.SpawnSource,
               position: Sequence[float] = (0.0, 0.0, 0.0),

@@ -33,8 +33,9 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 import numpy as np
 
-from . import env as gym_env
-from .env import Batch, SimEnv, Task
+from . import env as gym_env, tasks
+from .env import SimEnv
+from .tasks import Batch, Task
 from ..core.checks import MAX_ABS_VALUE as MAX_CONTROL
 from ..core.errors import DivergenceError
 
@@ -299,7 +300,7 @@ def _maker(task: type) -> Callable[..., SimVectorEnv]:
     return make
 
 
-make_push_box = _maker(gym_env.PushBoxTask)
-make_reach = _maker(gym_env.ReachTask)
-make_pusher = _maker(gym_env.PusherTask)
-make_reacher = _maker(gym_env.ReacherTask)
+make_push_box = _maker(tasks.PushBoxTask)
+make_reach = _maker(tasks.ReachTask)
+make_pusher = _maker(tasks.PusherTask)
+make_reacher = _maker(tasks.ReacherTask)

@@ -52,11 +52,6 @@ class Edits:
         if total > self.live.config.max_bodies:
             raise CapacityError(ERR_CAPACITY.format(n=total, limit=self.live.config.max_bodies))
 
-    def unique_name(self, base: str) -> str:
-        """Return `base`, or `base_<n>` with the smallest n not taken by an entity or body."""
-        with self.live.lock:
-            return self._unique_name_locked(base)
-
     def _unique_name_locked(self, base: str) -> str:
         taken = self.live.index.body_ids
         base = base if checks.NAME_RE.match(base or '') else 'entity'

@@ -14,8 +14,9 @@ from .design import Edit
 from .transaction import Transaction
 from .. import checks, quat, state
 from ..checks import check_finite, check_pose
-from ..errors import OperationFailedError
-from ..records import EntityRecord
+from ..errors import IncorrectStateError, InvalidArgumentError, OperationFailedError
+from ..records import EntityRecord, PhysicsState
+from ..stepping.guard import clean
 from ..stepping.live import Live
 
 ERR_STATIC_ACCELERATION = ('{name!r} is a {category} entity welded to the world: it cannot '
@@ -24,12 +25,29 @@ ERR_STATIC_TWIST = ('{name!r} is a {category} entity welded to the world: it can
                     'velocity (only its pose can be set)')
 
 
+ERR_STATE_GENERATION = ('this state was taken from model generation {got}, the world is now at '
+                        'generation {now} (an entity was spawned or deleted since)')
+
+
 class Writes:
-    """State overwrite of a :class:`~.live.Live` world."""
+    """State overwrite of a :class:`~sim_node.core.stepping.live.Live` world."""
 
     def __init__(self, live: Live, transaction: Transaction):
         self.live = live
         self.transaction = transaction
+
+    def set_state(self, physics_state: PhysicsState) -> None:
+        """Overwrite the full state with one taken from the same model generation."""
+        live = self.live
+        with live.lock:
+            if physics_state.generation != live.index.generation:
+                raise IncorrectStateError(ERR_STATE_GENERATION.format(
+                    got=physics_state.generation, now=live.index.generation))
+            values = np.asarray(physics_state.values, dtype=float)
+            if values.shape != (live.index.state_size,) or not clean(values):
+                raise InvalidArgumentError(checks.ERR_NOT_FINITE.format(
+                    what='state values', value=f'{values.size} values'))
+            live.set_state_locked(values, physics_state.step)
 
     def set_entity_state(self, name: str, position: Optional[Sequence[float]] = None,
                          quat_wxyz: Optional[Sequence[float]] = None,
@@ -136,15 +154,6 @@ class Writes:
             lin = None if lin is None else quat.rotate(frame[1], lin)
             ang = None if ang is None else quat.rotate(frame[1], ang)
         return pos, q, lin, ang
-
-    def set_joint_positions(self, positions: dict) -> None:
-        """Set hinge/slide joint positions by name (velocities are kept)."""
-        with self.live.lock:
-            self._overwrite_locked({}, {}, positions, {}, '')
-
-    def set_joint_velocities(self, velocities: dict) -> None:
-        with self.live.lock:
-            self._overwrite_locked({}, {}, {}, velocities, '')
 
     def _joint_targets_locked(self, what: str, values: dict, use_qpos: bool) -> tuple:
         """Check (qpos or qvel addresses, values) for {joint: value}."""

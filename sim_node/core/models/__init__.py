@@ -1,9 +1,10 @@
 """
 Reading what users bring: model files and text (MJCF, URDF, xacro), their meshes and assets.
 
-:mod:`.sources` (what can be spawned), :mod:`.assets` (untrusted model text: safe XML,
-includes, every file resolved and checked once), :mod:`.asset_store` (the checked copies
-MuJoCo reads, one per file identity), :mod:`.paths` (where a path really leads),
+:mod:`.sources` (what can be spawned), :mod:`.prepare` (model text made ready for MuJoCo: URDF
+meshes converted, skins inlined, loose world geometry gathered), :mod:`.assets` (untrusted
+model text: safe XML, includes, every file resolved and checked once), :mod:`.asset_store` (the
+checked copies MuJoCo reads, one per file identity), :mod:`.paths` (where a path really leads),
 :mod:`.resources` (which URIs and folders may be read), :mod:`.urdf` (URDF made ready for
 MuJoCo's importer), :mod:`.urdf_declared` (Gazebo sensors and ros2_control interfaces a URDF
 declares), :mod:`.xacro_files` and :mod:`.xacro_worker` (xacro expanded in an isolated child

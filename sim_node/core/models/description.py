@@ -51,6 +51,32 @@ UNLIMITED_SLIDE_M = 1e6
 _EPS = 1e-12
 
 
+class Descriptions:
+    """
+    The URDF text of entities built from a model, kept until what an entity is made of changes.
+
+    Every new model asks again for every entity (a spawn elsewhere recompiles the world, not
+    this entity): the text is written again only when the entity's own part of the model is.
+    """
+
+    def __init__(self):
+        self._known: dict = {}  # entity -> (what it was made of, its URDF text)
+
+    def of(self, name: str, model: mujoco.MjModel, info, rec, mesh_dir: Optional[str]) -> str:
+        """Return the URDF of entity `rec` (named `name`) of `model` (see :func:`from_model`)."""
+        alias, mount = info.body_alias[rec.root_body], info.body_mount[rec.root_body]
+        key = (model_key(model, rec.body_ids), alias, mount, mesh_dir)
+        known = self._known.get(name)
+        if known is not None and known[0] == key:
+            return known[1]
+        text = from_model(model, rec.body_ids, alias, mount,
+                          None if mesh_dir is None else Path(mesh_dir))
+        if len(self._known) > 4 * len(info.entities) + 16:  # of entities gone
+            self._known.clear()
+        self._known[name] = (key, text)
+        return text
+
+
 def renamed_urdf(text: str, entity: str) -> str:
     """Return a spawned URDF as given, its joints named as on joint_states (``<entity>/<j>``)."""
     root = SafeET.fromstring(text)

@@ -18,9 +18,10 @@ import xml.etree.ElementTree as ET
 
 import mujoco
 
-from . import asset_store, assets, meshes, urdf, xacro_files
+from . import assets, meshes, prepare, urdf, xacro_files
 from .assets import Reader
 from .paths import inside_roots  # noqa: F401 (this module's too)
+from .prepare import compile_error, WORLD_GEOMS_BODY  # noqa: F401 (named by scripts)
 from .urdf import Prepared
 from ..config import WorldConfig
 from ..errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
@@ -45,7 +46,6 @@ ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujo
 ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
 ERR_NOT_XML = ('unsupported format: the text is not XML (it starts {start!r}); give MJCF '
                '(<mujoco>) or URDF (<robot>)')
-ERR_COMPILE = 'the model does not compile: {err}'
 ERR_FILE_MISSING = 'file not found: {path}'
 ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
 ERR_FILE_OUTSIDE = ('{path} is not inside the directories this node may read (its resource_paths '
@@ -68,9 +68,6 @@ log = logging.getLogger(__name__)
 ERR_DEGREE_RANGES = ("{what} reads joint angles in degrees (MJCF's default), but these hinge "
                      'ranges look like radians: {joints}. Add <compiler angle="radian"/> if '
                      'you meant radians.')
-
-ERR_URDF_MESH_KIND = ('the mesh {value!r} is of a kind neither MuJoCo nor the converters read '
-                      '({kind!r}): give an STL, OBJ, Collada (.dae), PLY, glTF or OFF file')
 
 
 def warn_radian_like_ranges(spec: mujoco.MjSpec, what: str) -> None:
@@ -152,14 +149,6 @@ def _check_size(n_bytes: int, limit: int) -> None:
         raise UnsupportedAssetsError(ERR_TOO_LARGE.format(size=n_bytes, limit=limit))
 
 
-def _compile_error(exc: Exception) -> Exception:
-    text = str(exc).strip()
-    low = text.lower()
-    if 'could not open' in low or 'error opening file' in low or 'resource not found' in low:
-        return MissingAssetsError(ERR_COMPILE.format(err=text))
-    return ResourceParseError(ERR_COMPILE.format(err=text))
-
-
 def _finish(spec: mujoco.MjSpec, kind: str, description: str,
             compile_alone: bool = True) -> SpawnSource:
     """
@@ -175,7 +164,7 @@ def _finish(spec: mujoco.MjSpec, kind: str, description: str,
         try:
             spec.compile()
         except ValueError as exc:
-            raise _compile_error(exc) from None
+            raise compile_error(exc) from None
     return SpawnSource(spec=spec, kind=kind, description=description)
 
 
@@ -209,7 +198,7 @@ def _spec_from(root: ET.Element) -> mujoco.MjSpec:
     try:
         return mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'))
     except ValueError as exc:
-        raise _compile_error(exc) from None
+        raise compile_error(exc) from None
 
 
 @functools.lru_cache(maxsize=1)
@@ -296,13 +285,13 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
         found = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
                                budget, reader)
         if is_urdf:
-            _convert_urdf_meshes(root, found, reader)
+            prepare.convert_urdf_meshes(root, found, reader)
         else:
-            _mjcf_gather_world_geoms(root)
+            prepare.gather_world_geoms(root)
         spec = _spec_from(root)
         if is_urdf:
             urdf.finish(spec, prepared)
-        _inline_skin_files(spec)
+        prepare.inline_skin_files(spec)
         kind = 'urdf' if is_urdf else 'mjcf'
         name = root.attrib.get('name') or root.attrib.get('model') or ''
         source = _finish(spec, kind, f'{kind.upper()} model {name[:100]}'.strip(),
@@ -315,119 +304,6 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     source.text, source.name = text, name
     source.reader, source.urdf_notes = reader, prepared
     return source
-
-
-def _hold_if_stored(reader: assets.Reader, path: str) -> None:
-    """Hold a conversion in the asset store (not one in the conversion cache, kept by design)."""
-    if Path(path).parent == Path(asset_store.store().folder):
-        reader.hold(path)
-
-
-def _convert_urdf_meshes(root: ET.Element, found: list, reader: assets.Reader) -> None:
-    """
-    Convert the URDF's meshes MuJoCo cannot read (:mod:`.meshes`); point them at the STL.
-
-    A converted visual without a colour of its own takes the mesh file's (Collada materials).
-    A file of a kind neither MuJoCo nor the converters read is refused (108), not compiled.
-    """
-    readable = assets.MUJOCO_MESH_SUFFIXES + meshes.CONVERTED_SUFFIXES
-    for _, value, _ in found:
-        kind = Path(value).suffix.lower()
-        if kind not in readable:
-            raise UnsupportedAssetsError(ERR_URDF_MESH_KIND.format(value=value, kind=kind))
-    todo = [(elem, value, stored) for elem, value, stored in found
-            if meshes.needs_conversion(value, stored)]
-    if not todo:
-        return
-    done = meshes.convert([(value, stored) for _, value, stored in todo])
-    visual_of = {id(m): v for v in root.iter('visual') for m in v.iter('mesh')}
-    named = {m.get('name') for m in root.findall('material') if m.find('color') is not None}
-    for (elem, value, _), converted in zip(todo, done):
-        _hold_if_stored(reader, converted.path)
-        elem.set('filename', converted.path)
-        if converted.decimated:
-            log.warning('the mesh %s has %d faces, more than MuJoCo reads (%d): decimated to %d',
-                        value, converted.faces_in, meshes.MUJOCO_MAX_FACES, converted.faces)
-        visual = visual_of.get(id(elem))
-        if visual is None or converted.rgba is None:
-            continue
-        material = visual.find('material')
-        if material is not None and (material.find('color') is not None
-                                     or material.get('name') in named):
-            continue
-        if material is None:
-            material = ET.SubElement(visual, 'material')
-        material.set('name', f'sim_mesh_colour_{len(named)}')
-        named.add(material.get('name'))
-        ET.SubElement(material, 'color', rgba=' '.join(f'{c:g}' for c in converted.rgba))
-
-
-def _inline_skin_files(spec: mujoco.MjSpec) -> None:
-    """
-    Put the content of skin files (``.skn``) into the spec itself.
-
-    A skin file names its bones' bodies inside the file, read only at compile: attached under a
-    prefix, with its root body renamed to the entity's name, the skin would look for a body
-    that no longer exists. Inlined, the bone names are spec data that the attach prefixes and
-    the rename repoints like every other reference. Costs one compile of the model alone, only
-    for models with skin files (dm_control's dog).
-    """
-    skins = [sk for sk in spec.skins if sk.file]
-    if not skins:
-        return
-    try:  # a copy: a compiled spec holds its processed meshes, slow to copy when attached
-        m = spec.copy().compile()
-    except ValueError as exc:
-        raise _compile_error(exc) from None
-    for sk in skins:
-        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SKIN, sk.name) if sk.name else -1
-        k = k if k >= 0 else list(spec.skins).index(sk)
-        va, vn = m.skin_vertadr[k], m.skin_vertnum[k]
-        fa, fn = m.skin_faceadr[k], m.skin_facenum[k]
-        ta = m.skin_texcoordadr[k]
-        ba, bn = m.skin_boneadr[k], m.skin_bonenum[k]
-        sk.file = ''
-        sk.vert = m.skin_vert[va:va + vn].reshape(-1).tolist()
-        sk.face = m.skin_face[fa:fa + fn].reshape(-1).tolist()
-        sk.texcoord = (m.skin_texcoord[ta:ta + vn].reshape(-1).tolist() if ta >= 0 else [])
-        sk.bodyname = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(b))
-                       for b in m.skin_bonebodyid[ba:ba + bn]]
-        sk.bindpos = m.skin_bonebindpos[ba:ba + bn].reshape(-1).tolist()
-        sk.bindquat = m.skin_bonebindquat[ba:ba + bn].reshape(-1).tolist()
-        vertid, vertweight = [], []
-        for b in range(ba, ba + bn):
-            adr, num = m.skin_bonevertadr[b], m.skin_bonevertnum[b]
-            vertid.append(m.skin_bonevertid[adr:adr + num].tolist())
-            vertweight.append(m.skin_bonevertweight[adr:adr + num].tolist())
-        sk.vertid, sk.vertweight = vertid, vertweight
-
-
-#: The body that a standalone model's static <worldbody> geoms and sites are gathered into.
-WORLD_GEOMS_BODY = 'world_geoms'
-
-
-def _mjcf_gather_world_geoms(root: ET.Element) -> None:
-    """
-    Gather a standalone model's static geometry into one welded body of the model.
-
-    Geoms and sites directly in <worldbody> (not ground planes, which the world drops when it
-    attaches the model) move into one welded body, appended after the model's own top-level
-    bodies, so they become part of the entity. Nothing changes when there is nothing to gather.
-    """
-    wb = root.find('worldbody')
-    loose = [] if wb is None else [e for e in wb if e.tag in ('geom', 'site')
-                                   and e.get('type') != 'plane']
-    if not loose:
-        return
-    taken = {e.get('name') for e in root.iter('body')}
-    name, i = WORLD_GEOMS_BODY, 0
-    while name in taken:
-        i += 1
-        name = f'{WORLD_GEOMS_BODY}_{i}'
-    holder = ET.SubElement(wb, 'body', name=name)
-    for e in loose:
-        wb.remove(e)
-        holder.append(e)
 
 
 def read_model_text(path: Path) -> str:
@@ -557,7 +433,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
         file = stored.path
         if meshes.needs_conversion(p.name, stored, max_faces):
             (converted,) = meshes.convert([(p.name, stored)], max_faces)
-            _hold_if_stored(reader, converted.path)
+            prepare.hold_if_stored(reader, converted.path)
             file = converted.path
         static = static or not mass
         spec, body = _new_body_spec(static)

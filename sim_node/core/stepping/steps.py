@@ -15,6 +15,8 @@ import numpy as np
 
 from .guard import clean
 from .live import Live
+from .. import state
+from ..checks import check_finite
 from ..errors import DivergenceError, InvalidArgumentError
 from ..index import STATE_SPEC
 from ..records import Clock, Snapshot
@@ -48,6 +50,22 @@ class Stepping:
                 lock.lock.release()
         with lock:
             return self.step_locked(int(n), ctrl, then)
+
+    def kinematic(self, positions: dict, n: int = 1) -> int:
+        """See :meth:`World.step_kinematic <sim_node.core.world.World.step_kinematic>`."""
+        if n < 1:
+            raise InvalidArgumentError(ERR_STEPS.format(n=n))
+        live = self.live
+        with live.lock:
+            i = live.index.joints(positions.keys())
+            targets = check_finite('joint positions', list(positions.values()))
+            qadr, dadr = live.index.joint_qposadr[i], live.index.joint_dofadr[i]
+            for _ in range(n):
+                state.kinematic_step(live.model, live.data, qadr, dadr, targets)
+            live.step_count += n
+            live.cached = None
+            live.stale_kinematics, live.stale_dynamics = False, True
+            return live.step_count
 
     # ---------------------------------------------------------------- the loop's protocol
 
