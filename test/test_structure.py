@@ -295,3 +295,17 @@ def test_the_map_check_sees_a_module_left_out_and_one_that_is_gone(tmp_path):
     (tmp_path / 'new.py').write_text('')
     assert docstring_map(tmp_path) == {'loop', 'gone'}
     assert children(tmp_path) == {'loop', 'new'}
+
+
+def test_the_parameter_reference_is_the_table_the_node_declares_from():
+    """docs/parameters.md holds what ``python -m sim_node.ros.parameter_table`` prints."""
+    from sim_node.ros.parameter_table import markdown, PARAMETERS
+    text = (ROOT / 'docs' / 'parameters.md').read_text()
+    block = re.search(r'<!-- parameters:[^\n]*-->\n(.*?)<!-- /parameters -->', text, re.S)
+    assert block, 'docs/parameters.md has no generated block'
+    assert block.group(1) == markdown(), \
+        'docs/parameters.md is out of date: python -m sim_node.ros.parameter_table'
+    names = [p.name for p in PARAMETERS]
+    assert len(names) == len(set(names)) > 50
+    params = (ROOT / 'sim_node' / 'ros' / 'params.py').read_text()
+    assert 'declare_parameter(spec.name' in params and params.count('declare_parameter(') == 1
