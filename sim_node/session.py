@@ -4,28 +4,35 @@ The simulation that is loaded now: one owner for the world, its loop and its lif
 A :class:`Session` holds the loaded :class:`~sim_node.core.world.World` and its stepping
 :class:`~sim_node.core.stepping.loop.SimLoop`, and swaps them as one (:meth:`Session.load`,
 :meth:`Session.unload`). Its state is one machine, the single source of what
-``get_simulation_state`` answers::
+``get_simulation_state`` answers, written in one place (:data:`TRANSITIONS`, applied by
+:meth:`Session._go`)::
 
     NO_WORLD --load--> STOPPED or PLAYING/PAUSED      (LOADING_WORLD while a load reads)
     STOPPED  --play--> PLAYING    --pause--> PAUSED   --play--> PLAYING
     PLAYING/PAUSED --stop--> STOPPED (paused, and reset: time, state, spawned entities)
+    STOPPED/PAUSED --step--> PAUSED;  PLAYING --limit or diverged--> PAUSED
+    any --failed--> FAILED (shown as STOPPED, with the reason) --stop or reset--> STOPPED/PAUSED
     any world --unload--> NO_WORLD
 
-A loop that failed (an internal error) shows as STOPPED with the reason until a reset, a stop
-or a load brings it back, paused. :meth:`Session.set_state` applies the standard's rules for a
-requested state (already there, not allowed, tried and failed); :meth:`play` and :meth:`pause`
-are the lenient forms a parameter or a script uses.
+The loop reports, the session decides: the loop stops stepping by itself when a limit is
+reached, the physics diverges or it fails (it must not take another step), and reports it
+(:meth:`SimLoop.take_reports <sim_node.core.stepping.loop.SimLoop.take_reports>`); the session
+takes those reports before it answers any question or request, so its state never lags the
+loop's. :meth:`Session.set_state` applies the standard's rules for a requested state (already
+there, not allowed, tried and failed); :meth:`play` and :meth:`pause` are the lenient forms a
+parameter or a script uses.
 
 Front-ends attach to a session instead of keeping their own copy of what is loaded: the ROS node,
 a viewer window, a browser view and a recorder register listeners (:meth:`add_listener`), which
 the session's ``sim-model`` thread calls with each new model: a load, a spawn, a delete, a reset
 of the spawned entities, and ``None`` on unload. A listener sees the model that is current when
 its turn comes: under a burst of edits the models replaced before that are skipped, as a
-publisher would skip them; :meth:`sync` waits until every listener has seen the current one. The
-same thread gives freed heap back to the system (:mod:`~sim_node.core.memory`), only when it is
-cheap enough: a trim stalls every thread that allocates.
+publisher would skip them; :meth:`sync` waits until every listener has seen the current one (a
+script or test that must see the listeners' work before it goes on). A listener must not block:
+one that has work to do records what changed and acts on its own thread. Freed heap goes back
+to the system from a listener of the same kind (:class:`~sim_node.core.memory.HeapTrimmer`).
 
-Threads: the session's lock (which world, the lifecycle flags) is taken before any world or
+Threads: the session's lock (which world, the lifecycle state) is taken before any world or
 loop lock and never held while calling a listener.
 """
 
@@ -39,7 +46,7 @@ from typing import Callable, Iterator, NamedTuple, Optional
 from .core.config import WorldConfig
 from .core.errors import (AlreadyInStateError, IncorrectStateError, IncorrectTransitionError,
                           NoWorldError, StateTransitionError)
-from .core.memory import release_free_memory
+from .core.memory import HeapTrimmer
 from .core.records import RESET_ALL, Snapshot
 from .core.stepping.loop import SimLoop
 from .core.world import World
@@ -53,6 +60,21 @@ PAUSED = 'paused'
 PLAYING = 'playing'
 #: The states a caller may ask for (:meth:`Session.set_state`).
 REQUESTABLE = (PLAYING, PAUSED, STOPPED)
+#: The loop failed (an internal error): shown as STOPPED, with the reason, until a stop, a
+#: reset or a load brings it back.
+FAILED = 'failed'
+#: The lifecycle: (state, event) -> next state. Events are the requests (play, pause, stop,
+#: step, reset) and the loop's reports (limit, diverged, failed: see ``SimLoop.take_reports``).
+#: A pair not here leaves the state as it is.
+TRANSITIONS = {
+    **{(s, 'play'): PLAYING for s in (STOPPED, PAUSED, PLAYING)},
+    **{(s, 'pause'): PAUSED for s in (STOPPED, PAUSED, PLAYING)},
+    **{(s, 'stop'): STOPPED for s in (STOPPED, PAUSED, PLAYING, FAILED)},
+    **{(s, 'step'): PAUSED for s in (STOPPED, PAUSED)},
+    (PLAYING, 'limit'): PAUSED, (PLAYING, 'diverged'): PAUSED,
+    **{(s, 'failed'): FAILED for s in (STOPPED, PAUSED, PLAYING)},
+    (FAILED, 'reset'): PAUSED,
+}
 
 ERR_NO_WORLD = 'no world is loaded; call load_world first'
 ERR_LOADING = 'a world is loading (LOADING_WORLD): ask again when load_world has answered'
@@ -62,15 +84,6 @@ ERR_ALREADY = 'already in that state'
 ERR_HELD = ('this world is stepped by its owner (Session.hold), not by a loop: step it from '
             'the script that holds it')
 
-#: Freed heap goes back to the system every TRIM_PERIOD_SEC; while the model keeps changing, only
-#: once BUSY_TRIM_BYTES are free (a trim stalled every allocating thread for up to 66 ms under a
-#: storm of edits); once the model has stood still QUIET_SEC, once QUIET_TRIM_BYTES are. Not
-#: less: memory given back is faulted in again, a page at a time, by the next edit (a small
-#: robot's spawn took 2,600 page faults, 3-5 ms of its 20, after each trim of everything).
-TRIM_PERIOD_SEC = 2.0
-BUSY_TRIM_BYTES = 64 << 20
-QUIET_TRIM_BYTES = 16 << 20
-QUIET_SEC = 0.5
 #: How often the session's thread looks for a new world or model when nothing wakes it.
 WATCH_SEC = 0.05
 #: How long the session's thread lets an edit's caller have the process before it reacts to
@@ -100,7 +113,7 @@ class Session:
     def __init__(self, trim_memory: bool = True):
         self._lock = threading.RLock()
         self._loaded: Optional[Loaded] = None
-        self._stopped = False
+        self._state = NO_WORLD  # of the loaded world; LOADING_WORLD is self._loading > 0
         self._loading = 0
         self._listeners: list = []  # _Registered, in the order they were added
         self._seen_cv = threading.Condition()  # notified when listeners have seen a model
@@ -108,7 +121,7 @@ class Session:
         self._closing = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._trim_memory = trim_memory
-        self._trim = _TrimPolicy()
+        self._trimmer: Optional[HeapTrimmer] = None
 
     def __enter__(self) -> 'Session':
         return self
@@ -155,7 +168,7 @@ class Session:
             loop.pause()
         with self._lock:
             old, self._loaded = self._loaded, Loaded(world, loop, name, uri)
-            self._stopped = stopped
+            self._state = STOPPED if stopped else PAUSED if loop.paused else PLAYING
         if old is not None and old.loop is not None:
             old.loop.stop()
         loop.start()
@@ -175,7 +188,7 @@ class Session:
         """
         with self._lock:
             old, self._loaded = self._loaded, Loaded(world, None, name, uri)
-            self._stopped = False
+            self._state = PLAYING  # as its owner steps it
         if old is not None and old.loop is not None:
             old.loop.stop()
         self._wake.set()
@@ -204,7 +217,7 @@ class Session:
         """Stop and drop the loaded world (NO_WORLD); :raises NoWorldError: none is loaded."""
         with self._lock:
             old, self._loaded = self._loaded, None
-            self._stopped = False
+            self._state = NO_WORLD
         if old is None:
             raise NoWorldError(ERR_NO_WORLD)
         if old.loop is not None:
@@ -222,6 +235,8 @@ class Session:
         thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join(2.0)
+        if self._trimmer is not None:
+            self._trimmer.close()
 
     # ---------------------------------------------------------------- the lifecycle
 
@@ -231,14 +246,20 @@ class Session:
         with self._lock:
             if self._loading:
                 return LOADING_WORLD
-            loaded = self._loaded
-            if loaded is None:
-                return NO_WORLD
-            if loaded.loop is None:  # its owner steps it
-                return PLAYING
-            if self._stopped or loaded.loop.failure:
-                return STOPPED
-            return PAUSED if loaded.loop.paused else PLAYING
+            self._take_reports_locked()
+            return STOPPED if self._state == FAILED else self._state
+
+    def _take_reports_locked(self) -> None:
+        """Decide on what the loop did by itself since it was last asked (session lock held)."""
+        loaded = self._loaded
+        if loaded is not None and loaded.loop is not None:
+            for kind, _ in loaded.loop.take_reports():
+                self._go(kind)
+
+    def _go(self, event: str) -> str:
+        """Apply `event` to the lifecycle by :data:`TRANSITIONS` (session lock held)."""
+        self._state = TRANSITIONS.get((self._state, event), self._state)
+        return self._state
 
     def status_message(self) -> str:
         """Why the simulation stopped or paused by itself, or a word when it lags; else ''."""
@@ -266,11 +287,12 @@ class Session:
                 raise IncorrectTransitionError(ERR_LOADING)
             loop = self.loop
             loop.cancel_steps()
-            failure = loop.failure
-            if self.state == target and not failure:  # STOPPED after a failure: reset
+            self._take_reports_locked()
+            failed = self._state == FAILED
+            if self._state == target:  # STOPPED after a failure is FAILED: allowed, it resets
                 raise AlreadyInStateError(ERR_ALREADY)
-            if failure and target != STOPPED:
-                raise StateTransitionError(failure)
+            if failed and target != STOPPED:
+                raise StateTransitionError(loop.failure)
         # Outside the lock: a stop resets, which may compile (the spawned entities go).
         {PLAYING: self.play, PAUSED: self.pause, STOPPED: self.stop}[target]()
 
@@ -278,14 +300,16 @@ class Session:
         """Play (from STOPPED too); :raises IncorrectStateError: the loop failed."""
         with self._lock:
             loop = self.loop
-            loop.play()
-            self._stopped = False
+            self._take_reports_locked()
+            loop.play()  # raises while the loop has failed: the state stays
+            self._go('play')
 
     def pause(self) -> None:
         with self._lock:
             loop = self.loop
+            self._take_reports_locked()
             loop.pause()
-            self._stopped = False
+            self._go('pause')
 
     def stop(self) -> None:
         """Stop: pause and reset everything (time, state, spawned); a failed loop recovers."""
@@ -294,9 +318,10 @@ class Session:
             self.loop.pause()
             loaded.loop.cancel_steps()
         loaded.world.reset(RESET_ALL)
-        loaded.loop.recover()
         with self._lock:
-            self._stopped = True
+            self._take_reports_locked()
+            loaded.loop.recover()
+            self._go('stop')
         loaded.loop.refresh_snapshot()
 
     def step(self, n: int, feedback: Optional[Callable[[int, int], None]] = None) -> int:
@@ -308,7 +333,8 @@ class Session:
         """
         done = self.loop.step(n, feedback=feedback)
         with self._lock:
-            self._stopped = False  # no longer at the reset state
+            self._take_reports_locked()
+            self._go('step')  # no longer at the reset state
         return done
 
     def reset(self, scope: int = RESET_ALL) -> None:
@@ -316,7 +342,10 @@ class Session:
         loaded = self.require()
         loaded.world.reset(scope)
         if loaded.loop is not None:
-            loaded.loop.recover()
+            with self._lock:
+                self._take_reports_locked()
+                loaded.loop.recover()
+                self._go('reset')
             loaded.loop.refresh_snapshot()
 
     def changed(self) -> None:
@@ -366,6 +395,9 @@ class Session:
         with self._lock:
             if self._thread is not None or self._closing.is_set():
                 return
+            if self._trim_memory:  # a listener like the others, acting on its own thread
+                self._trimmer = HeapTrimmer()
+                self._listeners.append(_Registered(self._trimmer.model_changed))
             self._thread = threading.Thread(target=self._watch, name='sim-model', daemon=True)
             self._thread.start()
 
@@ -389,7 +421,6 @@ class Session:
             elif loaded.world.wait_new_model(key[1], WATCH_SEC) != key[1]:
                 self._closing.wait(SETTLE_SEC)  # the editor answers its caller first
             self._wake.clear()
-            self._maybe_trim(key[1])
             return
         snap = None
         if loaded is not None and loaded.loop is not None:
@@ -409,11 +440,6 @@ class Session:
             registered.seen = key
         with self._seen_cv:
             self._seen_cv.notify_all()
-        self._maybe_trim(key[1])
-
-    def _maybe_trim(self, generation: Optional[int]) -> None:
-        if self._trim_memory:
-            self._trim.tick(generation, time.monotonic())
 
 
 def _key(loaded: Optional[Loaded]) -> tuple:
@@ -429,22 +455,3 @@ class _Registered:
     def __init__(self, listener: Listener):
         self.listener = listener
         self.seen: tuple = ('never', None)
-
-
-class _TrimPolicy:
-    """When to give freed heap back (see TRIM_PERIOD_SEC): a trim stalls allocating threads."""
-
-    def __init__(self):
-        self.trimmed = self.changed = time.monotonic()
-        self.generation: Optional[int] = None
-        self.owed = False
-
-    def tick(self, generation: Optional[int], now: float) -> None:
-        if generation != self.generation:
-            self.generation, self.changed = generation, now
-        quiet = now - self.changed >= QUIET_SEC
-        if now - self.trimmed >= TRIM_PERIOD_SEC or (quiet and self.owed):
-            self.trimmed = now
-            # Skipped while busy: owed, and made as soon as the model stands still.
-            self.owed = not release_free_memory(
-                at_least=QUIET_TRIM_BYTES if quiet else BUSY_TRIM_BYTES)

@@ -229,3 +229,39 @@ def test_a_held_world_is_stepped_by_its_owner_alone_and_its_listeners_follow_it(
     assert seen[-1] == (None, ['crate'])
     session.load(World.from_file(str(DEFAULT_SCENE), FAST), 'looped')
     assert session.sync() and seen[-1][0] is session.loop and session.loop.running
+
+
+def test_the_loop_reports_what_it_did_by_itself_and_the_session_decides():
+    """A limit pauses the loop at once; the session's state follows from the loop's report."""
+    from sim_node.core.stepping.loop import LIMIT, SimLoop
+    loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=0,
+                                                                   max_steps=50)))
+    loop.start()
+    try:
+        wait_for(lambda: loop.paused, timeout=10)
+        assert loop.take_reports() == [(LIMIT, 'max_steps reached (50 steps)')]
+        assert loop.take_reports() == []  # each report is decided on once
+    finally:
+        loop.stop()
+    with Session(trim_memory=False) as session:
+        session.load_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=0, max_steps=50))
+        wait_for(lambda: session.loop.paused, timeout=10)
+        assert session.state == lifecycle.PAUSED
+        assert session.loop.take_reports() == []  # the session took it, asking its state
+        session.loop.set_limits(max_steps=0)
+        session.play()  # a play supersedes the pause reported before it
+        time.sleep(0.2)
+        assert session.state == lifecycle.PLAYING and not session.loop.paused
+
+
+def test_the_lifecycle_is_one_table_that_every_change_of_state_goes_through():
+    """Every state the session takes after a load comes from TRANSITIONS, in one method."""
+    import ast
+    import inspect
+    tree = ast.parse(inspect.getsource(lifecycle))
+    writers = {f.name for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
+               for n in ast.walk(f) if isinstance(n, ast.Attribute)
+               and isinstance(n.ctx, ast.Store) and n.attr == '_state'}
+    assert writers == {'__init__', 'load', 'hold', 'unload', '_go'}
+    targets = set(lifecycle.TRANSITIONS.values())
+    assert targets == {lifecycle.PLAYING, lifecycle.PAUSED, lifecycle.STOPPED, lifecycle.FAILED}

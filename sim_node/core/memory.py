@@ -6,6 +6,8 @@ No-ops where the C library is not glibc.
 
 import ctypes
 import gc
+import threading
+import time
 from typing import Optional
 
 #: Blocks this large or larger get a mapping of their own (glibc's M_MMAP_THRESHOLD, fixed).
@@ -100,3 +102,50 @@ def freeze_long_lived() -> int:
     gc.collect()
     gc.freeze()
     return gc.get_freeze_count()
+
+
+#: Freed heap goes back to the system every TRIM_PERIOD_SEC; while the model keeps changing, only
+#: once BUSY_TRIM_BYTES are free (a trim stalled every allocating thread for up to 66 ms under a
+#: storm of edits); once the model has stood still QUIET_SEC, once QUIET_TRIM_BYTES are. Not
+#: less: memory given back is faulted in again, a page at a time, by the next edit (a small
+#: robot's spawn took 2,600 page faults, 3-5 ms of its 20, after each trim of everything).
+TRIM_PERIOD_SEC = 2.0
+BUSY_TRIM_BYTES = 64 << 20
+QUIET_TRIM_BYTES = 16 << 20
+QUIET_SEC = 0.5
+
+
+class HeapTrimmer:
+    """
+    Gives freed heap back to the system on its own thread, when it is cheap enough.
+
+    Told of every new model (:meth:`model_changed`, a listener of the session); a trim stalls
+    every thread that allocates, so it waits for a quiet model or a lot of free memory.
+    """
+
+    def __init__(self):
+        self._changed = self._trimmed = time.monotonic()
+        self._owed = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='sim-heap-trim', daemon=True)
+        self._thread.start()
+
+    def model_changed(self, *_) -> None:
+        """Note that the model changed now (any arguments: a session listener's)."""
+        self._changed = time.monotonic()
+
+    def close(self) -> None:
+        self._stop.set()
+
+    def tick(self, now: float) -> None:
+        """Trim if it is due at `now` (see :data:`TRIM_PERIOD_SEC`)."""
+        quiet = now - self._changed >= QUIET_SEC
+        if now - self._trimmed >= TRIM_PERIOD_SEC or (quiet and self._owed):
+            self._trimmed = now
+            # Skipped while busy: owed, and made as soon as the model stands still.
+            self._owed = not release_free_memory(
+                at_least=QUIET_TRIM_BYTES if quiet else BUSY_TRIM_BYTES)
+
+    def _run(self) -> None:
+        while not self._stop.wait(QUIET_SEC / 5):
+            self.tick(time.monotonic())

@@ -18,7 +18,7 @@ from msg_adapters import diagnostics
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..session import Session
+from ..session import LOADING_WORLD, NO_WORLD, PLAYING, Session
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
 REFUSAL_SHOWN_SEC = 10.0
@@ -109,14 +109,14 @@ class Status:
 
     def sync_paused_parameter(self) -> None:
         """
-        Mirror the loop's paused state in the `paused` parameter, so `ros2 param get` is true.
+        Mirror the session's state in the `paused` parameter, so `ros2 param get` is true.
 
         The state changes through services, limits and divergence too, not only the parameter.
         """
-        loaded = self._session.loaded
-        if loaded is None:
+        state = self._session.state
+        if state in (NO_WORLD, LOADING_WORLD):
             return
-        paused = bool(loaded.loop.paused)
+        paused = state != PLAYING
         if self._node.get_parameter('paused').value != paused:
             self.syncing_thread = threading.get_ident()
             try:

@@ -10,7 +10,7 @@ its model and data from above.
 import time
 from typing import Optional
 
-from ..session import Loaded, Session
+from ..session import Loaded, PLAYING, Session
 
 #: What a view shows as the state of a world its owner steps (no loop to pause or step).
 OWNER_STEPPED = 'stepped by its owner'
@@ -45,6 +45,10 @@ class Source:
 
     def state(self, loop) -> str:
         return self.session.state if loop is not None else OWNER_STEPPED
+
+    def playing(self) -> bool:
+        """Whether the session plays (its state, not its loop's flag: the session decides)."""
+        return self.session.state == PLAYING
 
     def set_paused(self, paused: bool) -> None:
         self.session.pause() if paused else self.session.play()

@@ -226,10 +226,10 @@ class Window:
         if loop is not None:
             while self._toggles_asked > 0:  # the space bar: pause or play
                 self._toggles_asked -= 1
-                self._source.set_paused(not loop.paused)
+                self._source.set_paused(self._source.playing())
             while self._steps_asked > 0:
                 self._steps_asked -= 1
-                if loop.paused:
+                if not self._source.playing():
                     self._source.step()
         self._push(world)
         snap_time = float(self._data.time)

@@ -14,6 +14,7 @@ The stepping loop: one thread that advances a :class:`World` at a fixed step.
 """
 
 import atexit
+import collections
 import logging
 import math
 import threading
@@ -34,6 +35,12 @@ log = logging.getLogger(__name__)
 PLAYING = 'playing'
 PAUSED = 'paused'
 STOPPED = 'stopped'
+#: What the loop reports having done by itself (:meth:`SimLoop.take_reports`).
+LIMIT = 'limit'
+DIVERGED = 'diverged'
+FAILED = 'failed'
+#: Reports kept for an owner that does not ask (a loop run on its own): the newest only.
+REPORTS_KEPT = 16
 # Longest the loop holds the world lock per batch when running as fast as possible (s).
 MAX_BATCH_WALL_SEC = 0.005
 MAX_BATCH_STEPS = 1000
@@ -104,6 +111,8 @@ class SimLoop:
         self._steps_done_cv = threading.Condition(self._cv)
         self._stop_reason = ''
         self._failure = ''  # set when the loop caught an internal error: see recover()
+        #: What the loop did by itself, for its owner to decide on (:meth:`take_reports`).
+        self._reports: collections.deque = collections.deque(maxlen=REPORTS_KEPT)
         self._cancelled_left: Optional[int] = None  # steps a cancelled request had left
         self._divergence: Optional[dict] = None
         self._thread: Optional[threading.Thread] = None
@@ -150,6 +159,7 @@ class SimLoop:
         with self._cv:
             self._cancel_steps_locked()
             self._paused = True
+            self._drop_reports_locked(LIMIT, DIVERGED)  # this pause supersedes them
             self._cv.notify_all()
             # Not on the loop's thread, nor under the world lock (the batch needs it).
             if threading.get_ident() != getattr(self._thread, 'ident', None) \
@@ -185,11 +195,31 @@ class SimLoop:
             self._paused = False
             self._stop_reason = ''
             self._divergence = None
+            self._reports.clear()  # this play supersedes the pauses the loop made itself
             self._cv.notify_all()
 
     @property
     def paused(self) -> bool:
         return self._paused
+
+    def take_reports(self) -> list:
+        """
+        Return, and forget, what the loop did by itself since it was last asked, oldest first.
+
+        Each is ``(kind, reason)``: :data:`LIMIT` (a termination constraint paused it),
+        :data:`DIVERGED` (divergence paused it), :data:`FAILED` (an internal error stopped it;
+        :meth:`recover` clears it). The loop acts at once (it must not take another step); its
+        owner (a :class:`~sim_node.session.Session`) decides what that means for its lifecycle.
+        A later :meth:`play` or :meth:`pause` supersedes the pauses reported before it.
+        """
+        with self._cv:
+            reports, self._reports = list(self._reports), collections.deque(
+                maxlen=REPORTS_KEPT)
+            return reports
+
+    def _drop_reports_locked(self, *kinds: str) -> None:
+        self._reports = collections.deque((r for r in self._reports if r[0] not in kinds),
+                                          maxlen=REPORTS_KEPT)
 
     @property
     def failure(self) -> str:
@@ -203,6 +233,7 @@ class SimLoop:
                 log.info('the stepping loop recovers (paused): %s', self._failure)
             self._failure = ''
             self._stop_reason = ''
+            self._reports.clear()
 
     def set_real_time_factor(self, rtf: float) -> None:
         if not (rtf >= 0 and rtf < float('inf')):
@@ -344,6 +375,7 @@ class SimLoop:
                 with self._cv:
                     self._paused = True
                     self._failure = self._stop_reason = ERR_FAILED.format(error=repr(exc))
+                    self._reports.append((FAILED, self._failure))
                     self._pending_steps = 0
                     self._steps_done_cv.notify_all()
 
@@ -377,6 +409,7 @@ class SimLoop:
             if reason:
                 self._paused = True
                 self._stop_reason = reason
+                self._reports.append((LIMIT, reason))
                 log.info('loop paused: %s', reason)
                 return
             if stepping_request:
@@ -422,6 +455,8 @@ class SimLoop:
                 self._paused = self._paused or action == 'pause'
                 self._divergence = dict(exc.report, action=action)
                 self._stop_reason = f'{exc}; {ACTIONS[action]}'
+                if action == 'pause':
+                    self._reports.append((DIVERGED, self._stop_reason))
                 self._pending_steps = 0
                 self._steps_done_cv.notify_all()
             self.refresh_snapshot()
