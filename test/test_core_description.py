@@ -157,8 +157,9 @@ def test_the_urdf_generated_for_a_spawned_urdf_robot_also_matches():
     world = World.from_file(str(DEFAULT_SCENE))
     world.spawn('arm', sources.from_model_text(ARM_URDF.replace('robot name', 'robot x')),
                 position=(2, 0, 0))
-    design = world._live.design  # forget its URDF text: describe it from the compiled model
-    world._live.design = replace(design, spawned={'arm': replace(design.spawned['arm'], urdf='')})
+    live = world.stepping.live
+    design = live.design  # forget its URDF text: describe it from the compiled model
+    live.design = replace(design, spawned={'arm': replace(design.spawned['arm'], urdf='')})
     assert check_description_matches_mujoco(world, 'arm', np.random.default_rng(2)) == 5
 
 

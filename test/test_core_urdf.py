@@ -139,19 +139,13 @@ def test_collada_meshes_spawn_in_metres_with_their_own_colour(world, tmp_path):
     assert visual[1] == pytest.approx([200 / 255, 30 / 255, 30 / 255, 1.0], abs=0.01)
 
 
-def test_one_collada_mesh_a_visual_and_a_collision_share_is_converted_once(
-        world, tmp_path, monkeypatch):
+def test_one_collada_mesh_a_visual_and_a_collision_share_is_converted_once(world, tmp_path):
     collada(tmp_path / 'part.dae')
-    jobs = []
-    run = meshes._POOL.run
-
-    def counted(batch):
-        jobs.extend(batch)
-        return run(batch)
-    monkeypatch.setattr(meshes._POOL, 'run', counted)
+    before = meshes.files_converted()
     spawn_file(world, tmp_path, robot(link('base', mesh_part('visual', 'part.dae')
                                            + mesh_part('collision', 'part.dae'))))
-    assert len(mesh_extents(world, 'r')) == 2 and len(jobs) <= 1  # none: an earlier run's
+    converted = meshes.files_converted() - before
+    assert len(mesh_extents(world, 'r')) == 2 and converted <= 1  # none: an earlier run's
 
 
 def test_a_urdf_mesh_scale_applies_to_a_converted_mesh(world, tmp_path):
@@ -189,16 +183,14 @@ def test_a_mesh_over_mujocos_face_limit_is_decimated_with_a_warning_naming_it(
     assert 0 < faces <= meshes.MUJOCO_MAX_FACES
 
 
-def test_a_second_spawn_of_a_robot_converts_nothing(world, tmp_path, monkeypatch):
+def test_a_second_spawn_of_a_robot_converts_nothing(world, tmp_path):
     collada(tmp_path / 'part.dae')
     text = robot(link('base', mesh_part('visual', 'part.dae') + box_geometry()))
     spawn_file(world, tmp_path, text, name='first')
-
-    def no_worker(*args, **kwargs):
-        raise AssertionError('converted again')
-    monkeypatch.setattr(meshes._POOL, 'run', no_worker)
+    before = meshes.files_converted()
     spawn_file(world, tmp_path, text, name='second', position=(-3, 3, 1))
     assert {'first', 'second'} <= {e.name for e in world.entities()}
+    assert meshes.files_converted() == before, 'converted again'
 
 
 _READ_IN_A_NEW_PROCESS = """

@@ -83,7 +83,7 @@ def test_a_drag_pushes_the_body_and_letting_go_releases_it(display):
     ball = world.read(lambda m, d: m.body('ball').id)
     with held(world, show_ui=False, camera='top') as window:
         assert until(lambda: window.frames > 3)
-        pert = window._handle.perturb  # what MuJoCo's mouse handling sets on a Ctrl-drag
+        pert = window.handle.perturb  # what MuJoCo's mouse handling sets on a Ctrl-drag
         pert.select, pert.localmass = ball, 1.0
         pert.refpos[:] = pert.refselpos[:] = (0.8, 1.0, 0.2)
         pert.localpos[:] = 0.0
@@ -125,7 +125,7 @@ def test_closing_the_window_leaves_the_simulation_running(display):
         session.load_file(str(PROBE), WorldConfig(real_time_factor=1.0))
         window = Window(session, on_closed=lambda: closed.append(1))
         assert until(lambda: window.frames > 3)
-        window._handle.close()  # what the window's close button does
+        window.handle.close()  # what the window's close button does
         assert until(lambda: not window.is_open)
         t = session.world.time
         time.sleep(0.5)
@@ -167,7 +167,7 @@ def test_the_stepping_api_shows_its_world_in_real_time_until_the_window_closes(d
     t0 = time.monotonic()
     sim.step(dt=0.5)
     assert time.monotonic() - t0 >= 0.45  # simulated time no faster than the clock
-    window._handle.close()  # the user closes it
+    window.handle.close()  # the user closes it
     assert until(lambda: not window.is_open)
     t0 = time.monotonic()
     sim.step(dt=0.5)
@@ -221,7 +221,7 @@ def test_keys_and_mouse_in_the_window_act_on_the_session(display):
             xdo('mousemove', '--window', wid, bx, by)
             xdo('click', '--repeat', '2', '--delay', '80', '1')
             ball = session.world.read(lambda m, d: m.body('ball').id)
-            assert until(lambda: window._handle.perturb.select == ball)
+            assert until(lambda: window.handle.perturb.select == ball)
             xdo('keydown', 'ctrl')
             xdo('mousedown', '3')
             try:

@@ -151,7 +151,7 @@ def test_an_edit_that_fails_at_its_commit_leaves_every_table_as_it_was(
     world.spawn('crate', box(), position=[2, 0, 0.5])
     world.set_friction('crate', 1.5)
     before = (world.entities(), world.spawned_names(), world.generation)
-    guard, calls = world._live.guard, []  # bound to the new data in the switch
+    guard, calls = world.stepping.live.guard, []  # bound to the new data in the switch
     real = guard.bind
 
     def faulty(*args, **kwargs):

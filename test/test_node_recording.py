@@ -69,9 +69,7 @@ def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_cont
         goal.trajectory.points = [JointTrajectoryPoint(positions=[0.4],
                                                        time_from_start=duration(1.0))]
         client.send_goal_async(goal)
-        end = time.monotonic() + 3
-        while time.monotonic() < end:
-            sim._executor.spin_once(timeout_sec=0.1)
+        sim.spin_for(3.0)
         client.destroy()
     finally:
         sim.close()

@@ -364,7 +364,7 @@ def test_paused_parameter_follows_the_simulation_state_service(sim):
 
     def paused_param():
         future = params.get_parameters(['paused'])
-        sim._executor.spin_until_future_complete(future, 10)
+        sim.spin_until_future_complete(future, 10)
         return future.result().values[0].bool_value
     try:
         sim.pause()
@@ -374,12 +374,12 @@ def test_paused_parameter_follows_the_simulation_state_service(sim):
         # The loop pausing itself at a limit shows up too.
         future = params.set_parameters([Parameter(
             'max_sim_time', value=sim.entity_state('box_a')['stamp'] + 0.2)])
-        sim._executor.spin_until_future_complete(future, 10)
+        sim.spin_until_future_complete(future, 10)
         wait_for(lambda: sim.state() == SimulationState.STATE_PAUSED, timeout=10)
         wait_for(paused_param, timeout=5)
     finally:
         future = params.set_parameters([Parameter('max_sim_time', value=0.0)])
-        sim._executor.spin_until_future_complete(future, 10)
+        sim.spin_until_future_complete(future, 10)
         if sim.state() != SimulationState.STATE_PLAYING:
             sim.play()
 
@@ -392,7 +392,7 @@ def test_paused_and_real_time_factor_parameters_change_at_run_time(sim, watch):
 
     def set_param(name, value):
         future = params.set_parameters([Parameter(name, value=value)])
-        sim._executor.spin_until_future_complete(future, 10)
+        sim.spin_until_future_complete(future, 10)
         assert all(r.successful for r in future.result().results), future.result()
     try:
         set_param('paused', True)

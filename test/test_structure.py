@@ -75,6 +75,14 @@ def test_no_module_reads_a_private_name_another_file_defines():
     assert not found, '\n'.join(found)
 
 
+def test_no_test_reads_a_private_name_of_the_package():
+    """Tests use public APIs: ``world.stepping.live``, ``rig.contexts_made``, ``window.handle``."""
+    tests = sorted((ROOT / 'test').rglob('*.py'))
+    found = [f'{p.relative_to(ROOT)}:{line}: {name}' for p in tests
+             for line, name in borrowed_privates(p)]
+    assert not found, '\n'.join(found)
+
+
 def test_the_check_sees_a_borrowed_private_name(tmp_path):
     """The checker itself: a mixin reading its host's private attribute is found."""
     mixin = tmp_path / 'mixin.py'

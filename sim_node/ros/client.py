@@ -325,6 +325,17 @@ class SimClient:
         finally:
             client.destroy()
 
+    def spin_until_future_complete(self, future, timeout: float) -> None:
+        """Spin this client's node until `future` is done or `timeout` seconds pass."""
+        self._spin_until(future.done, timeout)
+
+    def spin_for(self, seconds: float) -> None:
+        """Spin this client's node for `seconds` (its subscriptions and clients run)."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self._executor.spin_once(timeout_sec=max(0.0, min(end - time.monotonic(),
+                                                              SPIN_SLICE_SEC)))
+
     def _spin_until(self, done, timeout: float) -> None:
         """
         Spin until ``done()`` or `timeout` seconds.

@@ -114,6 +114,15 @@ class Window:
         self._thread.start()
 
     @property
+    def handle(self):
+        """
+        MuJoCo's passive viewer handle once the window is open (None before).
+
+        Its ``cam`` and ``perturb`` are what the mouse sets; scripts may set them too.
+        """
+        return self._handle
+
+    @property
     def is_open(self) -> bool:
         """Whether the window is open (False once the user closed it or :meth:`close` ran)."""
         return self._thread.is_alive() and (self._handle is None or self._handle.is_running())

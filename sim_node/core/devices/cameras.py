@@ -132,6 +132,11 @@ class CameraRig:
     def renderer_started(self) -> bool:
         return self._renderer is not None
 
+    @property
+    def contexts_made(self) -> int:
+        """GL contexts made for this rig: a new model whose meshes or textures changed."""
+        return 0 if self._renderer is None else self._renderer.contexts_made
+
     def cameras(self) -> tuple:
         """Return the selected cameras of the world's current model."""
         return select(self.world.model_info.cameras, self.patterns)

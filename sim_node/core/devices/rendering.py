@@ -179,6 +179,8 @@ class Renderer:
         self._gl = gl_context(self.width, self.height)
         self._con: Optional[mujoco.MjrContext] = None
         self._model: Optional[mujoco.MjModel] = None
+        #: GL contexts made so far: one per model whose meshes or textures changed.
+        self.contexts_made = 0
         self._rect = mujoco.MjrRect(0, 0, self.width, self.height)
 
     def use_model(self, model: mujoco.MjModel, shadow_size: int = 0) -> None:
@@ -205,6 +207,7 @@ class Renderer:
         if self._con is not None:
             self._con.free()
         self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        self.contexts_made += 1
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         self._con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._model = model

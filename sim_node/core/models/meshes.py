@@ -157,6 +157,7 @@ def convert(items: Sequence[tuple], max_faces: int = MUJOCO_MAX_FACES) -> list:
         todo.append((k, value, key, {'src': stored.path, 'kind': kind, 'out': target,
                                      'max_faces': max_faces}))
     results = _POOL.run([t[3] for t in todo]) if todo else []
+    _converted[0] += len(todo)
     for (k, value, key, job), result in zip(todo, results):
         if 'error' in result:
             if 'No module named' in result['error'] and job['kind'] == 'dae':
@@ -440,3 +441,9 @@ class _Pool:
 
 
 _POOL = _Pool()
+_converted = [0]  # files the workers converted in this process
+
+
+def files_converted() -> int:
+    """Return how many files the converter workers converted in this process (cache hits not)."""
+    return _converted[0]
