@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -48,6 +48,10 @@ bench-edits: setup
 # The longest /clock gap while 8 clients spawn and delete 50 boxes each, ~1 min
 bench-storm: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/storm.py
+
+# Pacing and stopping in wall time: the factor kept, no burst after a stall, exit times, ~40 s
+bench-pacing: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/pacing.py
 
 bench-cameras: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/cameras.py

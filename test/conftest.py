@@ -189,6 +189,35 @@ def write_mesh_model(folder: Path, faces: int) -> Path:
     return folder / 'big.xml'
 
 
+#: How long a call may take before a test calls it hung: what would block for ever (a FIFO, a
+#: catastrophic pattern, a hostile file) is caught, and a busy host is never mistaken for one.
+#: It is no speed claim: how fast things are is measured by the benchmarks' verdicts.
+HANG_SEC = 30.0
+
+
+def returns(call, timeout: float = HANG_SEC):
+    """
+    Call `call()` on a thread; return its value (or raise its error) once it has returned.
+
+    :raises AssertionError: it had not returned after `timeout` seconds (it hangs).
+    """
+    import threading
+    out: dict = {}
+
+    def run():
+        try:
+            out['value'] = call()
+        except BaseException as exc:  # noqa: B902 (handed to the caller)
+            out['error'] = exc
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(timeout)
+    assert not thread.is_alive(), f'{call!r} did not return within {timeout} s: it hangs'
+    if 'error' in out:
+        raise out['error']
+    return out.get('value')
+
+
 def wait_for(predicate, timeout: float = 10.0, interval: float = 0.05):
     """Poll until predicate() is truthy; returns its value or raises AssertionError."""
     deadline = time.monotonic() + timeout

@@ -4,9 +4,8 @@ The entity query behind get_entities / get_entities_states, ROS-free.
 And the conversion of an EntityFilters message into it.
 """
 
-import time
 
-from conftest import DEFAULT_SCENE
+from conftest import DEFAULT_SCENE, returns
 from geometry_msgs.msg import Vector3
 from msg_adapters import convert
 import numpy as np
@@ -65,9 +64,8 @@ def test_a_catastrophic_filter_is_refused_in_bounded_time(world):
     from sim_node.core.models import sources
     w = World.from_file(str(DEFAULT_SCENE))
     w.spawn('a' * 40 + '_', sources.primitive('box', [0.05] * 3), position=[2, 2, 1])
-    t0 = time.monotonic()
-    assert names(query(w, pattern='^(a+)+$')) == []  # the issue's: 2^40 steps with Python's re
+    # The issue's: 2^40 steps with Python's re (a hang, not an answer)
+    assert names(returns(lambda: query(w, pattern='^(a+)+$'))) == []
     with pytest.raises(InvalidArgumentError, match='took longer'):
-        query(w, pattern='^(a|aa)+$')  # exponential for the regex package too
-    assert time.monotonic() - t0 < 1.0
+        returns(lambda: query(w, pattern='^(a|aa)+$'))  # exponential for the regex package too
     assert names(query(w, pattern='^a+_$')) == ['a' * 40 + '_']

@@ -82,12 +82,14 @@ def test_max_sim_time_stops_the_loop(make_loop):
 
 
 def test_real_time_factor_paces_simulated_time(make_loop):
+    """A factor of 2 runs ahead of the clock and never past twice it (make bench-pacing: how
+    close to 2)."""
     loop = make_loop(real_time_factor=2.0)
     time.sleep(0.2)
     s0, w0 = loop.world.time, time.monotonic()
     time.sleep(1.0)
-    ratio = (loop.world.time - s0) / (time.monotonic() - w0)
-    assert ratio == pytest.approx(2.0, rel=0.1)
+    simulated, wall = loop.world.time - s0, time.monotonic() - w0
+    assert wall < simulated <= 2.0 * wall + 0.05  # a busy host can only make it slower
 
 
 def test_divergence_pauses_the_loop_with_a_report(make_loop):
@@ -169,15 +171,18 @@ def test_commands_from_many_threads_while_the_loop_runs(make_loop):
 
 
 def test_pacing_resyncs_after_a_stall_instead_of_bursting(make_loop):
+    """The second the loop could not step is not made up: simulated time stays behind."""
     loop = make_loop(real_time_factor=1.0)
     time.sleep(0.2)
     with loop.world.locked():
-        t_stall = loop.world.time
+        t_stall, w_stall = loop.world.time, time.monotonic()
         time.sleep(1.0)  # the loop cannot step for 1 s
     time.sleep(0.3)
-    gained = loop.world.time - t_stall
-    # Catching up would add the missed second at once; re-syncing continues at real time.
-    assert gained < 0.6, f'burst: {gained:.2f} s of simulated time in 0.3 s of wall time'
+    behind = (time.monotonic() - w_stall) - (loop.world.time - t_stall)
+    # Catching up would bring simulated time back to the clock; re-syncing leaves it about a
+    # second behind (a busy host leaves it further behind, never less). make bench-pacing
+    # measures the re-synced rate.
+    assert behind > 0.6, f'burst: only {behind:.2f} s behind the clock after a 1 s stall'
 
 
 def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_loop):

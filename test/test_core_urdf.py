@@ -13,9 +13,8 @@ from pathlib import Path
 import struct
 import subprocess
 import sys
-import time
 
-from conftest import DEFAULT_SCENE, ROOT, wait_for
+from conftest import DEFAULT_SCENE, returns, ROOT, wait_for
 import mujoco
 import numpy as np
 import pytest
@@ -293,10 +292,13 @@ def test_a_mimic_joint_follows_its_leader(world, tmp_path):
 def test_package_uris_with_three_slashes_resolve_as_meant(world, tmp_path):
     pkg = tmp_path / 'my_robot' / 'meshes'
     pkg.mkdir(parents=True)
-    collada(pkg / 'part.dae')
+    collada(pkg / 'part.dae', extents=(0.3, 0.2, 0.1))
     text = robot(link('base', mesh_part('visual', 'package:///my_robot/meshes/part.dae')
                       + box_geometry()))
     spawn_file(world, tmp_path, text)
+    # the package's own mesh, as its extents say: the URI led to the file it names
+    (extents, _, _), = mesh_extents(world, 'r')  # MuJoCo turns a mesh to its principal axes
+    assert sorted(extents) == pytest.approx([0.1, 0.2, 0.3])
 
 
 # ----------------------------------------------------------------------------- bad input
@@ -348,12 +350,16 @@ def test_an_obj_material_library_that_is_a_fifo_is_never_opened(world, tmp_path)
     obj = box.export(file_type='obj')
     (tmp_path / 'part.obj').write_text('mtllib part.mtl\nusemtl red\n' + obj)
     os.mkfifo(tmp_path / 'part.mtl')
-    t0 = time.monotonic()
-    spawn_file(world, tmp_path, robot(link('base', mesh_part('visual', 'part.obj')
-                                           + mesh_part('collision', 'part.obj'))))
-    lone = sources.from_file(str(tmp_path / 'part.obj'), allowed_roots=[str(tmp_path)])
-    world.spawn('lone', lone, position=[-3, 3, 1])
-    assert time.monotonic() - t0 < 30  # it would block for ever on the FIFO
+
+    def both():  # it would block for ever on the FIFO
+        spawn_file(world, tmp_path, robot(link('base', mesh_part('visual', 'part.obj')
+                                               + mesh_part('collision', 'part.obj'))))
+        lone = sources.from_file(str(tmp_path / 'part.obj'), allowed_roots=[str(tmp_path)])
+        world.spawn('lone', lone, position=[-3, 3, 1])
+    returns(both)
+    assert {'r', 'lone'} <= {e.name for e in world.entities()}
+    (extents, _, _), = mesh_extents(world, 'lone')
+    assert extents == pytest.approx([0.1, 0.1, 0.1])
 
 
 def test_a_5000_link_chain_is_refused_before_mujoco_reads_it(tmp_path):
@@ -361,10 +367,9 @@ def test_a_5000_link_chain_is_refused_before_mujoco_reads_it(tmp_path):
                             for i in range(1, 5000)]
     path = tmp_path / 'chain.urdf'
     path.write_text(robot(*parts))
-    t0 = time.monotonic()
     with pytest.raises(CapacityError, match='5000 links'):
-        sources.from_file(str(path), allowed_roots=[str(tmp_path)], max_bodies=3000)
-    assert time.monotonic() - t0 < 5
+        returns(lambda: sources.from_file(str(path), allowed_roots=[str(tmp_path)],
+                                          max_bodies=3000))
 
 
 def stored_files() -> set:
@@ -460,10 +465,8 @@ ESCAPE = ("${{(lambda U: (lambda cw: python.vars(python.vars(cw())['_module'])[U
 ])
 def test_a_hostile_xacro_file_is_contained_and_refused(tmp_path, body, says):
     path = write_xacro(tmp_path, body)
-    t0 = time.monotonic()
     with pytest.raises(ResourceParseError) as info:
-        sources.from_file(str(path), allowed_roots=[str(tmp_path)])
-    assert time.monotonic() - t0 < 30
+        returns(lambda: sources.from_file(str(path), allowed_roots=[str(tmp_path)]))
     assert says in str(info.value)
     assert not Path('/tmp/sim_xacro_pwned').exists()
     assert 'root:' not in str(info.value)  # never the content of a file it must not read

@@ -170,8 +170,8 @@ def test_the_stepping_api_shows_its_world_in_real_time_until_the_window_closes(d
     window.handle.close()  # the user closes it
     assert until(lambda: not window.is_open)
     t0 = time.monotonic()
-    sim.step(dt=0.5)
-    assert time.monotonic() - t0 < 0.2
+    sim.step(dt=2.0)
+    assert time.monotonic() - t0 < 1.0  # free again: faster than the clock, not paced
     window.close()
 
 

@@ -68,7 +68,9 @@ def test_every_corpus_file_spawns_moves_and_goes(node, watch, sim, model):
 
 def test_builtin_spawnables_stay_readable_beside_resource_paths(node, sim):
     name = sim.spawn('crate_beside_corpus', uri='box', position=(-3.0, -3.0, 0.5))
+    assert name == 'crate_beside_corpus' and name in sim.entities()
     sim.delete(name)
+    assert name not in sim.entities()
 
 
 def test_a_file_outside_the_corpus_is_still_refused_through_dotdot(node, sim, corpus_folder):

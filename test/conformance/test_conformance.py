@@ -335,9 +335,8 @@ def test_rule_09_quitting_stops_first_then_exits(rclpy_context):
     try:
         name = own.spawn('conformance_item', uri=spawnable(own), position=(0.5, -2.0, 2.0))
         own.entity_state(name)
-        t0 = time.monotonic()
         own.set_state(S.STATE_QUITTING)  # answered OK before it goes
-        assert proc.proc.wait(5) == 0 and time.monotonic() - t0 < 2.0, proc.output()
+        assert proc.proc.wait(5) == 0, proc.output()  # how fast: make bench-pacing
         assert 'stopped' in proc.output()
     finally:
         own.close()
