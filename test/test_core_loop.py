@@ -82,8 +82,7 @@ def test_max_sim_time_stops_the_loop(make_loop):
 
 
 def test_real_time_factor_paces_simulated_time(make_loop):
-    """A factor of 2 runs ahead of the clock and never past twice it (make bench-pacing: how
-    close to 2)."""
+    """A factor of 2 runs ahead of the clock, never past twice it (bench-pacing: how close)."""
     loop = make_loop(real_time_factor=2.0)
     time.sleep(0.2)
     s0, w0 = loop.world.time, time.monotonic()

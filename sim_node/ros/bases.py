@@ -61,6 +61,7 @@ class BaseControllers:
         self._frames, self._param = frames, params
         self._tf_elsewhere, self._refused = tf_elsewhere, refused
         self._bases: dict = {}  # entity -> _Base
+        self._loaded: Optional[Loaded] = None  # which world: told by the session (on_model)
         self._lock = threading.Lock()
         self._tf_pub = node.create_publisher(TFMessage, '/tf', 100)
         self._timer = node.create_timer(1.0 / float(params('odom_rate_hz')), self._publish,
@@ -68,6 +69,7 @@ class BaseControllers:
 
     def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
         """Listen to the session's new models: the bases of the model's entities."""
+        self._loaded = loaded  # the odometry timer publishes from this world's snapshots
         found = {} if loaded is None or snap is None else loaded.world.bases()
         topics = {e.name: interface_base(e) for e in snap.info.entities} if snap else {}
         with self._lock:
@@ -115,8 +117,8 @@ class BaseControllers:
     # ------------------------------------------------------------------ odometry
 
     def _publish(self) -> None:
-        loaded = self._session.loaded
-        if loaded is None:
+        loaded = self._loaded
+        if loaded is None or loaded.loop is None:
             return
         snap = loaded.loop.latest_snapshot()
         info = snap.info

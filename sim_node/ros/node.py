@@ -86,9 +86,9 @@ class SimNode(Node):
         self._events = MutuallyExclusiveCallbackGroup()
         self.status = Status(self, self.session)
         self.perception = Perception(self, params.perception_config(self), self.frames.world,
-                                     self.frames.prefix, self.session)
+                                     self.frames.prefix)
         self.publisher = StatePublisher(
-            self, self.session, self.frames, 1.0 / p('tf_rate_hz'),
+            self, self.frames, 1.0 / p('tf_rate_hz'),
             1.0 / p('joint_states_rate_hz'), p('publish_clock'), self.perception.publish_sensors,
             self.report_failure)
         self.model_topics = ModelTopics(self, self.frames, self.perception.static_transforms)
@@ -166,7 +166,7 @@ class SimNode(Node):
     def start(self) -> None:
         """Load the `scene` parameter's world; start its loop, the publishers and listeners."""
         path = resources.resolve_scene(self.param('scene'), self.readable.scenes_dir)
-        for listener in (self.model_topics, self.perception.on_model,
+        for listener in (self.publisher.on_model, self.model_topics, self.perception.on_model,
                          self.trajectories.on_model, self.descriptions.on_model,
                          self.bases.on_model):
             self.session.add_listener(listener)

@@ -28,7 +28,7 @@ from ..core.devices.cameras import CameraRig, select
 from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites
 from ..core.devices.rendering import RenderingUnavailableError
 from ..core.records import ModelInfo, Snapshot
-from ..session import Loaded, Session
+from ..session import Loaded
 
 SENSOR_TYPES = {'imu': (Imu, 'imu'), 'wrench': (WrenchStamped, 'wrench'),
                 'range': (Range, 'range'), 'generic': (Float64MultiArray, 'values')}
@@ -78,12 +78,12 @@ class Perception:
     """
 
     def __init__(self, node: Node, config: PerceptionConfig, world_frame: str,
-                 frame_prefix: str, session: Session):
+                 frame_prefix: str):
         self._node = node
         self.config = config
         self._world_frame = frame_prefix + world_frame
         self._prefix = frame_prefix
-        self._session = session
+        self._loaded: Optional[Loaded] = None  # which world: told by the session (on_model)
         self._laser_config = LaserConfig(
             angle_min=config.lidar_angle_min, angle_max=config.lidar_angle_max,
             samples=config.lidar_samples, range_min=config.lidar_range_min,
@@ -150,7 +150,12 @@ class Perception:
                     pub.publish(pm.generic(sensor, data))
 
     def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
-        """Listen to the session's new models: the sensor publishers of the model."""
+        """
+        Listen to the session's new models: the model's sensor publishers, the world rendered.
+
+        The perception thread acts on the world at its next iteration.
+        """
+        self._loaded = loaded
         self.sync_sensors(snap.info if snap is not None else None)
 
     def sync_sensors(self, info: Optional[ModelInfo]) -> None:
@@ -241,8 +246,8 @@ class Perception:
 
     def _iterate(self, st: '_ThreadState') -> None:
         """Wait for a newer snapshot; render and scan what is due at its simulated time."""
-        sim = self._session.loaded
-        if sim is None:
+        sim = self._loaded
+        if sim is None or sim.loop is None:
             self._running.wait(0.1)
             return
         if sim.world is not st.world:  # a world was loaded
@@ -321,5 +326,5 @@ class Perception:
                                   pm.site_frame(info, site, self._prefix), period))
 
     def _current_info(self) -> Optional[ModelInfo]:
-        sim = self._session.loaded
+        sim = self._loaded
         return None if sim is None else sim.world.model_info

@@ -32,7 +32,7 @@ from visualization_msgs.msg import MarkerArray
 from .params import Frames
 from .qos import LATCHED_QOS
 from ..core.records import Snapshot
-from ..session import Loaded, Session
+from ..session import Loaded
 
 
 def _next_deadline(deadline: float, period: float, now: float) -> float:
@@ -45,15 +45,18 @@ class StatePublisher:
     """
     /clock, /tf, joint_states and sensor messages of the session's newest snapshot.
 
+    A listener of the session (:meth:`on_model`) like the node's other parts: it records which
+    world is loaded, and its threads read that world's newest snapshot at their rates.
+
     :param publish_sensors: called with each snapshot whose model has sensors.
     :param report_failure: called as ``report_failure(what, exc)`` when a job fails.
     """
 
-    def __init__(self, node: Node, session: Session, frames: Frames, tf_period: float,
+    def __init__(self, node: Node, frames: Frames, tf_period: float,
                  joint_states_period: float, publish_clock: bool,
                  publish_sensors: Callable[[Snapshot], None],
                  report_failure: Callable[[str, Exception], None]):
-        self._session = session
+        self._loaded: Optional[Loaded] = None  # which world: told by the session (on_model)
         self._tf_period, self._js_period = tf_period, joint_states_period
         self._publish_sensors = publish_sensors
         self._report_failure = report_failure
@@ -63,6 +66,10 @@ class StatePublisher:
         self._tf = TfStream(frames.world, frames.prefix)
         self.running = threading.Event()
         self._threads: list = []
+
+    def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
+        """Note which world is loaded (the session's listener); the publisher threads read it."""
+        self._loaded = loaded
 
     def start(self) -> None:
         self.running.set()
@@ -110,14 +117,14 @@ class StatePublisher:
                 deadlines = [now + period for period, _ in jobs]
 
     def _publish_clock(self) -> None:
-        loaded = self._session.loaded
+        loaded = self._loaded
         if loaded is not None:
             # /clock goes on while paused (the same time), as Gazebo's does: nodes started with
             # use_sim_time then still start their timers, and RViz shows the time.
             self._clock_pub.publish(convert.clock(loaded.loop.latest_snapshot().time))
 
     def _publish_tf(self) -> None:
-        loaded = self._session.loaded
+        loaded = self._loaded
         if loaded is None:
             return
         seq, snap = loaded.loop.wait_snapshot(-1, 0)
@@ -126,7 +133,7 @@ class StatePublisher:
             self._tf_pub.publish(msg)
 
     def _publish_joint_states(self) -> None:
-        loaded = self._session.loaded
+        loaded = self._loaded
         if loaded is None:
             return
         snap = loaded.loop.latest_snapshot()

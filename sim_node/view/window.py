@@ -116,7 +116,7 @@ class Window:
     @property
     def handle(self):
         """
-        MuJoCo's passive viewer handle once the window is open (None before).
+        Return MuJoCo's passive viewer handle once the window is open (None before).
 
         Its ``cam`` and ``perturb`` are what the mouse sets; scripts may set them too.
         """
