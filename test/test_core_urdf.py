@@ -306,6 +306,10 @@ def test_package_uris_with_three_slashes_resolve_as_meant(world, tmp_path):
 
 @pytest.mark.parametrize('body, error, says', [
     (robot(link('base', mass='inf')), ResourceParseError, "link 'base': <mass value=\"inf\">"),
+    (robot(link('base', mass=-2.0)), ResourceParseError,
+     "link 'base': <mass value=\"-2.0\"> is negative"),
+    (robot(link('a'), link('b', inertia=-0.01), joint('j', 'a', 'b')), ResourceParseError,
+     "link 'b': <inertia ixx=\"-0.01\"> is negative"),
     (robot(link('base', mesh_part('visual', 'm.stl', 'nan 1 1'))), ResourceParseError,
      'scale="nan 1 1"'),
     (robot(link('a'), link('b'), joint('j', 'a', 'b', extra='<mimic joint="j"/>')),

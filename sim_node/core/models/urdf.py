@@ -9,8 +9,8 @@ compiler refuses, is handled here on the parsed document, before MuJoCo sees it
 * Extension elements (``<gazebo>``, ``<transmission>``, ``<ros2_control>``) are taken out and
   kept (:attr:`Prepared.extensions`): they are never read as file references. Elements URDF
   does not define are named once in a warning.
-* Numbers are checked: a NaN or infinite mass, inertia, pose, size, scale or limit is refused
-  with the link or joint it is in.
+* Numbers are checked: a NaN or infinite mass, inertia, pose, size, scale or limit, and a
+  negative mass or moment of inertia, is refused with the link or joint it is in.
 * Inertias MuJoCo's compiler refuses are repaired as Gazebo would load them, each repair named
   in a warning: a moving link without mass gets its inertia from its collision geometry, or a
   small mass when it has none; an inertia that is not positive definite or breaks the triangle
@@ -67,6 +67,8 @@ MIN_MOMENT_RATIO = 1e-6
 #: How far past equality a repaired inertia meets the triangle inequality, relative.
 TRIANGLE_MARGIN = 1e-4
 #: Numeric attributes checked to be finite: element -> attributes.
+#: Numbers that no body has below zero: a negative mass or moment of inertia is refused.
+_NOT_NEGATIVE = {'mass': ('value',), 'inertia': ('ixx', 'iyy', 'izz')}
 _NUMBERS = {'mass': ('value',), 'origin': ('xyz', 'rpy'), 'axis': ('xyz',),
             'inertia': ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'), 'box': ('size',),
             'cylinder': ('radius', 'length'), 'sphere': ('radius',),
@@ -78,6 +80,8 @@ _NUMBERS = {'mass': ('value',), 'origin': ('xyz', 'rpy'), 'axis': ('xyz',),
 ERR_NO_LINK = 'the URDF has no <link>: nothing to spawn'
 ERR_NUMBER = ('{where}: <{tag} {attr}="{value}"> is not a finite number; give finite values '
               '(URDF units: metres, kilograms, radians)')
+ERR_NEGATIVE = ('{where}: <{tag} {attr}="{value}"> is negative: a mass and the moments of an '
+                'inertia (ixx, iyy, izz) are >= 0 (a zero one is repaired, as Gazebo loads it)')
 ERR_LINKS = ('the URDF has {n} links, more than the world may hold ({limit} bodies, parameter '
              'max_bodies)')
 ERR_MIMIC_UNKNOWN = 'joint {joint!r} mimics {leader!r}, which is not a joint of this URDF'
@@ -351,6 +355,9 @@ def _check_numbers(root: ET.Element) -> None:
                 ok = False
             if not ok:
                 raise ResourceParseError(ERR_NUMBER.format(
+                    where=_where(elem, root), tag=elem.tag, attr=attr, value=value[:40]))
+            if attr in _NOT_NEGATIVE.get(elem.tag, ()) and float(value) < 0:
+                raise ResourceParseError(ERR_NEGATIVE.format(
                     where=_where(elem, root), tag=elem.tag, attr=attr, value=value[:40]))
 
 
