@@ -143,6 +143,7 @@ def test_every_link_of_the_readme_and_docs_leads_somewhere(doc):
     ('sim_node.core.cameras', 'sim_node.core.devices.cameras', 'CameraRig'),
     ('sim_node.core.lidar', 'sim_node.core.devices.lidar', 'LaserScanner'),
     ('sim_node.core.loop', 'sim_node.core.stepping.loop', 'SimLoop'),
+    ('sim_node.core.bases', 'sim_node.core.control.bases', 'Odometry'),
     ('sim_node.gym_env', 'sim_node.gym.env', 'Task'),
     ('sim_node.client', 'sim_node.ros.client', 'SimClient'),
     ('sim_node.qos', 'sim_node.ros.qos', 'SERVICE_QOS'),

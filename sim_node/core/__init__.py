@@ -13,7 +13,7 @@ groups). Shared by all of them: :mod:`.config` (the one configuration value), :m
 the state of one model and data), :mod:`.query` (which entities match a query),
 :mod:`.checks` and :mod:`.quat` (input checks, quaternions), :mod:`.memory` (freed memory given
 back to the system). Older import paths kept for existing scripts: :mod:`.loop`,
-:mod:`.sources`, :mod:`.cameras`, :mod:`.lidar`.
+:mod:`.bases`, :mod:`.sources`, :mod:`.cameras`, :mod:`.lidar`.
 
 Threading contract
 ------------------

@@ -1,0 +1,3 @@
+"""Older path of :mod:`sim_node.core.control.bases`, kept for existing scripts."""
+
+from .control.bases import *  # noqa: F401,F403
