@@ -349,6 +349,33 @@ def test_a_hostile_collada_file_is_refused_and_only_its_worker_suffers(world, tm
     world.step(10)
 
 
+def lying(data: bytes, what: str) -> bytes:
+    """Return a Collada file whose first float_array (or accessor) claims 500 million values."""
+    import re
+    tag = rb'<float_array[^>]*' if what == 'array' else rb'<accessor[^>]*'
+    return re.sub(tag + rb'count="\d+"', lambda m: re.sub(rb'count="\d+"', b'count="500000000"',
+                                                          m.group(0)), data, count=1)
+
+
+@pytest.mark.parametrize('what, says', [
+    ('array', 'says count="500000000" but holds 24 values'),
+    ('accessor', 'reads 1500000000 values of an array that holds 24'),
+])
+@pytest.mark.parametrize('reader', ['fast', 'full'])
+def test_a_collada_file_whose_counts_lie_is_refused_as_malformed(world, tmp_path, what,
+                                                                 says, reader):
+    """Both readers: the fast one, and the full one a file it does not read goes to."""
+    data = lying(collada(tmp_path / 'part.dae').read_bytes(), what)
+    if reader == 'full':  # an element the fast reader hands on to pycollada, read first
+        data = data.replace(b'<mesh>', b'<mesh><spline/>', 1)
+    (tmp_path / 'part.dae').write_bytes(data)
+    before = world.generation
+    text = robot(link('a', mesh_part('visual', 'part.dae')))
+    with pytest.raises(UnsupportedAssetsError, match=f'it is malformed: .*{says}'):
+        returns(lambda: spawn_file(world, tmp_path, text))
+    assert world.generation == before
+
+
 def test_an_obj_material_library_that_is_a_fifo_is_never_opened(world, tmp_path):
     box = trimesh.creation.box((0.1, 0.1, 0.1))
     obj = box.export(file_type='obj')

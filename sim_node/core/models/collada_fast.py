@@ -30,6 +30,52 @@ class Unsupported(ValueError):
     """The file uses something this reader does not read: use the full reader."""
 
 
+class Malformed(ValueError):
+    """The file's declared counts disagree with its data: no reader should trust it."""
+
+
+_COUNT = re.compile(rb'\bcount\s*=\s*"\s*(\d+)\s*"')
+_ID = re.compile(rb'\bid\s*=\s*"([^"]*)"')
+_ACCESSOR = re.compile(rb'<accessor\b[^>]*>')
+_ATTR = re.compile(rb'\b(source|count|stride|offset)\s*=\s*"([^"]*)"')
+
+
+def check_counts(data: bytes) -> None:
+    """
+    Refuse a file whose ``count`` attributes disagree with the data they describe.
+
+    Each ``<float_array count>`` must be the number of values it holds, and each ``<accessor>``
+    must fit in the array it reads (offset + count * stride values). A full reader sizes its
+    arrays by these counts: one that claims 500 million floats and holds 12 would have it
+    allocate gigabytes. Read with plain searches, no XML parsing: it costs a scan of the file.
+
+    :raises Malformed: naming the first count that lies.
+    """
+    held = {}
+    for m in _NUMBERS.finditer(data):
+        if m.group(2) != b'float_array':
+            continue
+        n = len(m.group(3).split())
+        count = _COUNT.search(m.group(1))
+        if count is not None and int(count.group(1)) != n:
+            raise Malformed(f'a <float_array> says count="{int(count.group(1))}" but holds {n} '
+                            'values')
+        ident = _ID.search(m.group(1))
+        if ident is not None:
+            held[ident.group(1).decode(errors='replace')] = n
+    for m in _ACCESSOR.finditer(data):
+        attrs = {k.decode(): v.decode(errors='replace') for k, v in _ATTR.findall(m.group(0))}
+        n = held.get(attrs.get('source', '').lstrip('#'))
+        try:
+            need = int(attrs.get('offset', 0)) + int(attrs.get('count', 0)) * max(
+                int(attrs.get('stride', 1)), 1)
+        except ValueError:
+            raise Malformed('an <accessor> whose count, stride or offset is not a number') \
+                from None
+        if n is not None and need > n:
+            raise Malformed(f'an <accessor> reads {need} values of an array that holds {n}')
+
+
 def _tag(elem: ET.Element) -> str:
     return elem.tag.rsplit('}', 1)[-1]
 
@@ -67,8 +113,14 @@ def read(data: bytes) -> tuple:
     def numbers(elem, dtype=float) -> np.ndarray:
         text = (elem.text or '').strip()
         if not text.startswith('@'):
-            return np.array(text.split(), dtype=dtype)
-        return np.array(texts[int(text[1:])].split(), dtype=dtype)
+            values = np.array(text.split(), dtype=dtype)
+        else:
+            values = np.array(texts[int(text[1:])].split(), dtype=dtype)
+        count = elem.get('count') if _tag(elem) == 'float_array' else None
+        if count is not None and count.strip() != str(len(values)):
+            raise Malformed(f'a <float_array> says count="{count.strip()[:20]}" but holds '
+                            f'{len(values)} values')
+        return values
 
     def ref(url: str):
         target = ids.get((url or '').lstrip('#'))
@@ -91,8 +143,11 @@ def read(data: bytes) -> tuple:
         offset = int(acc.get('offset', '0')) if acc is not None else 0
         count = int(acc.get('count', str(len(values) // max(stride, 1)))) if acc is not None \
             else len(values) // stride
-        if stride < 3 or offset + count * stride > len(values):
-            raise Unsupported('an accessor that does not fit its array')
+        if stride < 3:
+            raise Unsupported('an accessor of fewer than 3 values a vertex')
+        if offset + count * stride > len(values):
+            raise Malformed(f'an <accessor> reads {offset + count * stride} values of an array '
+                            f'that holds {len(values)}')
         return values[offset:offset + count * stride].reshape(count, stride)[:, :3]
 
     def primitives(geometry) -> list:

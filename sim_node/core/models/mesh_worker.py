@@ -97,7 +97,13 @@ def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
     with open(src, 'rb') as f:
         data = f.read()
     unit = _unit(data) if kind == 'dae' else 1.0
-    found = _read_fast(data) if kind == 'dae' else None
+    import collada_fast
+    try:
+        found = _read_fast(data) if kind == 'dae' else None
+        if found is None and kind == 'dae':  # the full reader sizes its arrays by the counts
+            collada_fast.check_counts(data)
+    except collada_fast.Malformed as exc:
+        return {'error': f'it is malformed: {exc}'}
     if found is None:
         found = _read_trimesh(data, kind)
         if isinstance(found, dict):
@@ -118,7 +124,6 @@ def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
                     'fast-simplification'}
         vertices, faces = fast_simplification.simplify(
             vertices.astype(np.float32), faces.astype(np.int32), 1.0 - max_faces / faces_in)
-    import collada_fast
     with open(out + '.part', 'wb') as f:
         f.write(collada_fast.binary_stl(np.asarray(vertices, dtype=float), np.asarray(faces)))
     os.replace(out + '.part', out)
@@ -126,10 +131,16 @@ def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
 
 
 def _read_fast(data: bytes):
-    """Read Collada with :mod:`collada_fast`; None when it needs the full reader."""
+    """
+    Read Collada with :mod:`collada_fast`; None when it needs the full reader.
+
+    :raises collada_fast.Malformed: its counts lie (no reader should read it).
+    """
     import collada_fast
     try:
         return collada_fast.read(data)
+    except collada_fast.Malformed:
+        raise
     except (collada_fast.Unsupported, ValueError, IndexError, KeyError, TypeError):
         return None
 
