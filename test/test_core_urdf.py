@@ -349,6 +349,13 @@ def test_a_hostile_collada_file_is_refused_and_only_its_worker_suffers(world, tm
     world.step(10)
 
 
+def test_a_zero_written_as_a_tiny_negative_moment_is_repaired_not_refused(world, tmp_path):
+    """iCub's hips say ixx="-5.42101e-20": a zero, as its exporter rounded it."""
+    tiny = link('b').replace('ixx="0.01"', 'ixx="-5.42101e-20"')
+    spawn_file(world, tmp_path, robot(link('a'), tiny, joint('j', 'a', 'b')))
+    assert 'r' in {e.name for e in world.entities()}
+
+
 def lying(data: bytes, what: str) -> bytes:
     """Return a Collada file whose first float_array (or accessor) claims 500 million values."""
     import re

@@ -61,6 +61,8 @@ COLLISION_GROUP = 3
 #: Numeric attributes checked to be finite: element -> attributes.
 #: Numbers that no body has below zero: a negative mass or moment of inertia is refused.
 _NOT_NEGATIVE = {'mass': ('value',), 'inertia': ('ixx', 'iyy', 'izz')}
+#: How far below zero, relative to the element's largest moment, rounding may put a zero.
+NEGATIVE_ROUNDING = 1e-9
 _NUMBERS = {'mass': ('value',), 'origin': ('xyz', 'rpy'), 'axis': ('xyz',),
             'inertia': ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'), 'box': ('size',),
             'cylinder': ('radius', 'length'), 'sphere': ('radius',),
@@ -348,9 +350,23 @@ def _check_numbers(root: ET.Element) -> None:
             if not ok:
                 raise ResourceParseError(ERR_NUMBER.format(
                     where=_where(elem, root), tag=elem.tag, attr=attr, value=value[:40]))
-            if attr in _NOT_NEGATIVE.get(elem.tag, ()) and float(value) < 0:
+            if attr in _NOT_NEGATIVE.get(elem.tag, ()) and _negative(elem, float(value)):
                 raise ResourceParseError(ERR_NEGATIVE.format(
                     where=_where(elem, root), tag=elem.tag, attr=attr, value=value[:40]))
+
+
+def _negative(elem: ET.Element, value: float) -> bool:
+    """
+    Whether a mass or moment is negative beyond rounding.
+
+    Exporters write a zero as -5.4e-20 (iCub's hips): within a billionth of the element's
+    largest moment (or 1e-12), a value below zero counts as the zero it is meant to be.
+    """
+    try:
+        moments = [abs(float(elem.get(k) or 0)) for k in _NOT_NEGATIVE.get(elem.tag, ())]
+    except ValueError:
+        return False  # not a number: refused as such when its turn comes
+    return value < -max(NEGATIVE_ROUNDING * max(moments), 1e-12)
 
 
 def _check_mimics(joints: list) -> None:
