@@ -233,6 +233,10 @@ def wait_for(predicate, timeout: float = 10.0, interval: float = 0.05):
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
+#: Transforms a Watcher counts repeats over: about 20 s of the default scene's /tf at 100 Hz.
+TF_SENDS_KEPT = 20_000
+
+
 class Watcher:
     """Subscribes, in the test process, to what the node publishes; spins on its own thread."""
 
@@ -253,7 +257,10 @@ class Watcher:
         self.clock = []
         self.tf = {}  # child frame -> (stamp sec, parent, (x, y, z), (qx, qy, qz, qw))
         self.tf_stamps = []  # per /tf message: the set of stamps in it
-        self.tf_sends = collections.Counter()  # (child frame, stamp) -> times received
+        #: (child frame, stamp) of the newest transforms received (see tf_sends). Bounded: a
+        #: module that runs for minutes with robots on /tf at 100 Hz would otherwise keep
+        #: millions of them, and this process would slow down with its garbage collections.
+        self._sends = collections.deque(maxlen=TF_SENDS_KEPT)
         self.tf_static = {}
         self.markers = {}  # (ns, id) -> marker
         self.joint_states = None
@@ -291,10 +298,15 @@ class Watcher:
     def _on_tf(self, msg):
         with self.lock:
             self.tf_stamps.append({self._sec(t.header.stamp) for t in msg.transforms})
-            self.tf_sends.update((t.child_frame_id, self._sec(t.header.stamp))
-                                 for t in msg.transforms)
+            self._sends.extend((t.child_frame_id, self._sec(t.header.stamp))
+                               for t in msg.transforms)
             for ts in msg.transforms:
                 self.tf[ts.child_frame_id] = self._tf_entry(ts)
+
+    @property
+    def tf_sends(self) -> collections.Counter:
+        """(child frame, stamp) -> times received, over the newest TF_SENDS_KEPT transforms."""
+        return collections.Counter(self._sends)
 
     def _on_tf_static(self, msg):
         with self.lock:
