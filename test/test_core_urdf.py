@@ -350,7 +350,7 @@ def test_a_hostile_collada_file_is_refused_and_only_its_worker_suffers(world, tm
 
 
 def test_a_zero_written_as_a_tiny_negative_moment_is_repaired_not_refused(world, tmp_path):
-    """iCub's hips say ixx="-5.42101e-20": a zero, as its exporter rounded it."""
+    """The iCub's hips say ixx="-5.42101e-20": a zero, as its exporter rounded it."""
     tiny = link('b').replace('ixx="0.01"', 'ixx="-5.42101e-20"')
     spawn_file(world, tmp_path, robot(link('a'), tiny, joint('j', 'a', 'b')))
     assert 'r' in {e.name for e in world.entities()}

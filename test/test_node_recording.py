@@ -1,11 +1,12 @@
 """
 Recording runs as rosbag2 bags, read back with independent readers (``mcap``, ``rosbags``).
 
-A node records a run with a spawn, a FollowJointTrajectory goal and its camera; the bag holds
+A node records a run with a spawn, a FollowJointTrajectory goal and its camera into the bag
+``record`` names (the folder is the bag, as ``ros2 bag record -o`` makes it); the bag holds
 every topic with its type, log times that are the simulation's, latched topics marked
-transient local. SIGTERM closes it; after kill -9 its MCAP file still reads up to the last
-chunk; bags split by simulated time; a cap ends the recording with one clear message. A
-session records with no ROS at all.
+transient local. SIGTERM closes it; after kill -9 it keeps all but its last second; splits by
+simulated time are files of the one bag; a cap ends the recording with one clear message; a
+bag already there is refused, never overwritten. A session records with no ROS at all.
 """
 
 import os
@@ -16,15 +17,24 @@ import time
 from conftest import DEFAULT_SCENE, NodeProcess, wait_for
 
 
-def mcap_messages(path: Path) -> list:
-    """Every (topic, schema name, log time ns, data) of a bag's MCAP files, by mcap's reader."""
+def listed_files(bag: Path) -> list:
+    """Return the files the bag's metadata.yaml lists, in order (as ros2 bag reads them)."""
+    from ruamel.yaml import YAML
+    info = YAML(typ='safe').load((bag / 'metadata.yaml').read_text())
+    return [bag / f for f in info['rosbag2_bagfile_information']['relative_file_paths']]
+
+
+def mcap_messages_of(path: Path) -> list:
+    """Every (topic, schema name, log time ns, data) of one MCAP file, by mcap's reader."""
     from mcap.reader import make_reader
-    out = []
-    for f in sorted(path.glob('*.mcap')):
-        with open(f, 'rb') as stream:
-            for schema, channel, message in make_reader(stream).iter_messages():
-                out.append((channel.topic, schema.name, message.log_time, message.data))
-    return out
+    with open(path, 'rb') as stream:
+        return [(channel.topic, schema.name, message.log_time, message.data)
+                for schema, channel, message in make_reader(stream).iter_messages()]
+
+
+def mcap_messages(bag: Path) -> list:
+    """Every message of a bag's files as its metadata.yaml lists them, by mcap's reader."""
+    return [m for f in listed_files(bag) for m in mcap_messages_of(f)]
 
 
 def mcap_records_until_cut(path: Path) -> list:
@@ -42,10 +52,6 @@ def mcap_records_until_cut(path: Path) -> list:
         except Exception:  # noqa: B902 (the cut: a record torn in half)
             pass
     return out
-
-
-def bags(folder: Path) -> list:
-    return sorted(p for p in folder.iterdir() if p.is_dir())
 
 
 def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_context, tmp_path):
@@ -75,8 +81,8 @@ def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_cont
         sim.close()
         node.proc.send_signal(signal.SIGTERM)
         assert node.proc.wait(20) == 0, node.output()
-    [bag] = bags(folder)
-    assert (bag / 'metadata.yaml').is_file()  # closed properly
+    bag = folder  # the folder record names is the bag
+    assert sorted(p.name for p in bag.iterdir()) == ['metadata.yaml', 'run_0.mcap']  # closed
     with Reader(bag) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
         durability = {c.topic: c.ext.offered_qos_profiles[0].durability.name
@@ -105,23 +111,21 @@ def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_cont
     assert max(elbow) > 0.3  # the trajectory is in it
 
 
-def test_after_kill_9_the_mcap_file_reads_up_to_its_last_chunk(tmp_path):
+def test_after_kill_9_the_bag_keeps_all_but_its_last_second(tmp_path, watcher):
+    """Killed 3 s after it started: at least 2 s of /clock read back, as the bag lists them."""
     folder = tmp_path / 'killed'
     node = NodeProcess(f'record:={folder}', 'cameras:=[none]', namespace='/killed')
-    wait_for(lambda: folder.exists() and bags(folder)
-             and any(f.stat().st_size > 400_000 for f in bags(folder)[0].glob('*.mcap')),
-             timeout=60, interval=0.2)
+    first = wait_for(watcher.latest_clock, timeout=30)
+    wait_for(lambda: (watcher.latest_clock() or 0) >= first + 3.0, timeout=30)
     node.proc.send_signal(signal.SIGKILL)
     node.proc.wait(10)
-    [bag] = bags(folder)
-    assert not (bag / 'metadata.yaml').exists()  # never closed
-    [mcap_file] = bag.glob('*.mcap')
-    messages = mcap_records_until_cut(mcap_file)
-    assert len(messages) > 100
-    assert {'/tf', '/killed/joint_states'} <= {m[0] for m in messages}
+    records = [r for f in listed_files(folder) for r in mcap_records_until_cut(f)]
+    clock = [t for topic, t in records if topic == '/clock']
+    assert clock and (clock[-1] - clock[0]) / 1e9 >= 2.0, len(clock)
+    assert {'/tf', '/killed/joint_states'} <= {topic for topic, _ in records}
     from sim_node.record.replay import summary  # and the replay tool says what it holds
     text = summary(folder)
-    assert 'not closed (no metadata.yaml)' in text and '/killed/joint_states' in text
+    assert 'not closed' in text and '/killed/joint_states' in text
 
 
 def test_bags_split_by_simulated_time(tmp_path):
@@ -129,19 +133,35 @@ def test_bags_split_by_simulated_time(tmp_path):
     folder = tmp_path / 'split'
     node = NodeProcess(f'record:={folder}', 'cameras:=[none]', 'record_split_s:=1.0',
                        namespace='/split')
-    wait_for(lambda: folder.exists() and len(bags(folder)) >= 4, timeout=60, interval=0.2)
+    wait_for(lambda: len(list(folder.glob('*.mcap'))) >= 3, timeout=60, interval=0.2)
     node.proc.send_signal(signal.SIGINT)
     assert node.proc.wait(20) == 0
-    found = sorted(bags(folder), key=lambda p: int(p.name.rsplit('_', 1)[1]))
+    files = listed_files(folder)  # one bag, its files listed in its one metadata.yaml
+    assert [f.name for f in files] == [f'split_{n}.mcap' for n in range(len(files))]
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        [f.name for f in files] + ['metadata.yaml'])
     starts = []
-    for bag in found:
-        with Reader(bag) as reader:  # each opens
-            clock = [t for c, t, _ in reader.messages() if c.topic == '/clock']
-            assert not clock or clock[-1] - clock[0] <= 1.0e9  # a second of /clock each
-            assert '/tf_static' in {c.topic for c in reader.connections}  # latched: in each
-            assert '/split/_sim_instances' not in {c.topic for c in reader.connections}
-            starts.append(reader.start_time)
+    for f in files:  # each file by mcap's own reader: a second of /clock each, latched in each
+        messages = [(topic, t) for topic, _, t, _ in mcap_messages_of(f)]
+        clock = [t for topic, t in messages if topic == '/clock']
+        assert not clock or clock[-1] - clock[0] <= 1.0e9
+        assert '/tf_static' in {topic for topic, _ in messages}
+        assert '/split/_sim_instances' not in {topic for topic, _ in messages}
+        starts.append(min(t for _, t in messages))
     assert starts == sorted(starts)
+    with Reader(folder) as reader:  # and as one bag, all of it
+        assert reader.message_count == sum(len(mcap_messages_of(f)) for f in files)
+
+
+def test_a_bag_already_there_is_refused_and_kept(tmp_path):
+    bag = tmp_path / 'earlier'
+    bag.mkdir()
+    (bag / 'metadata.yaml').write_text('an earlier run')
+    node = NodeProcess(f'record:={bag}', 'cameras:=[none]', namespace='/earlier')
+    assert node.proc.wait(30) == 2
+    assert 'cannot start' in node.output() and 'is never overwritten' in node.output()
+    assert [p.name for p in bag.iterdir()] == ['metadata.yaml']
+    assert (bag / 'metadata.yaml').read_text() == 'an earlier run'
 
 
 def test_a_size_cap_ends_the_recording_once_with_bags_that_open(tmp_path):
@@ -153,12 +173,9 @@ def test_a_size_cap_ends_the_recording_once_with_bags_that_open(tmp_path):
     time.sleep(0.5)
     node.proc.send_signal(signal.SIGINT)
     assert node.proc.wait(20) == 0
-    total = 0
-    for bag in bags(folder):
-        with Reader(bag) as reader:
-            assert reader.message_count > 0
-        total += sum(f.stat().st_size for f in bag.glob('*.mcap'))
-    assert total < 3 * 2 ** 20
+    with Reader(folder) as reader:
+        assert reader.message_count > 0
+    assert sum(f.stat().st_size for f in listed_files(folder)) < 3 * 2 ** 20
     assert node.output().count('the recording reached record_max_mb') == 1
 
 
@@ -175,8 +192,7 @@ def test_a_session_records_without_ros(tmp_path):
             session.step(50)  # 1 s of simulated time in all
             time.sleep(0.05)
         recorder.close()
-    [bag] = bags(tmp_path / 'own')
-    with Reader(bag) as reader:
+    with Reader(tmp_path / 'own') as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
     assert set(counts) == {'/clock', '/tf', '/joint_states'}
     assert counts['/clock'] >= 5

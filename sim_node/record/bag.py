@@ -1,14 +1,19 @@
 """
-Writing rosbag2 bags (MCAP storage) on a thread of their own, with the ``rosbags`` library.
+Writing a rosbag2 bag (MCAP storage) on a thread of its own, with the ``rosbags`` library.
 
 :class:`BagWriter` takes serialized messages (CDR bytes, as they go on the wire) with their
 topic, type, QoS and log time (simulation time) from any thread without waiting: a bounded
 queue, a message dropped and counted when it is full, so the physics never waits for the disk.
-Its thread writes them into ``<folder>/<name>_<n>/`` bags: a new one when the current reaches
-``split_bytes`` or ``split_seconds`` of simulated time, none after ``max_bytes`` in all. A
-write that fails (a full disk) ends the recording with one error, and the bag written so far is
-closed so that it opens. Each bag is a folder with ``metadata.yaml`` (written at close) and an
-MCAP file, whose chunks are readable up to the last one written even after a kill -9.
+
+The folder it is given is the bag, as ``ros2 bag record -o`` makes it: ``<bag>/metadata.yaml``
+and ``<bag>/<bag name>_<n>.mcap``, a new file when the current one reaches ``split_bytes`` or
+``split_seconds`` of simulated time (rosbag2's splits: one bag, its files listed in its one
+``metadata.yaml``), none after ``max_bytes`` in all. A folder that holds anything already is
+refused: nothing is ever overwritten. A file being written lives in ``<bag>/<bag name>_<n>/``
+until it is closed. At least every :data:`FLUSH_SEC` of wall time the messages written go to the
+file as a closed chunk and ``metadata.yaml`` lists them, so a run killed with -9 keeps all but
+its last second: its files read up to their last chunk. A write that fails (a full disk) ends
+the recording with one error, and the bag written so far is closed so that it opens.
 
 Types are those of ROS 2 Jazzy known to rosbags, and others (control_msgs, ...) read from the
 ``.msg`` files of the packages on ``AMENT_PREFIX_PATH``.
@@ -23,10 +28,20 @@ import threading
 import time
 from typing import Callable, Optional
 
+from ..core.errors import SimError
+
 log = logging.getLogger(__name__)
 
 #: Messages waiting for the writer thread; beyond, messages are dropped (and counted).
 QUEUE_LENGTH = 20_000
+#: Wall seconds between flushes of what was written (a chunk to the file, metadata.yaml).
+FLUSH_SEC = 0.5
+ERR_EXISTS = ('cannot record into {path}: it exists and is not empty (a bag is never '
+              'overwritten); give a new path, as for ros2 bag record -o')
+
+
+class RecordingError(SimError):
+    """The recording cannot start where it was asked to."""
 
 
 @dataclass(frozen=True)
@@ -88,21 +103,24 @@ def qos(latched: bool, reliable: bool = True, depth: int = 10):
 
 class BagWriter:
     """
-    Serialized messages into rosbag2 bags, written on a thread of its own.
+    Serialized messages into one rosbag2 bag, written on a thread of its own.
 
-    :param folder: where the bags go (made if missing).
+    :param folder: the bag (made; refused if it exists and is not empty).
     :param on_error: called once, with a message, when the recording ends on an error.
+    :raises RecordingError: `folder` holds something already.
     """
 
-    def __init__(self, folder: str, limits: Limits = Limits(), name: str = 'sim',
+    def __init__(self, folder: str, limits: Limits = Limits(),
                  on_error: Optional[Callable[[str], None]] = None):
         self.folder = Path(folder).expanduser()
-        self.limits, self.name = limits, name
+        if self.folder.exists() and (not self.folder.is_dir() or any(self.folder.iterdir())):
+            raise RecordingError(ERR_EXISTS.format(path=self.folder))
+        self.limits = limits
         self._on_error = on_error or (lambda text: log.error(text))
         self._queue: queue.Queue = queue.Queue(QUEUE_LENGTH)
         self.dropped = 0
         self.written = 0
-        self.bags: list = []  # the bag folders written, in order
+        self.files: list = []  # the bag's files closed so far, in order
         self.failed = ''
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim-recorder', daemon=True)
@@ -127,13 +145,19 @@ class BagWriter:
     # ------------------------------------------------------------------ the thread
 
     def _run(self) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
         store = _typestore()
-        writer, connections, size, start, total = None, {}, 0, None, 0
-        latched: dict = {}  # topic -> the last message of a latched topic: into every new bag
+        part = None  # the file being written: a _Part
+        done: list = []  # what metadata.yaml says of each closed file
+        latched: dict = {}  # topic -> the last message of a latched topic: into every new file
+        flushed = time.monotonic()
+        total = 0
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             while not (self._stop.is_set() and self._queue.empty()):
+                if part is not None and time.monotonic() - flushed >= FLUSH_SEC:
+                    part.flush()
+                    self._write_metadata(done + [part.record()])
+                    flushed = time.monotonic()
                 try:
                     item = self._queue.get(timeout=0.1)
                 except queue.Empty:
@@ -142,26 +166,19 @@ class BagWriter:
                 if is_latched:
                     latched[topic] = item
                 lim = self.limits
-                if writer is not None and ((lim.split_bytes and size >= lim.split_bytes) or (
-                        lim.split_seconds and stamp - start >= lim.split_seconds * 1e9)):
-                    writer.close()
-                    writer = None
+                if part is not None and ((lim.split_bytes and part.size >= lim.split_bytes) or (
+                        lim.split_seconds and stamp - part.start >= lim.split_seconds * 1e9)):
+                    done.append(self._close(part))
+                    part = None
                 if lim.max_bytes and total >= lim.max_bytes:
                     raise _Full(f'the recording reached record_max_mb ({lim.max_bytes} '
-                                f'bytes); it ends here, its bags in {self.folder}')
-                if writer is None:
-                    path = self._next_path()
-                    writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
-                    writer.open()
-                    self.bags.append(path)
-                    connections, size, start = {}, 0, stamp
-                    for old in list(latched.values()):  # a new bag starts with them,
+                                f'bytes); it ends here, its bag in {self.folder}')
+                if part is None:
+                    part = _Part(self.folder, len(done), store, stamp)
+                    for old in list(latched.values()):  # a new file starts with them,
                         if old is not item:  # logged at its start
-                            size += self._write(writer, connections, store,
-                                                old[:3] + (stamp,) + old[4:])
-                    total += size
-                n = self._write(writer, connections, store, item)
-                size, total = size + n, total + n
+                            total += part.write(old[:3] + (stamp,) + old[4:])
+                total += part.write(item)
                 self.written += 1
         except _Full as exc:
             self.failed = str(exc)
@@ -171,36 +188,118 @@ class BagWriter:
                            f'{self.folder}; the bag so far is closed and opens')
             self._on_error(self.failed)
         finally:
-            if writer is not None:
-                try:
-                    writer.close()
-                except OSError as exc:
-                    log.error('the last bag could not be closed: %s', exc)
+            try:
+                if part is not None:
+                    done.append(self._close(part))
+                if done:
+                    self._write_metadata(done)
+            except OSError as exc:
+                log.error('the bag could not be closed: %s', exc)
 
-    def _write(self, writer, connections: dict, store, item) -> int:
+    def _close(self, part: '_Part') -> dict:
+        """Close a file and move it into the bag beside the others; return its record."""
+        record = part.close()
+        self.files.append(self.folder / record['path'])
+        return record
+
+    def _write_metadata(self, records: list) -> None:
+        from ruamel.yaml import YAML
+        yaml = YAML(typ='safe')
+        yaml.default_flow_style = False
+        tmp = self.folder / 'metadata.yaml.tmp'
+        with open(tmp, 'w', encoding='utf8') as f:
+            yaml.dump(_metadata(records), f)
+        os.replace(tmp, self.folder / 'metadata.yaml')  # atomic: a reader never sees half
+
+
+class _Part:
+    """
+    One file of the bag while it is written: a rosbags writer in ``<bag>/<name>_<n>/``.
+
+    Closed, its MCAP file moves to ``<bag>/<name>_<n>.mcap`` and its own metadata.yaml goes:
+    the bag's one metadata.yaml lists it (see :func:`_metadata`).
+    """
+
+    def __init__(self, bag: Path, n: int, store, start: int):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        self.name = f'{bag.name}_{n}'
+        self.bag, self.store, self.start, self.size = bag, store, start, 0
+        self.writer = Writer(bag / self.name, version=9, storage_plugin=StoragePlugin.MCAP)
+        self.writer.open()
+        self.connections: dict = {}
+
+    def write(self, item) -> int:
+        """Write one queued message; return its bytes (0: a type not known here)."""
         topic, msgtype, data, stamp, is_latched, reliable = item
-        conn = connections.get(topic)
+        conn = self.connections.get(topic)
         if conn is None:
-            if msgtype not in store.types and not _register(store, msgtype):
+            if msgtype not in self.store.types and not _register(self.store, msgtype):
                 log.warning('not recording %s: its type %s is unknown here', topic, msgtype)
-                connections[topic] = conn = False
+                self.connections[topic] = conn = False
             else:
-                conn = connections[topic] = writer.add_connection(
-                    topic, msgtype, typestore=store,
+                conn = self.connections[topic] = self.writer.add_connection(
+                    topic, msgtype, typestore=self.store,
                     offered_qos_profiles=[qos(is_latched, reliable)])
         if conn is False:
             return 0
-        writer.write(conn, stamp, data)
+        self.writer.write(conn, stamp, data)
+        self.size += len(data)
         return len(data)
 
-    def _next_path(self) -> Path:
-        stamp = time.strftime('%Y%m%d_%H%M%S')
-        n = len(self.bags)
-        path = self.folder / f'{self.name}_{stamp}_{n}'
-        while path.exists():
-            n += 1
-            path = self.folder / f'{self.name}_{stamp}_{n}'
-        return path
+    def flush(self) -> None:
+        """Put what was written into the file as a closed chunk (readable after a kill -9)."""
+        storage = self.writer.storage
+        if storage.chunk.bio.tell():
+            storage.close_chunk()
+        storage.bio.flush()
+
+    def record(self, path: Optional[str] = None) -> dict:
+        """Return what metadata.yaml says of this file (written so far)."""
+        from rosbags.rosbag2.metadata import dump_qos_v9
+        w = self.writer
+        counts = {x.id: w.counts.get(x.id, 0) for x in w.connections}
+        start = w.min_timestamp if sum(counts.values()) else self.start
+        return {
+            'path': path or f'{self.name}/{self.name}.mcap',
+            'start': start, 'end': max(w.max_timestamp, start), 'count': sum(counts.values()),
+            'topics': [({'name': x.topic, 'type': x.msgtype,
+                         'serialization_format': x.ext.serialization_format,
+                         'offered_qos_profiles': dump_qos_v9(x.ext.offered_qos_profiles),
+                         'type_description_hash': x.digest}, counts[x.id])
+                       for x in w.connections]}
+
+    def close(self) -> dict:
+        """Close the file, move it into the bag; return its record."""
+        record = self.record(f'{self.name}.mcap')
+        self.writer.close()
+        folder = self.bag / self.name
+        os.replace(folder / f'{self.name}.mcap', self.bag / f'{self.name}.mcap')
+        (folder / 'metadata.yaml').unlink(missing_ok=True)
+        folder.rmdir()
+        return record
+
+
+def _metadata(records: list) -> dict:
+    """Return the bag's metadata.yaml (rosbag2 version 9) listing the files of `records`."""
+    start = min(r['start'] for r in records)
+    end = max(r['end'] for r in records)
+    topics: dict = {}  # name -> [topic metadata, count]
+    for r in records:
+        for meta, count in r['topics']:
+            topics.setdefault(meta['name'], [meta, 0])[1] += count
+    return {'rosbag2_bagfile_information': {
+        'version': 9, 'storage_identifier': 'mcap',
+        'relative_file_paths': [r['path'] for r in records],
+        'duration': {'nanoseconds': end - start},
+        'starting_time': {'nanoseconds_since_epoch': start},
+        'message_count': sum(r['count'] for r in records),
+        'topics_with_message_count': [{'topic_metadata': meta, 'message_count': count}
+                                      for meta, count in topics.values()],
+        'compression_format': '', 'compression_mode': '',
+        'files': [{'path': r['path'], 'starting_time': {'nanoseconds_since_epoch': r['start']},
+                   'duration': {'nanoseconds': r['end'] - r['start']},
+                   'message_count': r['count']} for r in records],
+        'custom_data': None, 'ros_distro': 'rosbags'}}
 
 
 class _Full(Exception):

@@ -15,10 +15,15 @@ import sys
 import time
 
 
+def mcap_files(bag: Path) -> list:
+    """Return a bag's MCAP files: closed ones, and one still being written (in a folder)."""
+    return sorted(bag.glob('*.mcap')) + sorted(bag.glob('*/*.mcap'))
+
+
 def bags_in(path: Path) -> list:
     """Return the bag folders at `path` (closed or still open): itself, or those inside it."""
     def is_bag(p: Path) -> bool:
-        return (p / 'metadata.yaml').is_file() or any(p.glob('*.mcap'))
+        return (p / 'metadata.yaml').is_file() or bool(mcap_files(p))
     if not path.is_dir():
         return []
     if is_bag(path):
@@ -28,11 +33,11 @@ def bags_in(path: Path) -> list:
 
 
 def _unclosed(bag: Path) -> list:
-    """Lines for a bag with no metadata.yaml yet (being written, or cut): its MCAP as a stream."""
+    """Lines for a bag still being written, or cut (a kill -9): its MCAP files as streams."""
     from mcap.records import Channel, Message, Schema
     from mcap.stream_reader import StreamReader
     lines = []
-    for f in sorted(bag.glob('*.mcap')):
+    for f in mcap_files(bag):
         schemas, channels, counts, times = {}, {}, {}, []
         with open(f, 'rb') as stream:
             try:
@@ -47,8 +52,8 @@ def _unclosed(bag: Path) -> list:
             except Exception:  # noqa: B902 (where it is being written, or was cut)
                 pass
         span = (max(times) - min(times)) / 1e9 if times else 0.0
-        lines.append(f'{bag}: not closed (no metadata.yaml): {sum(counts.values())} messages '
-                     f'over {span:.3f} s of simulated time, read up to its last whole record')
+        lines.append(f'{f}: not closed: {sum(counts.values())} messages over {span:.3f} s of '
+                     'simulated time, read up to its last whole record')
         for cid, (topic, msgtype) in sorted(channels.items(), key=lambda c: c[1][0]):
             lines.append(f'  {topic:40s} {msgtype:45s} {counts.get(cid, 0):7d}')
     return lines
@@ -59,8 +64,8 @@ def summary(path: Path, echo: str = '') -> str:
     from rosbags.typesys import get_typestore, Stores
     lines = []
     for bag in bags_in(path):
-        if not (bag / 'metadata.yaml').is_file():
-            lines += _unclosed(bag)
+        if not (bag / 'metadata.yaml').is_file() or any(bag.glob('*/*.mcap')):
+            lines += _unclosed(bag)  # a file is still being written, or was cut
             continue
         with Reader(bag) as reader:
             lines.append(f'{bag}: {reader.message_count} messages over '
@@ -96,7 +101,7 @@ def main(argv=None) -> int:
                    help='seconds to keep the page after the end (default: until Ctrl-C)')
     args = p.parse_args(argv)
     deadline = time.monotonic() + args.wait
-    while not any(f.stat().st_size for b in bags_in(args.path) for f in b.glob('*.mcap')) \
+    while not any(f.stat().st_size for b in bags_in(args.path) for f in mcap_files(b)) \
             and time.monotonic() < deadline:
         time.sleep(0.2)
     print(summary(args.path, args.echo), flush=True)

@@ -30,7 +30,7 @@ class SessionRecorder:
         self._session, self._period = session, 1.0 / float(rate_hz)
         self._world = world_frame
         self._store = get_typestore(Stores.ROS2_JAZZY)
-        self.writer = BagWriter(folder, limits, name='session')
+        self.writer = BagWriter(folder, limits)
         self._stop = threading.Event()
         self._last: Optional[float] = None
         self._loaded = session.loaded  # the newest world, recorded by the listener

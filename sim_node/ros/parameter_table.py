@@ -86,14 +86,16 @@ PARAMETERS = (
          'the goal tolerance must be met; 0: no limit', limits=(0.0, 1e6)),
     Spec('cmd_vel_stamped', False, '<entity>/cmd_vel takes geometry_msgs/TwistStamped '
          "(diff_drive_controller, later nav2) instead of Twist (nav2 Jazzy's default)", **RO),
-    Spec('record', '', 'a folder to record the run into, as rosbag2 bags (MCAP) that ros2 bag '
-         "play and Foxglove open; '' records nothing", **RO),
+    Spec('record', '', 'a folder to record the run into: it becomes a rosbag2 bag (MCAP), as '
+         'ros2 bag record -o makes it, that ros2 bag play and Foxglove open (one that exists '
+         "and is not empty is refused, never overwritten); '' records nothing", **RO),
     Spec('record_topics', ['*'], 'topics to record (shell patterns on the full name, e.g. '
          '/tf*)', **RO),
     Spec('record_cameras', False, 'record camera images too (they are large)', **RO),
-    Spec('record_split_mb', 0.0, 'start a new bag after this many MiB; 0: never',
+    Spec('record_split_mb', 0.0, 'start a new file of the bag after this many MiB; 0: never',
          limits=(0.0, 1e7), **RO),
-    Spec('record_split_s', 0.0, 'start a new bag after this many simulated seconds; 0: never',
+    Spec('record_split_s', 0.0, 'start a new file of the bag after this many simulated '
+         'seconds; 0: never',
          limits=(0.0, 1e9), **RO),
     Spec('record_max_mb', 0.0, 'end the recording after this many MiB in all; 0: no cap',
          limits=(0.0, 1e9), **RO),
