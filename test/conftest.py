@@ -218,6 +218,23 @@ def returns(call, timeout: float = HANG_SEC):
     return out.get('value')
 
 
+def mcap_records_until_cut(path: Path) -> list:
+    """Every (topic, log time) of an MCAP file read as a stream, up to where it was cut."""
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+    channels, out = {}, []
+    with open(path, 'rb') as stream:
+        try:
+            for record in StreamReader(stream).records:
+                if isinstance(record, Channel):
+                    channels[record.id] = record.topic
+                elif isinstance(record, Message):
+                    out.append((channels[record.channel_id], record.log_time))
+        except Exception:  # noqa: B902 (the cut: a record torn in half)
+            pass
+    return out
+
+
 def wait_for(predicate, timeout: float = 10.0, interval: float = 0.05):
     """Poll until predicate() is truthy; returns its value or raises AssertionError."""
     deadline = time.monotonic() + timeout
@@ -264,6 +281,7 @@ class Watcher:
         self.tf_static = {}
         self.markers = {}  # (ns, id) -> marker
         self.joint_states = None
+        self.heard: dict = {}  # topic kind -> wall time (monotonic) it was last heard
         latched = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         n = self.node
@@ -289,6 +307,7 @@ class Watcher:
     def _on_clock(self, msg):
         with self.lock:
             self.clock.append(self._sec(msg.clock))
+            self.heard['clock'] = time.monotonic()
 
     def _tf_entry(self, ts):
         tr, q = ts.transform.translation, ts.transform.rotation
@@ -297,6 +316,7 @@ class Watcher:
 
     def _on_tf(self, msg):
         with self.lock:
+            self.heard['tf'] = time.monotonic()
             self.tf_stamps.append({self._sec(t.header.stamp) for t in msg.transforms})
             self._sends.extend((t.child_frame_id, self._sec(t.header.stamp))
                                for t in msg.transforms)
@@ -326,6 +346,18 @@ class Watcher:
     def _on_js(self, msg):
         with self.lock:
             self.joint_states = msg
+            self.heard['joint_states'] = time.monotonic()
+
+    def report(self) -> str:
+        """Say how long ago each topic was heard, and the newest times: for a failing wait."""
+        with self.lock:
+            now = time.monotonic()
+            ages = ', '.join(f'{k} {now - t:.1f} s ago' for k, t in sorted(self.heard.items()))
+            js = self.joint_states
+            stamp = None if js is None else self._sec(js.header.stamp)
+            return (f'heard: {ages or "nothing"}; newest /clock '
+                    f'{self.clock[-1] if self.clock else None}, joint_states stamp {stamp} with '
+                    f'{0 if js is None else len(js.name)} joints')
 
     def latest_clock(self):
         with self.lock:

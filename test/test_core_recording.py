@@ -8,6 +8,7 @@ that wrote it, the way ``ros2 bag info`` finds it: from the folder's ``metadata.
 import shutil
 import time
 
+from conftest import mcap_records_until_cut
 import pytest
 from sim_node.record.bag import BagWriter, FLUSH_SEC, Limits, RecordingError
 
@@ -27,19 +28,7 @@ def metadata(bag) -> dict:
 
 def mcap_clock(path) -> list:
     """Return the /clock log times of an MCAP file read as a stream, up to where it ends."""
-    from mcap.records import Channel, Message
-    from mcap.stream_reader import StreamReader
-    channels, out = {}, []
-    with open(path, 'rb') as stream:
-        try:
-            for record in StreamReader(stream).records:
-                if isinstance(record, Channel):
-                    channels[record.id] = record.topic
-                elif isinstance(record, Message) and channels[record.channel_id] == '/clock':
-                    out.append(record.log_time)
-        except Exception:  # noqa: B902 (the cut: a record torn in half)
-            pass
-    return out
+    return [t for topic, t in mcap_records_until_cut(path) if topic == '/clock']
 
 
 def test_the_folder_given_is_the_bag_and_a_bag_there_is_never_overwritten(tmp_path):

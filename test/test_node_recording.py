@@ -14,7 +14,7 @@ from pathlib import Path
 import signal
 import time
 
-from conftest import DEFAULT_SCENE, NodeProcess, wait_for
+from conftest import DEFAULT_SCENE, mcap_records_until_cut, NodeProcess, wait_for
 
 
 def listed_files(bag: Path) -> list:
@@ -35,23 +35,6 @@ def mcap_messages_of(path: Path) -> list:
 def mcap_messages(bag: Path) -> list:
     """Every message of a bag's files as its metadata.yaml lists them, by mcap's reader."""
     return [m for f in listed_files(bag) for m in mcap_messages_of(f)]
-
-
-def mcap_records_until_cut(path: Path) -> list:
-    """Every (topic, log time) of an MCAP file read as a stream, up to where it was cut."""
-    from mcap.records import Channel, Message
-    from mcap.stream_reader import StreamReader
-    channels, out = {}, []
-    with open(path, 'rb') as stream:
-        try:
-            for record in StreamReader(stream).records:
-                if isinstance(record, Channel):
-                    channels[record.id] = record.topic
-                elif isinstance(record, Message):
-                    out.append((channels[record.channel_id], record.log_time))
-        except Exception:  # noqa: B902 (the cut: a record torn in half)
-            pass
-    return out
 
 
 def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_context, tmp_path):

@@ -88,7 +88,11 @@ def test_every_ros_corpus_file_spawns_stands_or_falls_and_goes(node, watch, sim,
         def joints_listed():
             js = watch.joint_states
             return js is not None and {f'{name}/{j}' for j in joints} <= set(js.name)
-        wait_for(joints_listed, timeout=15)
+        try:
+            wait_for(joints_listed, timeout=15)
+        except AssertionError:
+            raise AssertionError(f'{name} joints not on joint_states: {watch.report()}') \
+                from None
 
         def own_frames():
             with watch.lock:
