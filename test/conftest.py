@@ -282,6 +282,7 @@ class Watcher:
         self.markers = {}  # (ns, id) -> marker
         self.joint_states = None
         self.heard: dict = {}  # topic kind -> wall time (monotonic) it was last heard
+        self.spin_errors: list = []  # what spinning raised (and went on from)
         latched = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         n = self.node
@@ -298,7 +299,14 @@ class Watcher:
 
     def _spin(self):
         while not self._stop:
-            self.executor.spin_once(timeout_sec=0.05)
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception as exc:  # noqa: B902 (see below)
+                # A subscription destroyed by the test's thread while this one waited on it
+                # (robot_description's) raises here. Uncaught, it ended this thread: under load
+                # every later case of a module then heard nothing and failed, one after another.
+                with self.lock:
+                    self.spin_errors.append(repr(exc))
 
     @staticmethod
     def _sec(t):
@@ -355,7 +363,8 @@ class Watcher:
             ages = ', '.join(f'{k} {now - t:.1f} s ago' for k, t in sorted(self.heard.items()))
             js = self.joint_states
             stamp = None if js is None else self._sec(js.header.stamp)
-            return (f'heard: {ages or "nothing"}; newest /clock '
+            return (f'heard: {ages or "nothing"}; spin errors {self.spin_errors[-3:]}; '
+                    f'newest /clock '
                     f'{self.clock[-1] if self.clock else None}, joint_states stamp {stamp} with '
                     f'{0 if js is None else len(js.name)} joints')
 
