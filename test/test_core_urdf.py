@@ -482,6 +482,15 @@ def test_a_xacro_file_spawns_with_its_arguments_and_find(world, tmp_path):
     assert 'right_base' in src.text
 
 
+#: A property that doubles 39 times (2^39 characters), and macros that call the next ten times,
+#: ten deep (10^9 links): xacro bombs, in memory and in time.
+PROPERTY_BOMB = ('<xacro:property name="p0" value="a"/>' + ''.join(
+    f'<xacro:property name="p{i}" value="${{p{i - 1}+p{i - 1}}}"/>' for i in range(1, 40))
+    + '<link name="${p39}"/>')
+MACRO_BOMB = ('<xacro:macro name="m0"><link name="l"/></xacro:macro>' + ''.join(
+    f'<xacro:macro name="m{i}">' + f'<xacro:m{i - 1}/>' * 10 + '</xacro:macro>'
+    for i in range(1, 10)) + '<xacro:m9/>')
+
 #: Code run from a description file, past xacro's own filters (a name with a double underscore
 #: is refused, so it is built from strings): what runs it can do what Python can.
 ESCAPE = ("${{(lambda U: (lambda cw: python.vars(python.vars(cw())['_module'])[U+'builtins'+U]"
@@ -497,9 +506,8 @@ ESCAPE = ("${{(lambda U: (lambda cw: python.vars(python.vars(cw())['_module'])[U
     ('<xacro:property name="p" value="${xacro.load_yaml(\'/etc/passwd\')}"/><link '
      'name="${p}"/>', 'not inside the directories'),
     ('<xacro:include filename="/etc/hostname"/>', 'not inside the directories'),
-    ('<xacro:property name="p0" value="a"/>' + ''.join(
-        f'<xacro:property name="p{i}" value="${{p{i - 1}+p{i - 1}}}"/>' for i in range(1, 40))
-     + '<link name="${p39}"/>', 'memory'),
+    (PROPERTY_BOMB, 'more memory than a description may take (512 MiB)'),
+    (MACRO_BOMB, 'xacro took longer than 5 s'),
 ])
 def test_a_hostile_xacro_file_is_contained_and_refused(tmp_path, body, says):
     path = write_xacro(tmp_path, body)

@@ -71,6 +71,24 @@ def test_refused_large_requests_leave_at_most_20_mib(warm):
     assert grown(node, before) <= 20.0
 
 
+def test_xacro_bombs_are_refused_at_their_limits_and_leave_at_most_50_mib(warm):
+    """A macro bomb (time) and a property bomb (memory) over the wire: each named limit."""
+    from simulation_interfaces.srv import SpawnEntity
+    from sim_node.core.models import xacro_files
+    from sim_node.ros.client import SimServiceError
+    from test_core_urdf import MACRO_BOMB, PROPERTY_BOMB
+    node, client, before = warm
+    head = '<robot name="bomb" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+    for body, says in ((MACRO_BOMB, f'took longer than {xacro_files.TIMEOUT_SEC:g} s'),
+                       (PROPERTY_BOMB, f'({xacro_files.MEMORY_BYTES >> 20} MiB)')):
+        with pytest.raises(SimServiceError) as err:
+            client.spawn('bomb', resource_string=head + body + '</robot>')
+        assert err.value.code == SpawnEntity.Response.RESOURCE_PARSE_ERROR, err.value.message
+        assert says in err.value.message
+    assert client.entities()  # and the node still answers
+    assert grown(node, before) <= 50.0
+
+
 @pytest.mark.parametrize('given', [{}, {'FASTRTPS_DEFAULT_PROFILES_FILE': '/theirs.xml'},
                                    {'RMW_FASTRTPS_USE_QOS_FROM_XML': '0'},
                                    {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}])

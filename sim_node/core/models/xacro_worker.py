@@ -3,10 +3,11 @@ A child process that runs xacro on an untrusted description file (no sim_node im
 
 Started by :mod:`.xacro_files` as ``python -I -S xacro_worker.py JOB``, with an empty
 environment: JOB (JSON) gives the file (or text), the ``key:=value`` arguments, the folders it
-may read and the module paths to import xacro from. xacro evaluates expressions from the file it
-processes (``${}``, ``$(eval)``: the restrictions can be escaped), reads files (``load_yaml``,
-``xacro:include``, ``$(find)``) and can grow without bound, so before it reads anything this
-process limits itself:
+may read, the module paths to import xacro from, and its limits (memory and CPU time: the
+node's, :data:`.xacro_files.MEMORY_BYTES` and :data:`.xacro_files.CPU_SECONDS`). xacro
+evaluates expressions from the file it processes (``${}``, ``$(eval)``: the restrictions can be
+escaped), reads files (``load_yaml``, ``xacro:include``, ``$(find)``) and can grow without
+bound, so before it reads anything this process limits itself:
 
 * memory, CPU time, and files it may write (none);
 * an audit hook that lets it open only regular files inside the readable folders (and the
@@ -32,8 +33,7 @@ import sys
 #: This process's scheduling priority, below the node's: on a machine with few cores its work
 #: took the CPU from the node's stepping and publishing threads (long /clock gaps in a spawn).
 NICE = 10
-MEMORY_BYTES = 1 << 30
-CPU_SECONDS = 20
+_TOO_MUCH = 'it needs more memory than a description may take ({mib} MiB)'
 _BLOCKED = ('subprocess.', 'socket.', 'ctypes.', 'os.exec', 'os.fork', 'os.posix_spawn',
             'os.spawn', 'os.system', 'os.remove', 'os.rmdir', 'os.rename', 'os.mkdir',
             'os.symlink', 'os.link', 'os.chmod', 'os.chown', 'os.truncate', 'os.utime',
@@ -105,8 +105,9 @@ def main() -> None:
     xml.dom.minidom.parseString = lambda s, *a, **k: defusedxml.minidom.parseString(
         s, forbid_dtd=True)
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_BYTES, MEMORY_BYTES))
-    resource.setrlimit(resource.RLIMIT_CPU, (CPU_SECONDS, CPU_SECONDS))
+    memory, cpu = int(job['memory_bytes']), int(job['cpu_seconds'])
+    resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
+    resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
     resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))
     resource.setrlimit(resource.RLIMIT_NPROC, (0, 0))
     _guard(roots, code_roots)
@@ -118,7 +119,7 @@ def main() -> None:
             xacro.process_doc(doc, mappings=job['args'])
         sys.stdout.write(doc.toprettyxml(indent='  '))
     except MemoryError:
-        _fail('it needs more memory than a description may take')
+        _fail(_TOO_MUCH.format(mib=memory >> 20))
     except RecursionError:
         _fail('it nests macros or includes too deeply')
     except Exception as exc:  # noqa: B902 (whatever a hostile file raises is its answer)
@@ -126,7 +127,7 @@ def main() -> None:
         while getattr(inner, 'exc', None) is not None:  # xacro wraps what failed
             inner = inner.exc
         if isinstance(inner, MemoryError):
-            _fail('it needs more memory than a description may take')
+            _fail(_TOO_MUCH.format(mib=memory >> 20))
         text = str(getattr(exc, 'msg', '') or exc)
         _fail(text if isinstance(exc, xacro.XacroException) else f'{type(exc).__name__}: {text}')
 
