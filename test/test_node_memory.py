@@ -77,14 +77,18 @@ def test_xacro_bombs_are_refused_at_their_limits_and_leave_at_most_50_mib(warm):
     from sim_node.core.models import xacro_files
     from sim_node.ros.client import SimServiceError
     from test_core_urdf import MACRO_BOMB, PROPERTY_BOMB
+    from sim_node.ros.client import SimClient
     node, client, before = warm
+    # A client that waits three times the limit hears the refusal (before: no answer in 15 s)
+    patient = SimClient(timeout_sec=3 * xacro_files.TIMEOUT_SEC)
     head = '<robot name="bomb" xmlns:xacro="http://www.ros.org/wiki/xacro">'
     for body, says in ((MACRO_BOMB, f'took longer than {xacro_files.TIMEOUT_SEC:g} s'),
                        (PROPERTY_BOMB, f'({xacro_files.MEMORY_BYTES >> 20} MiB)')):
         with pytest.raises(SimServiceError) as err:
-            client.spawn('bomb', resource_string=head + body + '</robot>')
+            patient.spawn('bomb', resource_string=head + body + '</robot>')
         assert err.value.code == SpawnEntity.Response.RESOURCE_PARSE_ERROR, err.value.message
         assert says in err.value.message
+    patient.close()
     assert client.entities()  # and the node still answers
     assert grown(node, before) <= 50.0
 
