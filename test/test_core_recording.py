@@ -21,9 +21,8 @@ def clock(sec: int, nanosec: int = 0) -> bytes:
 
 
 def metadata(bag) -> dict:
-    from ruamel.yaml import YAML
-    return YAML(typ='safe').load((bag / 'metadata.yaml').read_text())[
-        'rosbag2_bagfile_information']
+    import yaml
+    return yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
 
 
 def mcap_clock(path) -> list:

@@ -19,8 +19,8 @@ from conftest import DEFAULT_SCENE, mcap_records_until_cut, NodeProcess, wait_fo
 
 def listed_files(bag: Path) -> list:
     """Return the files the bag's metadata.yaml lists, in order (as ros2 bag reads them)."""
-    from ruamel.yaml import YAML
-    info = YAML(typ='safe').load((bag / 'metadata.yaml').read_text())
+    import yaml
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())
     return [bag / f for f in info['rosbag2_bagfile_information']['relative_file_paths']]
 
 

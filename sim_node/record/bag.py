@@ -203,12 +203,10 @@ class BagWriter:
         return record
 
     def _write_metadata(self, records: list) -> None:
-        from ruamel.yaml import YAML
-        yaml = YAML(typ='safe')
-        yaml.default_flow_style = False
+        import yaml
         tmp = self.folder / 'metadata.yaml.tmp'
         with open(tmp, 'w', encoding='utf8') as f:
-            yaml.dump(_metadata(records), f)
+            yaml.safe_dump(_metadata(records), f, default_flow_style=False, sort_keys=False)
         os.replace(tmp, self.folder / 'metadata.yaml')  # atomic: a reader never sees half
 
 
