@@ -17,7 +17,7 @@ run: setup
 test: setup
 	@. .build/env.sh && "$$SIM_PYTHON" -m pytest $(PYTEST_ARGS)
 
-# The core, the adapters, the Gym envs, the views and the linters: no node process, ~2.5 min
+# The core, the adapters, the Gym envs and the linters: under a minute (no node, browser or window)
 test-fast: setup
 	@. .build/env.sh && "$$SIM_PYTHON" -m pytest -m "not slow" $(PYTEST_ARGS)
 

@@ -328,6 +328,7 @@ def test_step_dt_below_half_a_step_is_refused(dt):
 
 # ------------------------------------------------------------------ 7. snapshot order
 
+@pytest.mark.slow  # about 2 s
 def test_published_snapshots_never_go_back_in_time_with_many_producers():
     w = World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=0))
     loop = SimLoop(w)

@@ -169,6 +169,7 @@ def test_commands_from_many_threads_while_the_loop_runs(make_loop):
     assert loop.status().state == 'playing'
 
 
+@pytest.mark.slow  # a 1 s stall
 def test_pacing_resyncs_after_a_stall_instead_of_bursting(make_loop):
     """The second the loop could not step is not made up: simulated time stays behind."""
     loop = make_loop(real_time_factor=1.0)

@@ -70,6 +70,7 @@ def test_a_split_adds_a_file_to_the_one_bag_and_readers_read_it_whole(tmp_path):
     assert independent == times  # mcap's own reader, file by file as listed
 
 
+@pytest.mark.slow  # waits for the flushes
 def test_what_was_written_a_second_ago_survives_a_kill(tmp_path):
     """The bag as kill -9 leaves it (copied while the writer still runs) reads back."""
     bag = tmp_path / 'live'

@@ -135,6 +135,7 @@ def test_a_slow_spawn_compiles_outside_the_world_lock_so_the_loop_keeps_stepping
         loop.stop()
 
 
+@pytest.mark.slow  # about 2 s each: slow compiles
 @pytest.mark.parametrize('edit', ['add_body', 'set_default_contact', 'delete'])
 def test_other_edits_compile_outside_the_world_lock_too(slow_source, edit):
     """With MuJoCo's mesh cache off, every compile of this world takes seconds: no stall."""
@@ -176,6 +177,7 @@ def test_an_edit_during_a_slow_spawn_is_kept_and_the_spawn_lands_on_the_new_worl
     assert w.get_joint_states()['left_elbow'][0] == pytest.approx(0.5, abs=0.02)
 
 
+@pytest.mark.slow  # about 2 s
 def test_mesh_heavy_arms_spawn_without_stalling_the_loop():
     """
     Three 58-mesh arms, one after another: the loop never stands still for 0.1 s.
@@ -260,6 +262,7 @@ def _queue_behind_a_slow_spawn(world: World, slow_source, edits: dict) -> dict:
     return answers
 
 
+@pytest.mark.slow  # about 1.5 s
 def test_edits_queued_behind_a_slow_one_are_made_together_each_with_its_own_answer(slow_source):
     """Six spawns and a delete queue while a spawn compiles: one more compile for all seven."""
     from sim_node.core.models import sources
@@ -279,6 +282,7 @@ def test_edits_queued_behind_a_slow_one_are_made_together_each_with_its_own_answ
     assert w.get_entity_state('b5').position[2] == pytest.approx(0.05, abs=0.01)  # landed
 
 
+@pytest.mark.slow  # about 4 s
 def test_edits_that_clash_in_a_group_are_made_one_by_one_and_refused_alone(slow_source):
     """Two spawns of one name, two at one place: one of each pair lands, the other is refused."""
     from sim_node.core.models import sources
@@ -300,6 +304,7 @@ def test_edits_that_clash_in_a_group_are_made_one_by_one_and_refused_alone(slow_
     assert names.count('twin') == 1 and ('here_a' in names) != ('here_b' in names)
 
 
+@pytest.mark.slow  # about 2 s
 def test_a_spawn_whose_world_changed_while_it_compiled_is_planned_again(slow_source):
     """A delete made inside locked() while the spawn compiles: the deleted box stays deleted."""
     import threading

@@ -171,6 +171,7 @@ def binary_stl(path: Path, n_faces: int) -> Path:
     return path
 
 
+@pytest.mark.slow  # about 1.5 s
 def test_a_mesh_over_mujocos_face_limit_is_decimated_with_a_warning_naming_it(
         world, tmp_path, caplog):
     binary_stl(tmp_path / 'dense.stl', 300_000)
@@ -506,8 +507,9 @@ ESCAPE = ("${{(lambda U: (lambda cw: python.vars(python.vars(cw())['_module'])[U
     ('<xacro:property name="p" value="${xacro.load_yaml(\'/etc/passwd\')}"/><link '
      'name="${p}"/>', 'not inside the directories'),
     ('<xacro:include filename="/etc/hostname"/>', 'not inside the directories'),
-    (PROPERTY_BOMB, 'more memory than a description may take (512 MiB)'),
-    (MACRO_BOMB, 'xacro took longer than 5 s'),
+    pytest.param(PROPERTY_BOMB, 'more memory than a description may take (512 MiB)',
+                 marks=pytest.mark.slow),  # about 2 s
+    pytest.param(MACRO_BOMB, 'xacro took longer than 5 s', marks=pytest.mark.slow),  # 5 s
 ])
 def test_a_hostile_xacro_file_is_contained_and_refused(tmp_path, body, says):
     path = write_xacro(tmp_path, body)

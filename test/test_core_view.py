@@ -19,6 +19,9 @@ from sim_node.core.world import World
 from sim_node.session import Session
 from sim_node.view.window import check_display, ViewerUnavailableError, Window
 
+#: Front-ends that start an X server (Xvfb) and a window: in make test, not make test-fast.
+pytestmark = pytest.mark.slow
+
 PROBE = Path(__file__).resolve().parent / 'scenes' / 'view_probe.xml'
 
 

@@ -319,6 +319,7 @@ def test_pd_control_without_actuators():
     assert w.get_joint_states()['arm/hinge'][1] == pytest.approx(2.0, abs=0.1)
 
 
+@pytest.mark.slow  # about 7 s of eight threads hammering
 def test_eight_threads_commanding_while_stepping_lose_nothing(world):
     errors = []
     last = {}

@@ -21,6 +21,9 @@ from sim_node.core.models import sources
 from sim_node.session import Session
 from sim_node.view.web import WebView
 
+#: Front-ends that start a browser (headless Chromium): in make test, not make test-fast.
+pytestmark = pytest.mark.slow
+
 SCENES = Path(__file__).resolve().parent / 'scenes'
 GREEN_BOX = ('<mujoco><worldbody><body><freejoint/><geom type="box" size="0.2 0.2 0.2" '
              'rgba="0 1 0 1"/></body></worldbody></mujoco>')
