@@ -265,3 +265,18 @@ def test_the_lifecycle_is_one_table_that_every_change_of_state_goes_through():
     assert writers == {'__init__', 'load', 'hold', 'unload', '_go'}
     targets = set(lifecycle.TRANSITIONS.values())
     assert targets == {lifecycle.PLAYING, lifecycle.PAUSED, lifecycle.STOPPED, lifecycle.FAILED}
+
+
+def test_a_view_takes_a_session_and_nothing_else(session):
+    """The views' one kind of target: a world or a loop is shown through a session holding it."""
+    from sim_node.view.source import OWNER_STEPPED, Source
+    world = World.from_file(str(DEFAULT_SCENE), FAST)
+    with pytest.raises(TypeError, match=r'Session\.hold\(world\)'):
+        Source(world)
+    session.hold(world)
+    source = Source(session)
+    try:
+        assert source.current() == (world, None)
+        assert source.state(None) == OWNER_STEPPED
+    finally:
+        source.close()
