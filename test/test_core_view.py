@@ -174,7 +174,7 @@ def test_the_stepping_api_shows_its_world_in_real_time_until_the_window_closes(d
     assert until(lambda: not window.is_open)
     t0 = time.monotonic()
     sim.step(dt=2.0)
-    assert time.monotonic() - t0 < 1.0  # free again: faster than the clock, not paced
+    assert time.monotonic() - t0 < 2.0  # free again: its 2 simulated seconds, not paced to 2 s
     window.close()
 
 
