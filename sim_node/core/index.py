@@ -94,7 +94,7 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
     """
     Index a compiled model.
 
-    :param spawned: entity name -> :class:`~.design.Spawned` for the entities spawned since
+    :param spawned: entity name -> :class:`~.editing.design.Spawned` for the entities spawned since
         load (their top-level bodies, description, namespace). Every other top-level body is
         an entity of its own.
     """

@@ -204,7 +204,7 @@ class World:
 
     def robot_description(self, name: str, mesh_dir: Optional[str] = None) -> str:
         """
-        Return the URDF of an entity with joints or spawned from URDF (:mod:`.description`).
+        Return the URDF of an entity with joints or spawned from URDF (:mod:`.models.description`).
 
         Built outside the world lock from the current model (models are replaced, never changed
         in place, by edits). :param mesh_dir: where mesh geometry is written as STL (None: meshes
@@ -279,14 +279,14 @@ class World:
                          angular_velocity: Optional[Sequence[float]] = None,
                          reference: str = '',
                          acceleration: Optional[Sequence[float]] = None) -> None:
-        """Set the pose and/or twist of an entity's root body (see :mod:`.writes`)."""
+        """Set the pose and/or twist of an entity's root body (see :mod:`.editing.writes`)."""
         self._writes.set_entity_state(name, position, quat_wxyz, linear_velocity,
                                       angular_velocity, reference, acceleration)
 
     def overwrite(self, poses: Optional[dict] = None, twists: Optional[dict] = None,
                   joint_positions: Optional[dict] = None,
                   joint_velocities: Optional[dict] = None) -> None:
-        """Overwrite any parts of the state at once, in the world frame (see :mod:`.writes`)."""
+        """Overwrite any parts of the state at once, world frame (see :mod:`.editing.writes`)."""
         self._writes.overwrite(poses, twists, joint_positions, joint_velocities)
 
     # ---------------------------------------------------------------- control
@@ -461,7 +461,7 @@ class World:
                  quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0), mass: float = 0.0,
                  joint: Optional[str] = None, axis: Sequence[float] = (0.0, 0.0, 1.0),
                  rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> str:
-        """Add a body under a spawned entity's body (see :meth:`.edits.Edits.add_body`)."""
+        """Add a body under a spawned entity's body (see :meth:`.editing.edits.Edits.add_body`)."""
         return self._edits.add_body(name, parent, shape, size, position, quat_wxyz, mass,
                                     joint, axis, rgba)
 
@@ -477,11 +477,11 @@ class World:
 
     def set_friction(self, name: str, sliding: float, torsional: Optional[float] = None,
                      rolling: Optional[float] = None) -> None:
-        """Friction of every geom of an entity (see :meth:`.edits.Edits.set_friction`)."""
+        """Friction of every geom of an entity (see :meth:`.editing.edits.Edits.set_friction`)."""
         self._edits.set_friction(name, sliding, torsional, rolling)
 
     def set_restitution(self, name: str, restitution: float) -> None:
-        """Bounciness in [0, 0.8] of an entity's geoms (:meth:`.edits.Edits.set_restitution`)."""
+        """Bounciness in [0, 0.8] of an entity's geoms (:mod:`.editing.edits`)."""
         self._edits.set_restitution(name, restitution)
 
     def set_default_contact(self, friction: Optional[Sequence[float]] = None,
@@ -490,5 +490,5 @@ class World:
         self._edits.set_default_contact(friction, restitution)
 
     def set_mass(self, name: str, mass: float) -> None:
-        """Total mass of an entity (kg); 0 welds a free one where it is (:mod:`.edits`)."""
+        """Total mass of an entity (kg); 0 welds a free one where it is (:mod:`.editing.edits`)."""
         self._edits.set_mass(name, mass)

@@ -166,7 +166,7 @@ def make_reacher(**kwargs) -> SimEnv:
 
 
 def register_envs() -> None:
-    """Register the sim/ ids (idempotent), each with a vector entry point (:mod:`.gym_vector`)."""
+    """Register the sim/ ids (idempotent), each with a vector entry point (:mod:`.vector`)."""
     gym_autoload.register_ids(gym.envs.registration)
 
 

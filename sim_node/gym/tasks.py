@@ -361,4 +361,4 @@ class ReacherTask(Task):
             'is_success': to_target < self.SUCCESS, 'tip_to_target': to_target}
 
 
-#: id -> Task class, the envs this module registers (names and lengths: :mod:`.gym_autoload`).
+#: id -> Task class, the envs this module registers (names and lengths: :mod:`.autoload`).

@@ -1,7 +1,7 @@
 """
 Joint torques from Python: through a joint's motor within its limits, or ``qfrc_applied``.
 
-Shared by the joint commands and trajectories (:mod:`.control`) and the mobile bases
+Shared by the joint commands and trajectories (:mod:`.commands`) and the mobile bases
 (:mod:`.bases`); called with the world lock held, before a step.
 """
 

@@ -83,7 +83,9 @@ class BaseSpec:
 
 def drive_plugin(extensions: Sequence) -> Optional[dict]:
     """
-    Read a Gazebo drive plugin out of a URDF's extension elements (:class:`.models.urdf.Prepared`).
+    Read a Gazebo drive plugin out of a URDF's extension elements.
+
+    The elements are those :class:`sim_node.core.models.urdf.Prepared` kept.
 
     :returns: {'kind', 'left', 'right', 'separation', 'radius', 'max_acceleration',
         'max_torque', 'odom_frame', 'base_frame'} (values absent: missing), or None.

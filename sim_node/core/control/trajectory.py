@@ -218,7 +218,9 @@ def plan(index, model, data, entity: str, joint_names: Sequence[str], times: Seq
          path_tolerance: Optional[dict], goal_tolerance: Optional[dict],
          goal_time_tolerance: float, allow_end_velocity: bool = False) -> 'Trajectory':
     """
-    Check a goal against a world's joints (:class:`~.index.ModelIndex`, MjData) and plan it.
+    Check a goal against a world's joints and plan it.
+
+    :param index: the model's :class:`~sim_node.core.index.ModelIndex`.
 
     Starts from the joints' state now; see :meth:`World.follow_trajectory
     <sim_node.core.world.World.follow_trajectory>` for the arguments. Call with the world lock.

@@ -61,7 +61,8 @@ class Spawned:
     namespace: str = ''
     urdf: str = ''
     world_link: Optional[tuple] = None
-    drive: Optional[dict] = None  # a URDF's Gazebo drive plugin (:func:`.bases.drive_plugin`)
+    #: A URDF's Gazebo drive plugin (:func:`sim_node.core.control.bases.drive_plugin`).
+    drive: Optional[dict] = None
 
 
 @dataclass(frozen=True)

@@ -93,8 +93,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     Every element comes along under the prefix ``name/``; the first top-level body is renamed
     `name` and is the entity's root. Whole-world furniture follows one rule: ground planes
     directly in the model's <worldbody> are dropped (logged); its other static geometry was
-    gathered into a welded body by :mod:`.sources`; its skybox is dropped too (the world has its
-    sky); its lights, cameras and other assets come along;
+    gathered into a welded body by :mod:`sim_node.core.models.prepare`; its skybox is dropped
+    too (the world has its sky); its lights, cameras and other assets come along;
     its keyframes are dropped (the world's keep working: the entity's part of them is its
     spawn state); its <option>, <size> and <visual> give way to the world's (MuJoCo logs each
     difference). Its <compiler> settings (angle units, asset folders) apply to it alone.

@@ -6,7 +6,7 @@ They are made by the one commit path, :mod:`.transaction`.
 Spawn, add a body, delete, the removal of the spawned on reset, contact, mass, welds, gravity
 and timestep. Each public method validates its arguments, then hands a plan to
 :meth:`Transaction.change <.transaction.Transaction.change>`: the plan runs under the world
-lock, checks against the live world (:class:`~.live.Live`), and returns an
+lock, checks against the live world (:class:`~sim_node.core.stepping.live.Live`), and returns an
 :class:`~.design.Edit`, which is compiled with the lock released and committed, or changes
 nothing.
 """
@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 
 
 class Edits:
-    """Structural and physics-parameter changes of a :class:`~.live.Live` world."""
+    """Structural and physics-parameter changes of a world (its :class:`Live`)."""
 
     def __init__(self, live: Live, transaction: Transaction):
         self.live = live

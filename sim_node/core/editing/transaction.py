@@ -32,7 +32,9 @@ log = logging.getLogger(__name__)
 
 class Transaction:
     """
-    Makes structural edits of a :class:`~.live.Live` world, one group at a time.
+    Makes structural edits of a world, one group at a time.
+
+    The world is its :class:`~sim_node.core.stepping.live.Live`.
 
     Lock order: :attr:`edit_lock` is taken before the world lock, never while holding it; the
     queue's lock is a leaf.

@@ -1,8 +1,9 @@
 """
 Writing the state of a world: entity poses and twists, joint positions and velocities.
 
-Each method of :class:`Writes` locks the :class:`~.live.Live` world, checks everything, then
-writes (see :mod:`.state`): an error changes nothing. :class:`~.world.World` delegates to it.
+Each method of :class:`Writes` locks the world (its :class:`~sim_node.core.stepping.live.Live`),
+checks everything, then writes (see :mod:`sim_node.core.state`): an error changes nothing.
+:class:`~sim_node.core.world.World` delegates to it.
 """
 
 from typing import Optional, Sequence

@@ -80,7 +80,7 @@ class DivergenceGuard:
 
         Logs other new warnings. Runs after every batch: two C calls and one comparison; with
         `quiet`, numpy instead of the C calls while the state is clean (a few microseconds more,
-        but no release of the GIL: see :func:`.state.state_copier`).
+        but no release of the GIL: see :func:`sim_node.core.state.state_copier`).
         """
         # mj_step checks qpos and qvel only at the start of the next step; the integrator may
         # have just carried a bad acceleration into them. Check them now, as MuJoCo would.

@@ -2,13 +2,14 @@
 The world as it runs now: the world lock and everything it guards, in one object.
 
 A :class:`Live` holds the current model, data and index, the edit phase's
-:class:`~.design.Design` and the generation, the step count, the joint commands
-(:class:`~.control.Control`), the divergence guard, and what is derived from the state and may
-be stale (body poses after a step, the clean state the last batch left). The facade
-(:class:`~.world.World`), the stepping protocol (:mod:`.stepping`), the edit transaction
-(:mod:`.transaction`) and the state writes (:mod:`.writes`) all work on one ``Live``: its
-attributes are public so that they can, and every method whose name ends in ``_locked`` expects
-the caller to hold :attr:`lock` (``with live.lock:``).
+:class:`~sim_node.core.editing.design.Design` and the generation, the step count, the joint
+commands (:class:`~sim_node.core.control.commands.Control`), the divergence guard, and what is
+derived from the state and may be stale (body poses after a step, the clean state the last
+batch left). The facade (:class:`~sim_node.core.world.World`), the stepping protocol
+(:mod:`.steps`), the edit transaction (:mod:`sim_node.core.editing.transaction`) and the state
+writes (:mod:`sim_node.core.editing.writes`) all work on one ``Live``: its attributes are public
+so that they can, and every method whose name ends in ``_locked`` expects the caller to hold
+:attr:`lock` (``with live.lock:``).
 """
 
 import threading
@@ -136,7 +137,7 @@ class Live:
         self.guard.note()
 
     def set_state_locked(self, values: np.ndarray, step: int) -> None:
-        """Write a full integration state (layout :data:`~.index.STATE_SPEC`)."""
+        """Write a full integration state (layout :data:`~sim_node.core.index.STATE_SPEC`)."""
         mujoco.mj_setState(self.model, self.data, values, STATE_SPEC)
         self.step_count = step
         self.forward_locked()
