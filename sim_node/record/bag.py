@@ -120,7 +120,6 @@ class BagWriter:
         self._queue: queue.Queue = queue.Queue(QUEUE_LENGTH)
         self.dropped = 0
         self.written = 0
-        self.files: list = []  # the bag's files closed so far, in order
         self.failed = ''
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim-recorder', daemon=True)
@@ -168,7 +167,7 @@ class BagWriter:
                 lim = self.limits
                 if part is not None and ((lim.split_bytes and part.size >= lim.split_bytes) or (
                         lim.split_seconds and stamp - part.start >= lim.split_seconds * 1e9)):
-                    done.append(self._close(part))
+                    done.append(part.close())
                     part = None
                 if lim.max_bytes and total >= lim.max_bytes:
                     raise _Full(f'the recording reached record_max_mb ({lim.max_bytes} '
@@ -190,17 +189,11 @@ class BagWriter:
         finally:
             try:
                 if part is not None:
-                    done.append(self._close(part))
+                    done.append(part.close())
                 if done:
                     self._write_metadata(done)
             except OSError as exc:
                 log.error('the bag could not be closed: %s', exc)
-
-    def _close(self, part: '_Part') -> dict:
-        """Close a file and move it into the bag beside the others; return its record."""
-        record = part.close()
-        self.files.append(self.folder / record['path'])
-        return record
 
     def _write_metadata(self, records: list) -> None:
         import yaml

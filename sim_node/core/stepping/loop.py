@@ -213,8 +213,8 @@ class SimLoop:
         A later :meth:`play` or :meth:`pause` supersedes the pauses reported before it.
         """
         with self._cv:
-            reports, self._reports = list(self._reports), collections.deque(
-                maxlen=REPORTS_KEPT)
+            reports = list(self._reports)
+            self._reports.clear()
             return reports
 
     def _drop_reports_locked(self, *kinds: str) -> None:
