@@ -34,6 +34,8 @@ class Malformed(ValueError):
     """The file's declared counts disagree with its data: no reader should trust it."""
 
 
+ERR_ARRAY_COUNT = 'a <float_array> says count="{count}" but holds {n} values'
+ERR_ACCESSOR = 'an <accessor> reads {need} values of an array that holds {n}'
 _COUNT = re.compile(rb'\bcount\s*=\s*"\s*(\d+)\s*"')
 _ID = re.compile(rb'\bid\s*=\s*"([^"]*)"')
 _ACCESSOR = re.compile(rb'<accessor\b[^>]*>')
@@ -58,8 +60,7 @@ def check_counts(data: bytes) -> None:
         n = len(m.group(3).split())
         count = _COUNT.search(m.group(1))
         if count is not None and int(count.group(1)) != n:
-            raise Malformed(f'a <float_array> says count="{int(count.group(1))}" but holds {n} '
-                            'values')
+            raise Malformed(ERR_ARRAY_COUNT.format(count=int(count.group(1)), n=n))
         ident = _ID.search(m.group(1))
         if ident is not None:
             held[ident.group(1).decode(errors='replace')] = n
@@ -73,7 +74,7 @@ def check_counts(data: bytes) -> None:
             raise Malformed('an <accessor> whose count, stride or offset is not a number') \
                 from None
         if n is not None and need > n:
-            raise Malformed(f'an <accessor> reads {need} values of an array that holds {n}')
+            raise Malformed(ERR_ACCESSOR.format(need=need, n=n))
 
 
 def _tag(elem: ET.Element) -> str:
@@ -118,8 +119,7 @@ def read(data: bytes) -> tuple:
             values = np.array(texts[int(text[1:])].split(), dtype=dtype)
         count = elem.get('count') if _tag(elem) == 'float_array' else None
         if count is not None and count.strip() != str(len(values)):
-            raise Malformed(f'a <float_array> says count="{count.strip()[:20]}" but holds '
-                            f'{len(values)} values')
+            raise Malformed(ERR_ARRAY_COUNT.format(count=count.strip()[:20], n=len(values)))
         return values
 
     def ref(url: str):
@@ -146,8 +146,7 @@ def read(data: bytes) -> tuple:
         if stride < 3:
             raise Unsupported('an accessor of fewer than 3 values a vertex')
         if offset + count * stride > len(values):
-            raise Malformed(f'an <accessor> reads {offset + count * stride} values of an array '
-                            f'that holds {len(values)}')
+            raise Malformed(ERR_ACCESSOR.format(need=offset + count * stride, n=len(values)))
         return values[offset:offset + count * stride].reshape(count, stride)[:, :3]
 
     def primitives(geometry) -> list:
