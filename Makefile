@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -73,6 +73,10 @@ bench-urdf: setup
 # Mobile bases: steps/s with the rover driven over idle (real_time_factor 0), odometry rate, ~40 s
 bench-bases: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/bases.py
+
+# Large and malformed meshes over the wire: decided/refused in bounds, memory back, ~1 min
+bench-meshes: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/mesh_limits.py
 
 bench-viewer: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/viewer.py

@@ -181,6 +181,36 @@ def test_a_mesh_over_mujocos_face_limit_is_decimated_with_a_warning_naming_it(
     assert 'dense.stl has 300000 faces' in caplog.text and 'decimated' in caplog.text
     faces = world.read(lambda m, d: int(m.mesh_facenum.max()))
     assert 0 < faces <= meshes.MUJOCO_MAX_FACES
+    # Decimated, not cut: the surface keeps its area (a simplifier given the STL's triangle
+    # soup could only drop faces, and lost a third of it).
+    original = trimesh.load(tmp_path / 'dense.stl').area
+    assert world.read(mesh_area) == pytest.approx(original, rel=0.02)
+
+
+def mesh_area(m, d) -> float:
+    """Return the surface area of the largest mesh of a model, from MuJoCo's own arrays."""
+    k = int(np.argmax(m.mesh_facenum))
+    v = m.mesh_vert[m.mesh_vertadr[k]:m.mesh_vertadr[k] + m.mesh_vertnum[k]]
+    f = m.mesh_face[m.mesh_faceadr[k]:m.mesh_faceadr[k] + m.mesh_facenum[k]]
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+
+def test_a_deleted_robots_processed_meshes_leave_mujocos_cache_and_a_twins_stay(
+        world, tmp_path):
+    """Before, MuJoCo's cache kept a deleted robot's processed meshes (82 MiB for 200k faces)."""
+    binary_stl(tmp_path / 'part.stl', 20_000)
+    part = mesh_part('visual', 'part.stl') + mesh_part('collision', 'part.stl')
+    text = robot(link('base', part))
+    empty = asset_store.mesh_cache_bytes()
+    spawn_file(world, tmp_path, text, name='first')
+    held = asset_store.mesh_cache_bytes()
+    assert held > empty + 1_000_000  # 20k faces processed
+    spawn_file(world, tmp_path, text, name='twin', position=(-3, 3, 1))
+    world.delete('first')  # the twin uses the same meshes: they stay
+    assert asset_store.mesh_cache_bytes() == held
+    world.delete('twin')
+    assert asset_store.mesh_cache_bytes() <= empty
 
 
 def test_a_second_spawn_of_a_robot_converts_nothing(world, tmp_path):

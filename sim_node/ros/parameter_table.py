@@ -136,7 +136,9 @@ PARAMETERS = (
     Spec('mesh_cache_mb', _W.mesh_cache_mb, "MuJoCo's process-wide cache of processed meshes "
          "(MiB; MuJoCo's default is 512): a second spawn of a robot, and edits of a world "
          "holding robots, reuse their meshes from it (GR1's take 158 MiB; a full cache stops "
-         'keeping new meshes; memory is taken only as meshes load); 0 turns it off',
+         "keeping new meshes; memory is taken only as meshes load; a deleted robot's "
+         'meshes leave it unless a robot spawned from the same description stays); 0 turns '
+         'it off',
          limits=(0, 1_000_000), **RO),
     Spec('allow_second_simulator', False, 'start even when another simulator serves the same '
          'services in this namespace (they would answer calls at random; by default the newer '

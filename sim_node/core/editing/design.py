@@ -4,7 +4,8 @@ The edit phase's state: what the world is made of, as one value replaced whole b
 A :class:`Design` holds the world's spec (kept uncompiled) and what the world knows about it that
 MuJoCo does not: the entities spawned since load (:class:`Spawned`, one typed record each), the
 contact settings of single entities and of the whole world (:class:`Contact`), and how many
-spawned entities were removed since the spec was last compacted. It is never changed in place:
+spawned entities (and how many bytes of their meshes) were removed since the spec was last
+compacted. It is never changed in place:
 :meth:`Design.build` applies an :class:`Edit` to a copy and compiles it, giving the next design
 and its model, and the world commits both together or neither (``Transaction.change``,
 :mod:`.transaction`).
@@ -24,12 +25,17 @@ import numpy as np
 
 from . import editor
 from ..errors import ResourceParseError
+from ..models import asset_store
 
 log = logging.getLogger(__name__)
 
 ERR_COMPILE = 'the model does not compile: {err}'
 #: Compact the spec (:meth:`Design.compacted`) after this many spawned entities were removed.
 COMPACT_AFTER_REMOVALS = 32
+#: ... or once the removed entities' meshes held this much of the model: the spec keeps every
+#: mesh it ever processed until it is compacted (a 200,000-face mesh: 93 MiB kept after its
+#: entity was deleted, measured), so one large robot deleted is worth a compaction.
+COMPACT_AFTER_MESH_BYTES = 4 << 20
 #: Model sizes a compaction must keep (it is the same world written out and read back).
 _COMPACT_SIZES = ('nq', 'nv', 'na', 'nu', 'nbody', 'njnt', 'ngeom', 'nmocap', 'neq',
                   'nuserdata')
@@ -63,6 +69,10 @@ class Spawned:
     world_link: Optional[tuple] = None
     #: A URDF's Gazebo drive plugin (:func:`sim_node.core.control.bases.drive_plugin`).
     drive: Optional[dict] = None
+    #: Bytes of its meshes in the model (:func:`mesh_bytes`), set by the build that spawned it.
+    mesh_bytes: int = 0
+    #: Bytes its spawn added to MuJoCo's cache of processed meshes (0: they were there).
+    cached_bytes: int = 0
 
 
 @dataclass(frozen=True)
@@ -125,6 +135,11 @@ class Design:
     :param contacts: entity name -> its own contact settings (set_friction, set_restitution).
     :param default_contact: the world's, for every geom without its own.
     :param removals: spawned entities removed since the spec was last compacted.
+    :param removed_mesh_bytes: the bytes of their meshes in the model (:attr:`Spawned.mesh_bytes`).
+    :param uncached_bytes: the mesh cache's bytes that removed entities brought and no entity
+        left uses, summed since load (it only grows): the transaction evicts them
+        (:func:`.asset_store.evict_meshes`). An entity spawned from the same description as a
+        removed one inherits its bytes instead: its meshes are the ones cached.
     :param baked: textures MuJoCo generates (``builtin``) held as their pixels in `spec`:
         (name, (builtin, width, height, nchannel)) to write them out as they were given.
         Generating a 256-pixel skybox took 3 of the default scene's 3.3 ms compile, on every
@@ -137,6 +152,8 @@ class Design:
     contacts: Mapping[str, Contact] = field(default_factory=lambda: MappingProxyType({}))
     default_contact: Contact = Contact()
     removals: int = 0
+    removed_mesh_bytes: int = 0
+    uncached_bytes: int = 0
     baked: Tuple[tuple, ...] = ()
 
     @classmethod
@@ -180,7 +197,8 @@ class Design:
 
     @property
     def due_for_compaction(self) -> bool:
-        return self.removals >= COMPACT_AFTER_REMOVALS
+        return (self.removals >= COMPACT_AFTER_REMOVALS
+                or self.removed_mesh_bytes >= COMPACT_AFTER_MESH_BYTES)
 
     # ---------------------------------------------------------------- the next design
 
@@ -189,13 +207,24 @@ class Design:
 
     def without(self, names: Sequence[str]) -> 'Design':
         """Return the tables with spawned entities `names` gone (counted for compaction)."""
-        gone = set(names)
+        doomed = set(names)
+        gone = [self.spawned[n] for n in doomed if n in self.spawned]
+        kept = {k: v for k, v in self.spawned.items() if k not in doomed}
+        uncached = 0
+        for rec in gone:  # its cached meshes stay if an entity of the same source stays
+            heir = next((k for k, v in kept.items() if v.description == rec.description
+                         and v.cached_bytes < rec.cached_bytes), None)
+            if heir is None:
+                uncached += rec.cached_bytes
+            else:
+                kept[heir] = replace(kept[heir], cached_bytes=rec.cached_bytes)
         return replace(
-            self, spawned=MappingProxyType({k: v for k, v in self.spawned.items()
-                                            if k not in gone}),
+            self, spawned=MappingProxyType(kept),
             contacts=MappingProxyType({k: v for k, v in self.contacts.items()
-                                       if k not in gone}),
-            removals=self.removals + len(gone))
+                                       if k not in doomed}),
+            removals=self.removals + len(gone),
+            removed_mesh_bytes=self.removed_mesh_bytes + sum(r.mesh_bytes for r in gone),
+            uncached_bytes=self.uncached_bytes + uncached)
 
     def with_contact(self, name: str, contact: Contact) -> 'Design':
         return replace(self, contacts=MappingProxyType({**self.contacts, name: contact}))
@@ -219,6 +248,7 @@ class Design:
         # compiled), for no gain in compile time (tiago 113 ms on one thread, 136 on two).
         trial.compiler.usethread = False
         keep = trial.copy()  # uncompiled: cheap to copy for the next edit
+        cached = asset_store.mesh_cache_bytes()
         with warnings.catch_warnings(record=True) as conflicts:
             warnings.simplefilter('always')
             try:
@@ -230,6 +260,12 @@ class Design:
         nxt = replace(self, spec=keep, baked=_bake_textures(keep, model, self.baked))
         if edit.redesign is not None:
             nxt = edit.redesign(nxt, applied)
+            new = [n for n in nxt.spawned if n not in self.spawned]
+            if new:  # what they weigh: only this build knows
+                share = max(0, asset_store.mesh_cache_bytes() - cached) // len(new)
+                nxt = replace(nxt, spawned=MappingProxyType({**nxt.spawned, **{
+                    n: replace(nxt.spawned[n], mesh_bytes=mesh_bytes(model, n),
+                               cached_bytes=share) for n in new}}))
         return nxt, model
 
     def compacted(self, model: mujoco.MjModel) -> Optional[Tuple['Design', mujoco.MjModel]]:
@@ -252,7 +288,17 @@ class Design:
         if any(getattr(compiled, k) != getattr(model, k) for k in _COMPACT_SIZES):
             log.debug('compacting the model spec changed its layout; kept the spec as it is')
             return None
-        return replace(nxt, removals=0), compiled
+        return replace(nxt, removals=0, removed_mesh_bytes=0), compiled
+
+
+def mesh_bytes(model: mujoco.MjModel, entity: str) -> int:
+    """Return the bytes the meshes of spawned `entity` (``<entity>/...``) take in `model`."""
+    total = 0
+    for k in range(model.nmesh):
+        if model.mesh(k).name.startswith(f'{entity}/'):
+            total += (24 * int(model.mesh_vertnum[k]) + 36 * int(model.mesh_facenum[k])
+                      + 12 * int(model.mesh_normalnum[k]))
+    return total
 
 
 def _bake_textures(spec: mujoco.MjSpec, model: mujoco.MjModel, baked: tuple) -> tuple:

@@ -20,6 +20,7 @@ from . import transfer
 from .design import Design, Edit
 from .. import index as model_index
 from ..memory import release_free_memory
+from ..models import asset_store
 from ..stepping.live import Live
 
 #: Times an edit is built outside the lock before it is done under it (see Transaction.change).
@@ -45,6 +46,7 @@ class Transaction:
         self.edit_lock = threading.Lock()  # structural edits take turns
         self._queue_lock = threading.Lock()  # a leaf: the edits waiting for edit_lock
         self._queued: list = []
+        self._evicted = 0  # of the design's uncached_bytes, what was evicted already
 
     def change(self, plan_locked: Callable[[], Edit]):
         """
@@ -85,6 +87,7 @@ class Transaction:
                         if not p.done:
                             p.finish(error=RuntimeError('the edit was not made'))
                 self._compact_if_due()
+                self._evict_unused_meshes()
         return pending.outcome()
 
     def edit_locked(self, edit: Edit) -> None:
@@ -197,6 +200,22 @@ class Transaction:
             mujoco.mj_forward(model, data)  # the check sees the new world's poses
             check(model, data, nxt.spec)
         live.switch_locked(nxt, model, data, index)
+
+    def _evict_unused_meshes(self) -> None:
+        """
+        Drop from MuJoCo's mesh cache what removed entities brought and nothing uses now.
+
+        Right after the commit: its compile used every live mesh, so the cache's least recently
+        used entries are the removed ones. Called with ``edit_lock``.
+        """
+        with self.live.lock:
+            total = self.live.design.uncached_bytes
+        if total < self._evicted:  # a design started anew (a world loaded)
+            self._evicted = 0
+        if total > self._evicted:
+            asset_store.evict_meshes(total - self._evicted)
+            self._evicted = total
+            release_free_memory(at_least=TRIM_AFTER_COMPACTION_BYTES)
 
     def _compact_if_due(self) -> None:
         """

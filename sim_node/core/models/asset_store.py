@@ -214,6 +214,26 @@ def set_mesh_cache(capacity_mib: int) -> None:
     mujoco.mj_setCacheCapacity(mujoco.mj_getCache(), int(capacity_mib) * 2 ** 20)
 
 
+def mesh_cache_bytes() -> int:
+    """Return the bytes MuJoCo's process-wide cache of processed meshes holds now."""
+    return int(mujoco.mj_getCacheSize(mujoco.mj_getCache()))
+
+
+def evict_meshes(nbytes: int) -> None:
+    """
+    Drop the `nbytes` least recently used bytes of MuJoCo's mesh cache.
+
+    The cache is LRU and has no call to drop one entry: its capacity is lowered to evict and
+    put back. Called right after a compile of the whole world, which used every live mesh:
+    what goes first is what no live entity uses (a world of its own in the same process may
+    lose some of its meshes; its next compile processes them again).
+    """
+    cache = mujoco.mj_getCache()
+    capacity = mujoco.mj_getCacheCapacity(cache)
+    mujoco.mj_setCacheCapacity(cache, max(0, mesh_cache_bytes() - int(nbytes)))
+    mujoco.mj_setCacheCapacity(cache, capacity)
+
+
 def store() -> AssetStore:
     """Return the process's asset store."""
     return _STORE

@@ -122,6 +122,12 @@ def convert(src: str, kind: str, out: str, max_faces: int) -> dict:
             return {'error': f'it has {faces_in} faces, more than {max_faces}, and cutting it '
                     'down needs the fast-simplification package: pip install '
                     'fast-simplification'}
+        # A triangle soup (an STL repeats each vertex per face) has no edge to collapse: the
+        # simplifier could only drop whole faces. Joined (0.16 s for 250k faces), it collapses
+        # edges, and MuJoCo processes a quarter of the vertices (its compile 1.2 s -> 1.0 s).
+        import trimesh.grouping
+        unique, inverse = trimesh.grouping.unique_rows(vertices)
+        vertices, faces = vertices[unique], inverse[faces]
         vertices, faces = fast_simplification.simplify(
             vertices.astype(np.float32), faces.astype(np.int32), 1.0 - max_faces / faces_in)
     with open(out + '.part', 'wb') as f:
@@ -168,6 +174,7 @@ def main() -> None:
     import collada_fast  # noqa: F401
     import trimesh  # noqa: F401
     import trimesh.exchange.dae  # noqa: F401
+    import trimesh.grouping  # noqa: F401
     try:
         import fast_simplification  # noqa: F401
         import collada  # noqa: F401
