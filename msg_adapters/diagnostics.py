@@ -38,9 +38,9 @@ def diagnostics(status: LoopStatus, name: str) -> DiagnosticArray:
     return msg
 
 
-def refused_command(why: str, names: list, name: str,
-                    what: str = 'joint command') -> DiagnosticStatus:
-    """Return a WARN status for a refused command or goal: why, and the names it gave."""
+def refused_command(why: str, names: list, name: str, what: str = 'joint command',
+                    verdict: str = 'refused') -> DiagnosticStatus:
+    """Return a WARN status for a refused (or `verdict`) command or goal: why, and the names."""
     return DiagnosticStatus(level=DiagnosticStatus.WARN, name=name, hardware_id='mujoco',
-                            message=f'{what} refused: {why}'[:1000],
+                            message=f'{what} {verdict}: {why}'[:1000],
                             values=[KeyValue(key='names', value=', '.join(names)[:1000])])

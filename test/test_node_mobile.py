@@ -72,7 +72,7 @@ def test_a_twist_drives_the_rover_and_odometry_follows_as_nav2_reads_it(sim, wat
     t1, p2 = watch.latest_clock(), planar(sim, 'rover')[0]
     assert np.linalg.norm(p2 - p1) == pytest.approx(0.4 * (t1 - t0), rel=0.1)
     odom = watch.odom[-1]
-    assert (odom.header.frame_id, odom.child_frame_id) == ('rover/odom', 'rover/rover')
+    assert (odom.header.frame_id, odom.child_frame_id) == ('rover/odom', 'rover')
     assert odom.twist.twist.linear.x == pytest.approx(0.4, rel=0.1)  # in the base's frame
     assert odom.pose.pose.position.x == pytest.approx(np.linalg.norm(p2 - p0), rel=0.1)
     stamps = [o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 for o in watch.odom[-20:]]
@@ -87,7 +87,11 @@ def test_the_tf_tree_is_world_odom_base_with_no_second_parent(sim, watch):
         assert watch.tf['rover/odom'][1] == 'world'
         parents = {parent for (child, _), n in watch.tf_sends.items() if child == 'rover'
                    for parent in [watch.tf['rover'][1]]}
+        children = {child for child, (_, parent, *_) in watch.tf.items()
+                    if parent == 'rover/odom'}
     assert parents == {'rover/odom'}
+    # One base frame: odometry's child is the odom TF's child (it said rover/rover before)
+    assert children == {watch.odom[-1].child_frame_id} == {'rover'}
     # world -> odom -> rover composes to where the simulation has it (stopped by now: no
     # command for a second)
     time.sleep(1.0)
@@ -128,6 +132,22 @@ def test_a_bad_command_is_refused_on_diagnostics_and_the_rover_is_intact(sim, wa
     state = sim.entity_state('rover')
     assert all(math.isfinite(v) for v in state['position'])
     assert abs(state['linear'][0]) < 0.05  # it did not shoot off
+
+
+def test_a_sideways_command_to_a_diff_drive_is_said_once_and_it_drives_ahead(sim, watch):
+    from diagnostic_msgs.msg import DiagnosticArray
+    got = []
+    sub = watch.node.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)
+    p0, _ = planar(sim, 'rover')
+    try:
+        send(watch, 'rover/cmd_vel', twist(0.3, 0.2, 0), 1.0)
+        wait_for(lambda: any('cannot move sideways' in st.message for m in got
+                             for st in m.status), timeout=10)
+    finally:
+        watch.node.destroy_subscription(sub)
+    said = [st.message for m in got for st in m.status if 'cannot move sideways' in st.message]
+    assert said[0].startswith('velocity command taken in part: ') and "'rover'" in said[0]
+    assert np.linalg.norm(planar(sim, 'rover')[0] - p0) > 0.1
 
 
 #: A small two-wheeled robot (PD-driven wheels: no actuators), for spawning.
@@ -198,6 +218,43 @@ def test_odometry_from_ground_truth_is_the_simulations_pose(start_node, rclpy_co
         rel = np.array([[c, s], [-s, c]]) @ (p1 - p0)
         last = odom[-1].pose.pose.position
         assert (last.x, last.y) == pytest.approx(tuple(rel), abs=1e-3)
+    finally:
+        w.close()
+        sim.close()
+
+
+@pytest.mark.parametrize('name', ['caster_mesh', 'holonomic'])
+def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy_context,
+                                                               tmp_path, name):
+    """``bases_corpus``: spawned from its file, driven by cmd_vel, odometry and frames as nav2."""
+    import bases_corpus
+    from sim_node.ros.client import SimClient
+    path = bases_corpus.write(tmp_path)[name]
+    start_node(f'resource_paths:=["{tmp_path}"]', namespace='/corpus')
+    sim = SimClient(namespace='/corpus', timeout_sec=30)
+    w = Watcher(namespace='/corpus')
+    odom = []
+    w.node.create_subscription(Odometry, f'/corpus/{name}/odom', odom.append, 50)
+    try:
+        sim.spawn(name, uri=path.as_uri(), position=(0.0, -3.0, 0.1 if name != 'holonomic'
+                                                       else 0.0))
+        wait_for(lambda: w.node.get_subscriptions_info_by_topic(f'/corpus/{name}/cmd_vel'),
+                 timeout=10)
+        vy = 0.2 if name == 'holonomic' else 0.0
+        send(w, f'/corpus/{name}/cmd_vel', twist(0.3, vy), 1.0)  # up to speed
+        t0, (p0, yaw0) = w.latest_clock(), planar(sim, name)
+        send(w, f'/corpus/{name}/cmd_vel', twist(0.3, vy), 2.0)
+        t1, (p1, _) = w.latest_clock(), planar(sim, name)
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        along, across = np.array([[c, s], [-s, c]]) @ (p1 - p0) / (t1 - t0)
+        assert along == pytest.approx(0.3, rel=0.1) and across == pytest.approx(vy, abs=0.03)
+        wait_for(lambda: f'{name}/odom' in w.tf, timeout=10)
+        with w.lock:
+            children = {child for child, (_, parent, *_) in w.tf.items()
+                        if parent == f'{name}/odom'}
+        assert children == {odom[-1].child_frame_id} == {name}
+        time.sleep(1.5)  # no command for longer than cmd_vel_timeout: it stops
+        assert np.linalg.norm(sim.entity_state(name)['linear'][:2]) < 0.02
     finally:
         w.close()
         sim.close()

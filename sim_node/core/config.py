@@ -32,6 +32,9 @@ class WorldConfig:
     interpenetration_tolerance: float = 1e-3
     #: Allow spawning into overlapping geometry (off by default: deep overlap explodes).
     allow_interpenetration: bool = False
+    #: A spawned wheeled base's fixed casters (ball, omni wheel, swivel fixed in its URDF) roll:
+    #: frictionless contacts, as Gazebo users set them (``.control.wheels.roll_casters``).
+    casters_roll: bool = True
     #: Largest model file (MJCF or URDF text) or other file a spawn may read, in bytes.
     max_resource_bytes: int = 20_000_000
     #: Largest mesh file, in bytes: the largest mesh of 69 URDFs of ROS description packages is

@@ -362,19 +362,24 @@ class World:
         return self._motion.bases()
 
     def drive(self, entity: str, vx: float, vy: float = 0.0, wz: float = 0.0,
-              timeout: float = COMMAND_TIMEOUT) -> None:
+              timeout: float = COMMAND_TIMEOUT) -> list:
         """
         Drive an entity's base at `vx`, `vy` (m/s) and `wz` (rad/s), in its own frame.
 
         From the next step on, until another command, a reset, or `timeout` simulated seconds
-        without one (then it stops; 0: never, as Gazebo's DiffDrive system). A differential
-        drive ignores `vy`.
+        without one (then it stops; 0: never, as Gazebo's DiffDrive system). The base's own
+        motion tracks the command (see :mod:`.control.bases`). A differential drive ignores
+        `vy`.
+
+        :returns: what the base could not take, in words (empty: all of it): `vy` on a
+            differential drive; the command before this one needing more than the model's
+            actuators give (:data:`.bases.NOTE_BEYOND`).
 
         :raises NotFoundError: no such entity.
         :raises InvalidArgumentError: it has no base; a value not finite or beyond
             :data:`.bases.MAX_SPEED` / :data:`.bases.MAX_TURN`.
         """
-        self._motion.drive(entity, vx, vy, wz, timeout)
+        return self._motion.drive(entity, vx, vy, wz, timeout)
 
     def push(self, body: str, force: Sequence[float], torque: Sequence[float] = (0, 0, 0)
              ) -> None:

@@ -8,7 +8,8 @@ planar joints, or a URDF's Gazebo drive plugin) gets, made and removed with it:
   TwistStamped with ``cmd_vel_stamped``; a command not finite or beyond 50 m/s or 50 rad/s is
   refused, on /diagnostics. No command for ``cmd_vel_timeout`` simulated seconds stops the base;
 * a publisher ``<entity>/odom`` (nav_msgs/Odometry) at ``odom_rate_hz``: frame
-  ``<entity>/odom`` (where the base started), child the entity's base link, twist in it;
+  ``<entity>/odom`` (where the base started), child ``<entity>``: the frame the odom TF goes
+  to (REP 105, robot_localization and nav2's ``robot_base_frame``), twist in it;
   ``odom_source`` ``wheels`` (integrated from the wheel joints: drifts with slip) or
   ``ground_truth``; covariance diagonals ``odom_pose_covariance`` and ``odom_twist_covariance``;
 * with ``odom_tf`` (default), ``world -> <entity>/odom -> <entity>`` on /tf in place of the
@@ -43,6 +44,7 @@ class _Base:
         self.odometry = bases.Odometry(spec)
         self.start: Optional[tuple] = None  # (position, yaw) where its odom frame is
         self.stamp: Optional[float] = None  # the last one sent (never the same twice)
+        self.said: set = set()  # notes on its commands said on /diagnostics, still true
 
 
 class BaseControllers:
@@ -109,10 +111,19 @@ class BaseControllers:
         if loaded is None:
             return
         try:
-            loaded.world.drive(entity, twist.linear.x, twist.linear.y, twist.angular.z,
-                               float(self._param('cmd_vel_timeout')))
+            notes = loaded.world.drive(entity, twist.linear.x, twist.linear.y,
+                                       twist.angular.z, float(self._param('cmd_vel_timeout')))
         except SimError as exc:
             self._refused(f'{topic_base}/cmd_vel', 'velocity command', str(exc), [entity])
+            return
+        with self._lock:
+            base = self._bases.get(entity)
+            new = [n for n in notes if base is not None and n not in base.said]
+            if base is not None:
+                base.said = set(notes)  # said again once it has stopped being true
+        for note in new:
+            self._refused(f'{topic_base}/cmd_vel', 'velocity command', note, [entity],
+                          verdict='taken in part')
 
     # ------------------------------------------------------------------ odometry
 
@@ -146,7 +157,7 @@ class BaseControllers:
                 base.odometry.from_wheels(snap.time, snap.joint_position[wheels])
             odom_pos, odom_q = odometry.base_pose(base.odometry, base.start, pos, q)
             frame = f'{prefix}{entity}/{base.spec.odom_frame}'
-            child = prefix + (info.body_alias[root] or entity)
+            child = prefix + entity  # the odom TF's child: one base frame (REP 105)
             base.pub.publish(odometry.message(base.odometry, snap.time, frame, child,
                                               odom_pos, odom_q, pose_cov, twist_cov))
             if with_tf:

@@ -138,4 +138,5 @@ def world_config(node: Node) -> WorldConfig:
         snapshot_rate_hz=2 * max(p('tf_rate_hz'), p('joint_states_rate_hz')),
         kp=p('kp'), kd=p('kd'), allow_interpenetration=p('allow_interpenetration'),
         max_bodies=p('max_bodies'), world_extent=p('world_extent'),
-        divergence_policy=p('divergence_policy'), mesh_cache_mb=p('mesh_cache_mb'))
+        divergence_policy=p('divergence_policy'), mesh_cache_mb=p('mesh_cache_mb'),
+        casters_roll=p('casters_roll'))

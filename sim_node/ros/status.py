@@ -62,10 +62,15 @@ class Status:
         """Log a refused joint command, and say so on /diagnostics now."""
         self.refused('joint_commands', 'joint command', why, names)
 
-    def refused(self, topic: str, what: str, why: str, names: list) -> None:
-        """Log a refused request on `topic` (a joint command, a goal); /diagnostics now."""
-        self._node.get_logger().warning(f'{what} refused: {why}', throttle_duration_sec=1.0)
-        self._refused[topic] = (what, why, names, time.monotonic())
+    def refused(self, topic: str, what: str, why: str, names: list,
+                verdict: str = 'refused') -> None:
+        """
+        Log a refused request on `topic` (a joint command, a goal); /diagnostics now.
+
+        `verdict`: what became of it, when it was taken in part ('clamped', 'taken in part').
+        """
+        self._node.get_logger().warning(f'{what} {verdict}: {why}', throttle_duration_sec=1.0)
+        self._refused[topic] = (what, why, names, time.monotonic(), verdict)
         self.publish(force=True)
 
     def publish(self, force: bool) -> None:
@@ -88,10 +93,11 @@ class Status:
             return
         self._diagnosed = (status.divergence, now)
         msg = diagnostics.diagnostics(status, self._name)
-        for topic, (what, why, names, when) in list(self._refused.items()):
+        for topic, (what, why, names, when, verdict) in list(self._refused.items()):
             if now - when < REFUSAL_SHOWN_SEC:
                 msg.status.append(diagnostics.refused_command(
-                    why, names, f'{self._node.get_fully_qualified_name()}: {topic}', what))
+                    why, names, f'{self._node.get_fully_qualified_name()}: {topic}', what,
+                    verdict))
         self._pub.publish(msg)
 
     def drain_logs(self) -> None:

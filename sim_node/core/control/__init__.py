@@ -4,7 +4,9 @@ What drives a world's joints between steps: commands, torques, trajectories and 
 :mod:`.commands` (joint commands staged by any thread, applied by name before each step),
 :mod:`.actuation` (joint torques through a joint's motor or ``qfrc_applied``),
 :mod:`.trajectory` (joint trajectories in simulated time, as joint_trajectory_controller runs
-them), :mod:`.bases` (differential-drive and holonomic bases: velocity commands, odometry),
+them), :mod:`.bases` (differential-drive and holonomic bases: velocity commands tracked on the
+base's own motion), :mod:`.wheels` (what a spawn gives a wheeled model: wheel actuators,
+rolling casters), :mod:`.odometry` (a base's pose from its wheels or the ground truth),
 :mod:`.motion` (the world's control part: trajectories started and cancelled, bases found and
 driven, pushes and gains, each under the world lock).
 """

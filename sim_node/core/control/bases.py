@@ -17,33 +17,51 @@ left and right anchors along it, the sign of each wheel from which way its axis 
 forward. A command ``(vx, vy, wz)`` in the base's frame becomes wheel speeds (``v -+ wz s / 2``
 over ``r``), joint velocities of the planar joints, or the floating root's velocity (planar
 move, as Gazebo's plugin sets it). Wheels and planar joints go through their velocity actuators
-(``ctrl = gear * speed``, within ``ctrlrange``) where they have one, else a velocity loop
-``M (kd (w* - w)) + bias`` through their motor (within its limits) or ``qfrc_applied``. Wheel
-speed and acceleration are limited; no command for :data:`COMMAND_TIMEOUT` simulated seconds
-stops the base, as diff_drive_controller does. It is physics: the base pushes, slips and stops
-at walls.
+(``ctrl = gear * speed``, within ``ctrlrange``) where they have one (a spawned wheeled model
+is given them, :mod:`.wheels`), else a velocity loop ``M (kd (w* - w)) + bias`` through their
+motor (within its limits) or ``qfrc_applied``. The command itself is a target for the base's
+own motion: a tracking loop (:meth:`Drive._track`, every :data:`TRACK_PERIOD` of simulated
+time) adds what casters, slip and friction loss take, within :data:`TRACK_LIMIT` times the
+command. Wheel speed and acceleration are limited; no command for :data:`COMMAND_TIMEOUT`
+simulated seconds stops the base, as diff_drive_controller does, on time even inside a batch
+of steps. It is physics: the base pushes, slips and stops at walls.
 
-:class:`Odometry` integrates a base's pose from its wheel angles (it drifts with slip, as a
-real robot's does) or takes the simulation's ground truth; ROS-free, used by the node's
-``<entity>/odom``.
+:class:`.odometry.Odometry` integrates a base's pose from its wheel angles (it drifts with
+slip, as a real robot's does) or takes the simulation's ground truth; ROS-free, used by the
+node's ``<entity>/odom``. What a spawn adds to a wheeled model (wheel actuators, rolling
+casters) is :mod:`.wheels`.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import math
 from typing import Optional, Sequence
 
 import mujoco
 import numpy as np
 
+from .odometry import Odometry  # noqa: F401 (where it was, for its users)
+
 DIFF_DRIVE, PLANAR_JOINTS, PLANAR_FREE = 'diff_drive', 'planar_joints', 'planar_free'
 #: Seconds of simulated time without a command after which a base stops.
 COMMAND_TIMEOUT = 0.5
 #: What a drive needs after a step (see :meth:`Drive.apply`).
 EVERY_STEP, EVERY_BATCH = 'step', 'batch'
+#: The tracking loop (:meth:`Drive._track`): integral gain (1/s), the most it adds (times the
+#: command, axis by axis: an axis commanded 0 gets nothing), the longest interval it
+#: integrates at once (s).
+TRACK_GAIN, TRACK_LIMIT, TRACK_DT_MAX = 8.0, 10.0, 0.05
+#: Simulated seconds between two runs of a base's tracking loop (20 Hz: it only trims what the
+#: velocity actuators hold, every step, in MuJoCo).
+TRACK_PERIOD = 0.05
 #: The largest command taken (m/s, rad/s): beyond is no base's, and would blow the physics up.
 MAX_SPEED, MAX_TURN = 50.0, 50.0
 ERR_NO_BASE = ('entity {entity!r} has no mobile base: no wheel joints named left and right, no '
                'planar joints and no Gazebo drive plugin in its URDF')
+NOTE_SIDEWAYS = ('{entity!r} is a differential drive: it cannot move sideways, so vy={vy:g} '
+                 'is ignored')
+NOTE_BEYOND = ('{entity!r} cannot move as commanded: it needs more than its actuators give '
+               '(their control range, or more than the tracking loop adds); it moves as far '
+               'as they take it')
 ERR_COMMAND = ('a base command must be finite, |linear| <= {speed:g} m/s and |angular| <= '
                '{turn:g} rad/s; got vx={vx}, vy={vy}, wz={wz}')
 _HINGE, _SLIDE, _FREE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE),
@@ -249,6 +267,26 @@ class Drive:
         self.integral: Optional[np.ndarray] = None  # the velocity loops' integral terms
         self.changed = True  # the last apply wrote controls other than those in force
         self._index = None
+        #: The tracking loop's correction of the command (vx, vy, wz) (see :meth:`_track`).
+        self.trim = [0.0, 0.0, 0.0]
+        self._vel = np.zeros(6)
+        #: Whether the last command needed more than the model's actuators give.
+        self.saturated = False
+        self._seen: Optional[float] = None
+        self._fresh = False  # whether its command was in force at the last apply
+
+    def due(self, now: float) -> bool:
+        """
+        Whether it needs an :meth:`apply` between batches at simulated time `now`.
+
+        Its velocity actuators hold the speeds meanwhile: it is due when its command times
+        out, and every :data:`TRACK_PERIOD` for the tracking loop (a controller's update rate),
+        not before every batch (two bases cost the loop 17% of its speed that way).
+        """
+        cmd = self.command
+        fresh = cmd.timeout <= 0 or now - cmd.time <= cmd.timeout
+        return fresh != self._fresh or (fresh and (
+            self._seen is None or now - self._seen >= TRACK_PERIOD))
 
     def bind(self, index, model: mujoco.MjModel) -> bool:
         """Take the addresses of its joints in `index`; False if one is gone."""
@@ -270,10 +308,20 @@ class Drive:
         idx = np.array([index.joint_index[n] for n in names], dtype=int)
         self.dof = index.joint_dofadr[idx]
         self.jids = index.joint_ids[idx]
+        # the body whose motion is the base's: the wheels' parent, the planar hinge's body
+        self.body = int(model.body_parentid[model.jnt_bodyid[self.jids[0]]]
+                        if self.spec.kind == DIFF_DRIVE else model.jnt_bodyid[self.jids[2]])
         acts = np.array([index.joint_actuators[i].get(VELOCITY, -1) for i in idx], dtype=int)
         self.act = acts
         a = np.maximum(acts, 0)
         self.gear = np.where(acts >= 0, model.actuator_gear[a, 0] if model.nu else 1.0, 1.0)
+        # The velocity actuators as plain numbers, read between batches (numpy's per-call cost
+        # on arrays of two or three is most of a drive's time otherwise)
+        self._actuated = [(k, int(acts[k]), float(self.gear[k]),
+                           bool(model.actuator_ctrllimited[acts[k]]),
+                           *(float(v) for v in model.actuator_ctrlrange[acts[k]]))
+                          for k in range(len(acts)) if acts[k] >= 0]
+        self._all_actuated = len(self._actuated) == len(acts)
         self.out = Outputs(index, model, idx[acts < 0])
         # The loop pushes the robot, not just the wheel: its gain counts the robot's mass as
         # each wheel carries it (m r^2 / wheels), or a 2 g wheel would not drag a 6 kg cart.
@@ -300,7 +348,10 @@ class Drive:
         from .actuation import times_mass
         spec, cmd = self.spec, self.command
         fresh = cmd.timeout <= 0 or data.time - cmd.time <= cmd.timeout
+        self._fresh = fresh
         vx, vy, wz = (cmd.vx, cmd.vy, cmd.wz) if fresh else (0.0, 0.0, 0.0)
+        if spec.kind != PLANAR_FREE:
+            vx, vy, wz = self._track(model, data, vx, vy, wz)
         if spec.kind == PLANAR_FREE:
             yaw = _body_yaw(data, model.dof_bodyid[self.free_dof])
             c, s = math.cos(yaw), math.sin(yaw)
@@ -320,21 +371,27 @@ class Drive:
             base = model.jnt_bodyid[self.jids[2]]
             yaw = _body_yaw(data, base)
             c, s = math.cos(yaw), math.sin(yaw)
-            want = np.array([c * vx - s * vy, s * vx + c * vy])
-            axes = np.stack([data.xaxis[self.jids[0]][:2], data.xaxis[self.jids[1]][:2]], 1)
-            u = np.linalg.solve(axes, want)
-            self.speeds = np.array([u[0], u[1], wz * math.copysign(1.0, data.xaxis[
-                self.jids[2]][2])])
+            wx, wy = c * vx - s * vy, s * vx + c * vy
+            (a0, a1), (b0, b1) = data.xaxis[self.jids[0]][:2], data.xaxis[self.jids[1]][:2]
+            det = a0 * b1 - b0 * a1  # the two slides' axes: not parallel (found so)
+            self.speeds = np.array([(wx * b1 - b0 * wy) / det, (a0 * wy - wx * a1) / det,
+                                    wz * math.copysign(1.0, data.xaxis[self.jids[2]][2])])
             target = self.speeds
+        changed = False
+        for k, a, gear, limited, lo, hi in self._actuated:
+            want = gear * float(self.speeds[k])
+            ctrl = min(max(want, lo), hi) if limited else want
+            if abs(ctrl - want) > 1e-9:
+                self.saturated = True
+            if data.ctrl[a] != ctrl:
+                data.ctrl[a] = ctrl
+                changed = True
+        self.changed = changed
+        if self._all_actuated:
+            if spec.kind == DIFF_DRIVE and np.any(self.speeds != target):
+                return EVERY_STEP  # a ramp runs
+            return EVERY_BATCH if fresh or np.any(self.speeds) else None
         acts = self.act >= 0
-        if acts.any():
-            lo = model.actuator_ctrlrange[self.act[acts], 0]
-            hi = model.actuator_ctrlrange[self.act[acts], 1]
-            limited = model.actuator_ctrllimited[self.act[acts]].astype(bool)
-            ctrl = self.gear[acts] * self.speeds[acts]
-            ctrl = np.where(limited, np.clip(ctrl, lo, hi), ctrl)
-            self.changed = bool(np.any(data.ctrl[self.act[acts]] != ctrl))
-            data.ctrl[self.act[acts]] = ctrl
         if (~acts).any():
             dof = self.out.dof
             err = self.speeds[~acts] - data.qvel[dof]
@@ -351,6 +408,44 @@ class Drive:
         if (~acts).any() or np.any(self.speeds != target):
             return EVERY_STEP  # a velocity loop holds the wheels, or a ramp runs
         return EVERY_BATCH if fresh or np.any(self.speeds) else None
+
+    def _track(self, model: mujoco.MjModel, data: mujoco.MjData, vx: float, vy: float,
+               wz: float) -> tuple:
+        """
+        Return the command corrected so that the base moves as commanded, in its frame.
+
+        A wheel's speed is not the base's: casters drag, wheels slip (a skid-steer turns by
+        slipping), a joint's friction loss holds back what its velocity actuator gives. An
+        integral of the base's own velocity error (gain :data:`TRACK_GAIN`, measured at the
+        base body in simulated time) adds what they take, within :data:`TRACK_LIMIT` times the
+        command axis by axis; where that is not enough (or an actuator's range clips),
+        :attr:`saturated` says so. A stopped command (zeros, or timed out) clears it: a base at
+        rest is held by its wheels, not by a remembered correction.
+        """
+        now = float(data.time)
+        dt = 0.0 if self._seen is None else min(max(now - self._seen, 0.0), TRACK_DT_MAX)
+        self._seen = now
+        want = (vx, 0.0 if self.spec.kind == DIFF_DRIVE else vy, wz)
+        if not any(want):
+            self.trim = [0.0, 0.0, 0.0]
+            self.saturated = False
+            return 0.0, 0.0, 0.0
+        vel = self._vel  # [angular, linear] at the body's origin, world axes
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, self.body, vel, 0)
+        yaw = _body_yaw(data, self.body)
+        c, s = math.cos(yaw), math.sin(yaw)
+        have = (c * vel[3] + s * vel[4], -s * vel[3] + c * vel[4], vel[2])
+        out, trims, saturated = [], [], False
+        for w, h, t in zip(want, have, self.trim):
+            bound = TRACK_LIMIT * abs(w)
+            t += TRACK_GAIN * (w - h) * dt
+            if abs(t) > bound:
+                saturated = saturated or w != 0.0
+                t = math.copysign(bound, t)
+            trims.append(t)
+            out.append(w + t)
+        self.trim, self.saturated = trims, saturated
+        return out[0], out[1], out[2]
 
     def release(self, data: mujoco.MjData) -> None:
         """Stop what it wrote (the entity is gone or its joints changed)."""
@@ -386,74 +481,6 @@ class Command:
     wz: float = 0.0
     time: float = -math.inf
     timeout: float = COMMAND_TIMEOUT
-
-
-@dataclass
-class Odometry:
-    """
-    A base's pose in its odometry frame (where it started), from wheels or from ground truth.
-
-    Wheel odometry integrates each interval along an arc of constant curvature (exact for a
-    constant command), as diff_drive_controller does; twist in the base's frame.
-    """
-
-    spec: BaseSpec
-    x: float = 0.0
-    y: float = 0.0
-    yaw: float = 0.0
-    vx: float = 0.0
-    vy: float = 0.0
-    wz: float = 0.0
-    time: Optional[float] = None
-    _wheels: Optional[np.ndarray] = None
-    _origin: Optional[tuple] = None  # ground truth: the start pose (position, yaw)
-    _last: Optional[tuple] = field(default=None)
-
-    def from_wheels(self, t: float, angles: np.ndarray) -> None:
-        """Advance to time `t` from the wheel joints' angles (left then right)."""
-        angles = np.asarray(angles, dtype=float)
-        if self._wheels is None or self.time is None or t < self.time:
-            self._wheels, self.time = angles.copy(), t
-            return
-        dt = t - self.time
-        turn = (angles - self._wheels) * np.asarray(self.spec.signs) * self.spec.radius
-        self._wheels, self.time = angles.copy(), t
-        n = len(self.spec.left)
-        dl, dr = float(np.mean(turn[:n])), float(np.mean(turn[n:]))
-        ds, dth = (dl + dr) / 2, (dr - dl) / self.spec.separation
-        if abs(dth) < 1e-9:
-            dx, dy = ds * math.cos(self.yaw + dth / 2), ds * math.sin(self.yaw + dth / 2)
-        else:
-            r = ds / dth
-            dx = r * (math.sin(self.yaw + dth) - math.sin(self.yaw))
-            dy = -r * (math.cos(self.yaw + dth) - math.cos(self.yaw))
-        self.x, self.y, self.yaw = self.x + dx, self.y + dy, _wrap(self.yaw + dth)
-        if dt > 0:
-            self.vx, self.vy, self.wz = ds / dt, 0.0, dth / dt
-
-    def from_pose(self, t: float, position: np.ndarray, yaw: float) -> None:
-        """Advance to time `t` from the base's true planar pose in the world."""
-        if self._origin is None or self.time is None or t < self.time:
-            self._origin, self.time = (np.asarray(position, float)[:2].copy(), yaw), t
-            self._last = (self._origin[0].copy(), yaw)
-            self.x = self.y = self.yaw = 0.0
-            return
-        o, oyaw = self._origin
-        c, s = math.cos(oyaw), math.sin(oyaw)
-        rel = np.asarray(position, float)[:2] - o
-        x, y = c * rel[0] + s * rel[1], -s * rel[0] + c * rel[1]
-        new_yaw = _wrap(yaw - oyaw)
-        dt = t - self.time
-        if dt > 0:
-            dx, dy = x - self.x, y - self.y
-            cy, sy = math.cos(self.yaw), math.sin(self.yaw)
-            self.vx, self.vy = (cy * dx + sy * dy) / dt, (-sy * dx + cy * dy) / dt
-            self.wz = _wrap(new_yaw - self.yaw) / dt
-        self.x, self.y, self.yaw, self.time = x, y, new_yaw, t
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 def yaw_of(quat_wxyz: np.ndarray) -> float:

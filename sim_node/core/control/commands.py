@@ -235,10 +235,18 @@ class Control:
         changed = False
         for entity in list(self._batched):
             drive = self._drives[entity]
+            if not drive.due(float(data.time)):
+                continue
             self._place(entity, drive.apply(model, data, self.kd))
             changed = changed or drive.changed
         self._update_per_step()
         return changed
+
+    def batch_deadline(self, now: float) -> float:
+        """Return the earliest simulated time after `now` at which a batched base times out."""
+        due = [d.command.time + d.command.timeout for d in map(self._drives.get, self._batched)
+               if d.command.timeout > 0 and d.command.time + d.command.timeout >= now]
+        return min(due, default=math.inf)
 
     def _place(self, entity: str, need: Optional[str]) -> None:
         """File a drive under what it needs next (:meth:`bases.Drive.apply`)."""

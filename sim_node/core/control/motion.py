@@ -70,8 +70,8 @@ class Motion:
                 live.model, live.data, live.index.entities, live.design.spawned))
         return self._bases[1]
 
-    def drive(self, entity: str, vx: float, vy: float, wz: float, timeout: float) -> None:
-        """Drive an entity's base (see World.drive)."""
+    def drive(self, entity: str, vx: float, vy: float, wz: float, timeout: float) -> list:
+        """Drive an entity's base (see World.drive); return what it could not take."""
         vx, vy, wz = bases.check_command(vx, vy, wz)
         live = self.live
         with live.lock:
@@ -79,9 +79,16 @@ class Motion:
             spec = self._bases_locked().get(entity)
             if spec is None:
                 raise InvalidArgumentError(bases.ERR_NO_BASE.format(entity=entity))
+            before = live.control.drive_of(entity)
+            notes = []
+            if vy and spec.kind == bases.DIFF_DRIVE:
+                notes.append(bases.NOTE_SIDEWAYS.format(entity=entity, vy=vy))
+            if before is not None and before.saturated:
+                notes.append(bases.NOTE_BEYOND.format(entity=entity))
             if live.control.command_base(spec, vx, vy, wz, max(0.0, float(timeout)),
                                          live.index, live.model, live.data):
                 live.cached = None  # the controls changed: the last batch's state is stale
+        return notes
 
     def push(self, body: str, force: Sequence[float], torque: Sequence[float]) -> None:
         """Hold a force and torque on a body from the next step (see World.push)."""

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from .. import quat
+from ..control import bases, wheels
 from ..errors import ResourceParseError
 from ..index import ModelIndex
 from ..models import sources
@@ -86,7 +87,7 @@ def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
 
 
 def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.ndarray,
-           quat_wxyz: np.ndarray) -> tuple:
+           quat_wxyz: np.ndarray, casters_roll: bool = True) -> tuple:
     """
     Attach a copy of a whole model to `spec` through a frame at a world pose.
 
@@ -98,6 +99,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     its keyframes are dropped (the world's keep working: the entity's part of them is its
     spawn state); its <option>, <size> and <visual> give way to the world's (MuJoCo logs each
     difference). Its <compiler> settings (angle units, asset folders) apply to it alone.
+    A wheeled base gets velocity actuators for wheels that have none, and its fixed casters
+    roll (:func:`.wheels.add_wheel_actuators`, :func:`.wheels.roll_casters`; `casters_roll`).
 
     :returns: (frame name, names of the entity's top-level bodies, root first, the root body's
         name in the model itself, the default classes it brought, outermost first).
@@ -121,6 +124,16 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     if skies:
         log.info('spawning %r: dropped its skybox; the world has its own sky', name)
     name_unnamed(child)
+    plugin = bases.drive_plugin(getattr(source.urdf_notes, 'extensions', ()))
+    added = wheels.add_wheel_actuators(
+        child, plugin, euler=spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER)
+    if added:
+        log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
+                 name, ', '.join(added))
+    casters = wheels.roll_casters(child, plugin) if casters_roll else []
+    if casters:
+        log.info('spawning %r: %s roll as casters (frictionless contacts; the node parameter '
+                 'casters_roll turns this off)', name, ', '.join(casters))
     # Its default classes come along as <name>/<class>; a delete must remove them too.
     defaults = [f'{name}/main'] + [f'{name}/{c}' for c in source.default_classes
                                    if c != 'main']

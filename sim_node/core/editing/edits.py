@@ -109,9 +109,11 @@ class Edits:
         checks.check_extent(pos, self.live.config.world_extent)
         design = self.live.design
         contact = design.contact_of(None) if design.default_contact.is_set else None
+        casters_roll = self.live.config.casters_roll
 
         def apply(spec: mujoco.MjSpec) -> Spawned:
-            frame, bodies, root, defaults = editor.attach(spec, name, source, pos, q)
+            frame, bodies, root, defaults = editor.attach(spec, name, source, pos, q,
+                                                          casters_roll)
             if contact is not None:
                 geoms = [g.name for b in bodies
                          for g in spec.body(b).find_all(mujoco.mjtObj.mjOBJ_GEOM)]

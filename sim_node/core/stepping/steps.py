@@ -8,6 +8,7 @@ stepping loop (:class:`~.loop.SimLoop`) talks to a world through ``world.steppin
 ``World``'s own surface: nobody but the loop needs them.
 """
 
+import math
 from typing import Callable, Optional
 
 import mujoco
@@ -134,6 +135,19 @@ class Stepping:
             for _ in range(n):
                 control.apply(m, d)
                 mujoco.mj_step(m, d)
+        elif control.batched:  # a base's timeout inside the batch stops it on time
+            left = n
+            while left > 0:
+                due = control.batch_deadline(d.time)
+                k = left if due == math.inf else min(left, max(1, math.ceil(
+                    (due - d.time) / m.opt.timestep + 1e-9)))
+                mujoco.mj_step(m, d, k)
+                left -= k
+                if left and control.before_batch(m, d) and control.per_step:
+                    for _ in range(left):
+                        control.apply(m, d)
+                        mujoco.mj_step(m, d)
+                    left = 0
         else:
             mujoco.mj_step(m, d, n)
         if live.guard.diverged(m, d, quiet):

@@ -1,0 +1,128 @@
+"""
+What a spawn gives a wheeled base that its model lacks: wheel actuators, and casters that roll.
+
+Read from the spawned model's uncompiled spec before it is attached (``editor.attach``), by the
+rules :mod:`.bases` uses to find a differential drive: a Gazebo drive plugin's joints, else
+hinges whose names say wheel and left or right.
+"""
+
+import math
+from typing import Optional
+
+import mujoco
+
+from .bases import DIFF_DRIVE
+
+#: Seconds in which a spawned wheel's velocity actuator brings the robot to speed.
+WHEEL_TAU = 0.05
+#: What :func:`add_wheel_actuators` assumes when a model gives no masses or no wheel radius.
+FALLBACK_MASS, FALLBACK_RADIUS = 20.0, 0.1
+#: Words in a fixed body's name that make it a caster (:func:`roll_casters`).
+CASTER_WORDS = ('caster', 'castor', 'ball', 'omni', 'swivel')
+#: Above a user's own contact settings (``editor.OWN_CONTACT_PRIORITY``, 1) and the world's.
+CASTER_PRIORITY = 2
+
+
+def wheel_joints(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
+    """
+    Return a model's wheel joints as :func:`.bases.find` will drive them (left, then right), or [].
+
+    Read from an uncompiled spec, by the same rules: the plugin's joints, else hinges whose
+    names say wheel and left or right.
+    """
+    hinges = {j.name: j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_HINGE}
+    if plugin and plugin['kind'] == DIFF_DRIVE:
+        left = [hinges[n] for n in plugin['left'] if n in hinges]
+        right = [hinges[n] for n in plugin['right'] if n in hinges]
+        if left and right:
+            return left + right
+    wheels = [j for n, j in hinges.items() if 'wheel' in n.lower()]
+    left = [j for j in wheels if 'left' in j.name.lower()]
+    right = [j for j in wheels if 'right' in j.name.lower()]
+    return left + right if left and right else []
+
+
+def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
+                        euler: bool = False) -> list:
+    """
+    Give each wheel of a spawned model that has no actuator a velocity actuator of its own.
+
+    A wheel's speed is then held by MuJoCo (implicitly, under ``implicitfast``: stable at any
+    gain), not by a torque computed in Python before every step: what a base costs is what its
+    actuators cost. The gain makes the robot's speed settle in about :data:`WHEEL_TAU` (the
+    robot's mass as each wheel carries it, ``m r^2 / wheels``, over that time); the torque is
+    bounded by the joint's effort limit (URDF ``effort``) or the plugin's wheel torque. Under
+    the Euler integrator (actuator gains explicit) the gain is capped at the wheel's own
+    inertia over the time step, where an explicit velocity loop stays stable.
+
+    :returns: the names of the actuators added (``<joint>_drive``).
+    """
+    wheels = wheel_joints(spec, plugin)
+    driven = {a.target for a in spec.actuators}
+    wheels = [j for j in wheels if j.name not in driven]
+    if not wheels:
+        return []
+    mass = sum(max(float(b.mass), 0.0) for b in spec.bodies) or FALLBACK_MASS
+    added = []
+    for j in wheels:
+        radius = _spec_wheel_radius(j.parent) or FALLBACK_RADIUS
+        inertia = max(0.5 * max(float(j.parent.mass), 0.01) * radius ** 2, 1e-6)
+        kv = max(mass * radius ** 2 / len(wheels), inertia) / WHEEL_TAU
+        if euler:
+            kv = min(kv, inertia / spec.option.timestep)
+        act = spec.add_actuator(name=f'{j.name}_drive', target=j.name,
+                                trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_velocity(kv=kv)
+        torque = plugin.get('max_torque') if plugin else None
+        limited = j.actfrclimited != mujoco.mjtLimited.mjLIMITED_FALSE and \
+            j.actfrcrange[1] > j.actfrcrange[0]
+        if limited or torque:
+            hi = min(float(j.actfrcrange[1]) if limited else math.inf, torque or math.inf)
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.forcerange = [-hi, hi]
+        added.append(act.name)
+    return added
+
+
+def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
+    """
+    Make the fixed casters of a wheeled model roll: their contacts carry weight, not friction.
+
+    A caster, ball or omni wheel that a URDF fixes to the base (no joint to turn on) would drag
+    along the floor with the friction of a block; Gazebo users give such links zero friction
+    (``<mu1>0</mu1>``), and so does this, to the same end. A caster is a body of a model with
+    wheels (:func:`wheel_joints`) that has no joint and either a name that says so
+    (:data:`CASTER_WORDS`) or only spheres to collide with, hung from the wheels' own parent.
+    Its colliding geoms get ``condim`` 1 (a frictionless contact) with priority
+    :data:`CASTER_PRIORITY`: MuJoCo mixes two geoms' condim by their maximum, and a contact
+    takes the settings of the geom with the higher priority. ``WorldConfig.casters_roll``
+    (the node's ``casters_roll``) turns the rule off.
+
+    :returns: the names of the bodies made casters.
+    """
+    wheels = wheel_joints(spec, plugin)
+    if not wheels:
+        return []
+    base = wheels[0].parent.parent
+    found = []
+    for body in spec.bodies:
+        if body.joints or body.name == 'world' or any(body.name == w.parent.name
+                                                      for w in wheels):
+            continue
+        solid = [g for g in body.geoms if g.contype or g.conaffinity]
+        named = any(w in body.name.lower() for w in CASTER_WORDS)
+        ball = (solid and body.parent.name == base.name and body.name != base.name
+                and all(g.type == mujoco.mjtGeom.mjGEOM_SPHERE for g in solid))
+        if solid and (named or ball):
+            for g in solid:  # a contact takes the condim of its higher-priority geom
+                g.condim, g.priority = 1, CASTER_PRIORITY
+            found.append(body.name)
+    return found
+
+
+def _spec_wheel_radius(body) -> float:
+    """Return a wheel body's radius from its spec geoms (a cylinder's, a sphere's), or 0."""
+    sizes = [float(g.size[0]) for g in body.geoms
+             if g.type in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_SPHERE,
+                           mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_ELLIPSOID)]
+    return max(sizes, default=0.0)
