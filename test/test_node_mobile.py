@@ -223,31 +223,40 @@ def test_odometry_from_ground_truth_is_the_simulations_pose(start_node, rclpy_co
         sim.close()
 
 
-@pytest.mark.parametrize('name', ['caster_mesh', 'holonomic'])
+@pytest.mark.parametrize('name', ['caster_sphere', 'caster_mesh', 'skid_steer', 'holonomic',
+                                  'gazebo_plugin'])
 def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy_context,
                                                                tmp_path, name):
     """``bases_corpus``: spawned from its file, driven by cmd_vel, odometry and frames as nav2."""
     import bases_corpus
+    from diagnostic_msgs.msg import DiagnosticArray
     from sim_node.ros.client import SimClient
     path = bases_corpus.write(tmp_path)[name]
     start_node(f'resource_paths:=["{tmp_path}"]', namespace='/corpus')
     sim = SimClient(namespace='/corpus', timeout_sec=30)
     w = Watcher(namespace='/corpus')
-    odom = []
+    odom, said = [], []
     w.node.create_subscription(Odometry, f'/corpus/{name}/odom', odom.append, 50)
+    w.node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: said.extend(
+        st.message for st in m.status), 50)
     try:
-        sim.spawn(name, uri=path.as_uri(), position=(0.0, -3.0, 0.1 if name != 'holonomic'
-                                                       else 0.0))
+        z = 0.0 if name == 'holonomic' else 0.1
+        sim.spawn(name, uri=path.as_uri(), position=(0.0, -3.0, z))
         wait_for(lambda: w.node.get_subscriptions_info_by_topic(f'/corpus/{name}/cmd_vel'),
                  timeout=10)
         vy = 0.2 if name == 'holonomic' else 0.0
         send(w, f'/corpus/{name}/cmd_vel', twist(0.3, vy), 1.0)  # up to speed
         t0, (p0, yaw0) = w.latest_clock(), planar(sim, name)
+        o0 = odom[-1].pose.pose.position
         send(w, f'/corpus/{name}/cmd_vel', twist(0.3, vy), 2.0)
         t1, (p1, _) = w.latest_clock(), planar(sim, name)
+        o1 = odom[-1].pose.pose.position
         c, s = math.cos(yaw0), math.sin(yaw0)
         along, across = np.array([[c, s], [-s, c]]) @ (p1 - p0) / (t1 - t0)
         assert along == pytest.approx(0.3, rel=0.1) and across == pytest.approx(vy, abs=0.03)
+        # odometry (from the wheels, or the truth where there are none) against the truth
+        assert math.hypot(o1.x - o0.x, o1.y - o0.y) == pytest.approx(
+            float(np.linalg.norm(p1 - p0)), rel=0.05)
         wait_for(lambda: f'{name}/odom' in w.tf, timeout=10)
         with w.lock:
             children = {child for child, (_, parent, *_) in w.tf.items()
@@ -255,6 +264,10 @@ def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy
         assert children == {odom[-1].child_frame_id} == {name}
         time.sleep(1.5)  # no command for longer than cmd_vel_timeout: it stops
         assert np.linalg.norm(sim.entity_state(name)['linear'][:2]) < 0.02
+        if name == 'holonomic':  # beyond its actuators' control range (1 m/s): said once
+            send(w, f'/corpus/{name}/cmd_vel', twist(3.0), 1.0)
+            wait_for(lambda: any('cannot move as commanded' in m for m in said), timeout=10)
+            assert sim.entity_state(name)['linear'][0] < 1.0
     finally:
         w.close()
         sim.close()

@@ -95,6 +95,26 @@ def test_a_topic_nobody_publishes_on_ends_with_a_clear_message(node):
     out = spawn('-topic', 'nobody_publishes_this', '-name', 'ghost', '-timeout', '2')
     assert out.returncode == 1
     assert "nothing was published on 'nobody_publishes_this' within 2 s" in out.stderr
+    # said once, at the start: what it waits for and for how long
+    assert out.stdout.count('waiting for a robot description on /nobody_publishes_this '
+                            '(up to 2 s') == 1, out.stdout
+
+
+def test_ctrl_c_while_waiting_ends_it_with_one_line_and_no_traceback(node):
+    import signal
+    exe = Path(os.environ['SIM_PREFIX']) / 'lib' / 'sim' / 'spawn'
+    proc = subprocess.Popen([str(exe), '-topic', 'no_such_topic'], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    assert 'waiting for a robot description' in proc.stdout.readline()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130
+    assert err.strip() == 'interrupted: nothing was spawned', err
+
+
+def test_a_timeout_that_is_not_a_positive_number_is_refused(node):
+    out = spawn('-topic', 'robot_description', '-timeout', '-1')
+    assert out.returncode == 2 and '-timeout must be a positive number of seconds' in out.stderr
 
 
 def test_a_name_in_use_exits_with_the_standards_code(sim):

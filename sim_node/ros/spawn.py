@@ -7,7 +7,7 @@ local: a late subscriber gets it), ``-file <path>`` or ``-string <URDF or MJCF t
 ``-allow_renaming``, ``-sim <namespace of the simulator's services>`` and ``-timeout`` (s, for
 the topic and the services). It calls the standard SpawnEntity service and exits 0 on success;
 otherwise it prints the standard's result code and message and exits with the code (1 when
-there is none: no answer, a bad argument)::
+there is none: no answer; 2: a bad argument; 130: Ctrl-C, with one line)::
 
     ros2 run sim spawn -topic robot_description -name cart -z 0.2
     ros2 run sim spawn -file ~/ws/src/cart_description/urdf/cart.urdf -name cart -Y 1.57
@@ -15,11 +15,14 @@ there is none: no answer, a bad argument)::
 
 import argparse
 import math
+import os
 from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
 EXIT_FAILED = 1
+#: Ctrl-C (SIGINT): one line, as a shell reports 128 + 2.
+EXIT_INTERRUPTED = 130
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -58,6 +61,8 @@ def _from_topic(node, topic: str, timeout: float) -> Optional[str]:
     qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      reliability=ReliabilityPolicy.RELIABLE)
     sub = node.create_subscription(String, topic, lambda msg: got.append(msg.data), qos)
+    print(f'waiting for a robot description on {node.resolve_topic_name(topic)} '
+          f'(up to {timeout:g} s, -timeout to change)', flush=True)
     try:
         deadline = node.get_clock().now().nanoseconds + int(timeout * 1e9)
         while not got and node.get_clock().now().nanoseconds < deadline:
@@ -69,44 +74,61 @@ def _from_topic(node, topic: str, timeout: float) -> Optional[str]:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     import rclpy
+    from rclpy.executors import ExternalShutdownException
     from rclpy.utilities import remove_ros_args
     args = _parser().parse_args(remove_ros_args(list(sys.argv if argv is None
                                                      else ['spawn', *argv]))[1:])
+    if not args.timeout > 0:
+        _parser().error(f'-timeout must be a positive number of seconds, got {args.timeout:g}')
     rclpy.init(args=None if argv is None else ['spawn', *argv])
-    from .client import SimClient, SimServiceError
     node = rclpy.create_node('sim_spawn')
+    interrupted = False
     try:
-        uri, text = '', ''
-        if args.topic:
-            text = _from_topic(node, args.topic, args.timeout)
-            if text is None:
-                print(f'nothing was published on {args.topic!r} within {args.timeout:g} s: '
-                      'is robot_state_publisher (or another publisher of the description) '
-                      'running, with that topic name?', file=sys.stderr)
-                return EXIT_FAILED
-        elif args.file:
-            path = Path(args.file).expanduser().resolve()
-            uri = path.as_uri()
-        else:
-            text = args.string
-        sim = SimClient(namespace=args.sim, node=node, timeout_sec=args.timeout)
-        try:
-            name = sim.spawn(args.name, uri=uri, resource_string=text,
-                             position=(args.x, args.y, args.z),
-                             orientation_xyzw=quaternion_xyzw(args.R, args.P, args.Y),
-                             allow_renaming=args.allow_renaming or not args.name,
-                             namespace=args.namespace)
-        except SimServiceError as exc:
-            print(f'spawn_entity answered {exc.code}: {exc.message}', file=sys.stderr)
-            return exc.code if 0 < exc.code < 256 else EXIT_FAILED
-        except TimeoutError as exc:
-            print(f'{exc}; is the simulator running (ros2 run sim node)?', file=sys.stderr)
-            return EXIT_FAILED
-        print(f'spawned {name!r}')
-        return 0
+        return _spawn(node, args)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        interrupted = True
+        print('interrupted: nothing was spawned', file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+        if interrupted:  # rclpy's SIGINT guard condition, collected at exit after a SIGINT,
+            sys.stdout.flush()  # prints a traceback of its own (rclpy, Jazzy): nothing is
+            sys.stderr.flush()  # left that needs an orderly exit
+            os._exit(EXIT_INTERRUPTED)
+
+
+def _spawn(node, args: argparse.Namespace) -> int:
+    """Find the description, call the service, say what happened; return the exit status."""
+    from .client import SimClient, SimServiceError
+    uri, text = '', ''
+    if args.topic:
+        text = _from_topic(node, args.topic, args.timeout)
+        if text is None:
+            print(f'nothing was published on {args.topic!r} within {args.timeout:g} s: '
+                  'is robot_state_publisher (or another publisher of the description) '
+                  'running, with that topic name?', file=sys.stderr)
+            return EXIT_FAILED
+    elif args.file:
+        path = Path(args.file).expanduser().resolve()
+        uri = path.as_uri()
+    else:
+        text = args.string
+    sim = SimClient(namespace=args.sim, node=node, timeout_sec=args.timeout)
+    try:
+        name = sim.spawn(args.name, uri=uri, resource_string=text,
+                         position=(args.x, args.y, args.z),
+                         orientation_xyzw=quaternion_xyzw(args.R, args.P, args.Y),
+                         allow_renaming=args.allow_renaming or not args.name,
+                         namespace=args.namespace)
+    except SimServiceError as exc:
+        print(f'spawn_entity answered {exc.code}: {exc.message}', file=sys.stderr)
+        return exc.code if 0 < exc.code < 256 else EXIT_FAILED
+    except TimeoutError as exc:
+        print(f'{exc}; is the simulator running (ros2 run sim node)?', file=sys.stderr)
+        return EXIT_FAILED
+    print(f'spawned {name!r}')
+    return 0
 
 
 if __name__ == '__main__':
