@@ -42,11 +42,11 @@ def _base(mass: float = 25.0, com_x: float = -0.08) -> str:
                  com=f'<origin xyz="{com_x} 0 0.03"/>')
 
 
-def _caster(geometry: str) -> str:
+def _caster(geometry: str, link: str = 'caster_link') -> str:
     # behind the axle, its bottom on the ground with the wheels (centre 0.08 m up)
-    return (_link('caster_link', 0.5, geometry, inertia=0.001)
-            + '<joint name="caster_joint" type="fixed"><parent link="base_link"/>'
-            '<child link="caster_link"/><origin xyz="-0.2 0 -0.045"/></joint>')
+    return (_link(link, 0.5, geometry, inertia=0.001)
+            + f'<joint name="{link}_joint" type="fixed"><parent link="base_link"/>'
+            f'<child link="{link}"/><origin xyz="-0.2 0 -0.045"/></joint>')
 
 
 def _robot(name: str, *parts: str) -> str:
@@ -61,7 +61,8 @@ def caster_sphere() -> str:
 def caster_mesh() -> str:
     return _robot('caster_mesh', _base(), _wheel('left', SEPARATION / 2),
                   _wheel('right', -SEPARATION / 2),
-                  _caster('<mesh filename="omni_wheel.stl"/>'))
+                  # a mesh whose link's name does not say what it is
+                  _caster('<mesh filename="omni_wheel.stl"/>', link='rear_support'))
 
 
 def skid_steer() -> str:

@@ -113,6 +113,11 @@ def test_fixed_casters_roll_and_the_rule_can_be_turned_off(files):
                                   if m.body(m.geom_bodyid[g]).name == 'caster_sphere/caster_link'
                                   and m.geom_contype[g]})
     assert condim == {1}
+    # by where it is: a mesh under a fixed joint below the axles, its link named otherwise
+    w2 = spawned(files, 'caster_mesh')
+    assert w2.read(lambda m, d: {int(m.geom_condim[g]) for g in range(m.ngeom)
+                                 if m.body(m.geom_bodyid[g]).name == 'caster_mesh/rear_support'
+                                 and m.geom_contype[g]}) == {1}
     dragging = spawned(files, 'caster_sphere', casters_roll=False)
     drive(dragging, 'caster_sphere', 0.3, 0, 0, 1.0)
     rolling = drive(w, 'caster_sphere', 0.3, 0, 0, 1.0)

@@ -116,9 +116,10 @@ PARAMETERS = (
          "stops, as diff_drive_controller does; 0: never (Gazebo's DiffDrive system)",
          limits=(0.0, 1e6)),
     Spec('casters_roll', _W.casters_roll, "a spawned wheeled base's fixed casters (a body "
-         'without a joint named caster, ball, omni or swivel, or holding only spheres, under '
-         "the wheels' parent) get frictionless contacts and roll, as Gazebo users set mu 0; "
-         'false: they drag as the URDF has them', **RO),
+         "without a joint named caster, ball, omni or swivel, or under the wheels' parent "
+         'holding only spheres, or spheres and meshes below the axles) get frictionless '
+         'contacts and roll, as Gazebo users set mu 0; false: they drag as the URDF has them',
+         **RO),
     Spec('odom_rate_hz', 50.0, '<entity>/odom messages (and the odom TF) per wall second',
          limits=(0.1, 1000.0), **RO),
     Spec('odom_source', 'wheels', "where a base's odometry comes from: 'wheels' (integrated "

@@ -92,7 +92,8 @@ def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
     along the floor with the friction of a block; Gazebo users give such links zero friction
     (``<mu1>0</mu1>``), and so does this, to the same end. A caster is a body of a model with
     wheels (:func:`wheel_joints`) that has no joint and either a name that says so
-    (:data:`CASTER_WORDS`) or only spheres to collide with, hung from the wheels' own parent.
+    (:data:`CASTER_WORDS`), or, hung from the wheels' own parent, only spheres to collide with,
+    or only spheres and meshes below the wheels' axles.
     Its colliding geoms get ``condim`` 1 (a frictionless contact) with priority
     :data:`CASTER_PRIORITY`: MuJoCo mixes two geoms' condim by their maximum, and a contact
     takes the settings of the geom with the higher priority. ``WorldConfig.casters_roll``
@@ -111,9 +112,13 @@ def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
             continue
         solid = [g for g in body.geoms if g.contype or g.conaffinity]
         named = any(w in body.name.lower() for w in CASTER_WORDS)
-        ball = (solid and body.parent.name == base.name and body.name != base.name
-                and all(g.type == mujoco.mjtGeom.mjGEOM_SPHERE for g in solid))
-        if solid and (named or ball):
+        under = body.parent.name == base.name and body.name != base.name
+        kinds = {g.type for g in solid}
+        ball = under and kinds == {mujoco.mjtGeom.mjGEOM_SPHERE}
+        # a sphere or mesh hung below the wheels' axles: what else touches the floor there
+        low = under and kinds <= {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_MESH} \
+            and float(body.pos[2]) < min(float(w.parent.pos[2]) for w in wheels)
+        if solid and (named or ball or low):
             for g in solid:  # a contact takes the condim of its higher-priority geom
                 g.condim, g.priority = 1, CASTER_PRIORITY
             found.append(body.name)
