@@ -243,7 +243,13 @@ def generic(sensor: SensorSpec, sensordata: np.ndarray) -> Float64MultiArray:
 
 def laser_scan(reading: LaserReading, config: LaserConfig, frame: str,
                period_sec: float) -> LaserScan:
-    """One sweep as sensor_msgs/LaserScan (all rays at one instant: time_increment 0)."""
+    """
+    One sweep as sensor_msgs/LaserScan (all rays at one instant: time_increment 0).
+
+    `config`: the node's; a reading of a declared scanner carries its own (its sweep's).
+    """
+    if reading.sweep is not None:
+        config = reading.sweep.config
     msg = LaserScan(angle_min=config.angle_min, angle_max=config.angle_max,
                     angle_increment=config.angle_increment, time_increment=0.0,
                     scan_time=period_sec, range_min=config.range_min,
@@ -251,4 +257,30 @@ def laser_scan(reading: LaserReading, config: LaserConfig, frame: str,
     msg.header.stamp = stamp(reading.time)
     msg.header.frame_id = frame
     msg.ranges = array.array('f', reading.ranges.astype(np.float32).tobytes())
+    return msg
+
+
+def laser_points(reading: LaserReading, frame: str, pos=None, quat_wxyz=None) -> PointCloud2:
+    """
+    Return a 3D lidar's sweep as an organized PointCloud2: one row per ring, x y z float32.
+
+    Points where a ray hit within range (NaN elsewhere: is_dense false), in the site's frame,
+    or in `frame` when the site's pose in it is given (`pos`, `quat_wxyz`).
+    """
+    sweep = reading.sweep
+    ranges = np.atleast_2d(reading.ranges)
+    rays = sweep.directions().reshape(ranges.shape + (3,))
+    r = np.where(np.isfinite(ranges), ranges, np.nan)[..., None]
+    xyz = rays * r
+    if pos is not None:
+        xyz = quat.rotate(np.asarray(quat_wxyz, dtype=float), xyz.reshape(-1, 3)).reshape(
+            xyz.shape) + np.asarray(pos, dtype=float)
+    h, w = ranges.shape
+    msg = PointCloud2(height=h, width=w, is_bigendian=False, point_step=12, row_step=12 * w,
+                      is_dense=False)
+    msg.header.stamp = stamp(reading.time)
+    msg.header.frame_id = frame
+    msg.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                  for i, n in enumerate(('x', 'y', 'z'))]
+    msg.data = array.array('B', xyz.astype('<f4').tobytes())
     return msg

@@ -9,8 +9,10 @@ view from the tag's horizontal one) and the IMU's gravity.
 import math
 
 from conftest import serve_node, wait_for, Watcher
+import numpy as np
 import pytest
-from sensor_msgs.msg import CameraInfo, Imu, LaserScan
+from sensor_msgs.msg import CameraInfo, Imu, LaserScan, PointCloud2
+from test_core_declared_lasers import RANGER
 from test_core_urdf_declared import SCOUT
 
 BOX = ('<mujoco><worldbody><body name="crate"><geom type="box" size="0.25 0.25 0.25"/>'
@@ -46,7 +48,7 @@ def test_the_declared_laser_camera_and_imu_publish_what_the_scene_shows(sim, wat
     # the laser: on the mount (0.2 m ahead of the base), the crate's face at x = 2.75
     scan = latest(watch, LaserScan, 'lasers/scout/scan_lidar/scan')
     ahead = round((0.0 - scan.angle_min) / scan.angle_increment)
-    assert scan.header.frame_id == 'scout/scan_lidar'
+    assert scan.header.frame_id == 'scout/mount'  # the link it is on, as gazebo_ros names it
     assert scan.ranges[ahead] == pytest.approx(2.75 - 2.2, abs=0.01)
     # the camera: its vertical field of view from the tag's horizontal one (1.2 rad, 4:3)
     info = latest(watch, CameraInfo, 'cameras/scout/front_cam/camera_info')
@@ -55,3 +57,28 @@ def test_the_declared_laser_camera_and_imu_publish_what_the_scene_shows(sim, wat
     # the IMU: at rest on a fixed robot, gravity up
     imu = latest(watch, Imu, 'sensors/scout/imu_imu/imu')
     assert imu.linear_acceleration.z == pytest.approx(9.81, abs=0.05)
+
+
+def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, watch):
+    """RANGER (``test_core_declared_lasers``): before, every laser was the node's own."""
+    from rclpy.qos import qos_profile_sensor_data
+    sim.spawn('ranger', resource_string=RANGER, position=(-2.0, 2.0, 0.1))
+    got = []
+    sub = watch.node.create_subscription(LaserScan, '/ranger/scan', got.append,
+                                         qos_profile_sensor_data)
+    try:
+        wait_for(lambda: len(got) >= 6, timeout=30)
+    finally:
+        watch.node.destroy_subscription(sub)
+    scan = got[-1]
+    assert scan.header.frame_id == 'ranger/base_front_laser_link'
+    assert len(scan.ranges) == 541 and scan.angle_min == pytest.approx(-2.356194, abs=1e-6)
+    assert (scan.range_min, scan.range_max) == pytest.approx((0.2, 12.0))
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got]
+    gaps = np.diff(stamps)
+    assert np.median(gaps) == pytest.approx(1 / 15, abs=0.003)  # 15 Hz of simulated time
+    cloud = latest(watch, PointCloud2, '/points3d')
+    assert (cloud.header.frame_id, cloud.height, cloud.width) == ('ranger/lidar3d_link', 16,
+                                                                  360)
+    junk = latest(watch, LaserScan, 'lasers/ranger/junk_lidar/scan')  # the node's own
+    assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'

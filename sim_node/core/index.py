@@ -144,7 +144,8 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         joint_entity=joint_entity, chains=chains,
         link_frames=tuple((alias[rec.root_body], f'{rec.name}/world', *own.world_link)
                           for rec in entities for own in [spawned.get(rec.name)]
-                          if own is not None and own.world_link and alias[rec.root_body]))
+                          if own is not None and own.world_link and alias[rec.root_body]),
+        lasers={d.site: d for rec in spawned.values() for d in getattr(rec, 'lasers', ())})
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

@@ -123,6 +123,42 @@ class SensorSpec:
 
 
 @dataclass(frozen=True)
+class DeclaredLaser:
+    """
+    A laser scanner as a robot file declares it (a Gazebo ray or lidar sensor), on its site.
+
+    Every value is the tag's, checked (:mod:`.models.sensor_tags`); None where the tag gives
+    none: the node's own setting applies.
+
+    :param site: the site it scans from, ``<entity>/<sensor>_lidar``.
+    :param rate_hz: scans per simulated second.
+    :param samples, angle_min, angle_max: the horizontal sweep (rad, about the site's z).
+    :param vertical: (samples, min angle, max angle) of the vertical sweep; samples > 1 makes it
+        a 3D lidar, published as PointCloud2.
+    :param range_min, range_max: metres.
+    :param noise: (mean, standard deviation) of Gaussian noise on each range, metres.
+    :param always_on: False: it scans only while someone subscribes (Gazebo's).
+    :param frame: the frame id its messages carry (``<entity>/<link or frame name>``).
+    :param topic: its topic as declared, already under the entity's namespace ('' : none).
+    :param points: publish PointCloud2 (``output_type`` says so, or a vertical sweep).
+    """
+
+    site: str
+    rate_hz: Optional[float] = None
+    samples: Optional[int] = None
+    angle_min: Optional[float] = None
+    angle_max: Optional[float] = None
+    vertical: Optional[tuple] = None
+    range_min: Optional[float] = None
+    range_max: Optional[float] = None
+    noise: Optional[tuple] = None
+    always_on: bool = True
+    frame: str = ''
+    topic: str = ''
+    points: bool = False
+
+
+@dataclass(frozen=True)
 class ModelInfo:
     """Names and structure of one compiled model; replaced on every recompile (generation)."""
 
@@ -158,6 +194,8 @@ class ModelInfo:
     #: (parent frame, frame, position (3,), quaternion wxyz (4,)) for /tf_static (a URDF's
     #: ``world`` link, which its root is fixed to).
     link_frames: tuple = ()
+    #: Site name -> :class:`DeclaredLaser` for the lasers spawned robots declare.
+    lasers: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

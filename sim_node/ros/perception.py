@@ -25,7 +25,7 @@ from tf2_msgs.msg import TFMessage
 
 from ..core.config import PerceptionConfig
 from ..core.devices.cameras import CameraRig, select
-from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites
+from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
 from ..core.devices.rendering import RenderingUnavailableError
 from ..core.records import ModelInfo, Snapshot
 from ..session import Loaded
@@ -67,6 +67,8 @@ class _ThreadState:
         self.cams, self.sites = (), ()
         self.cam_due = Schedule(config.camera_rate_hz)
         self.scan_due = Schedule(config.lidar_rate_hz)
+        self.scan_dues: dict = {}  # site -> its own Schedule (a declared rate)
+        self.sweeps: dict = {}  # site -> its declared Sweep
         self.seen = -1
 
 
@@ -92,6 +94,7 @@ class Perception:
         # camera name -> (image, info, depth or None, points or None)
         self._camera_pubs: dict = {}
         self._laser_pubs: dict = {}  # site name -> publisher
+        self._laser_decl: dict = {}  # site name -> its DeclaredLaser (None: the node's)
         self._sensor_pubs: dict = {}  # (kind, name) -> publisher
         self._sensor_generation = None
         self._sensor_frames: dict = {}
@@ -265,22 +268,71 @@ class Perception:
         if snap.info.generation != st.generation:
             st.generation = snap.info.generation
             st.cams, st.sites = self._sync_device_publishers(snap.info)
+            declared = {n: d for n, d in snap.info.lasers.items() if n in st.sites}
+            st.sweeps = {n: sweep_of(d, self._laser_config) for n, d in declared.items()}
+            st.scan_dues = {n: st.scan_dues.get(n) if st.scan_dues.get(n) is not None
+                            and abs(st.scan_dues[n].period - 1.0 / d.rate_hz) < 1e-12
+                            else Schedule(d.rate_hz)
+                            for n, d in declared.items() if d.rate_hz}
         if st.cams and not self._cameras_failed and st.cam_due.due(snap.time):
             st.cam_due.done(snap.time)
             self._publish_frames(st.rig)
-        if st.sites and st.scan_due.due(snap.time):
-            st.scan_due.done(snap.time)
-            for reading in st.scanner.scan(st.sites):
-                self._publish_scan(reading, snap.info, st.scan_due.period)
+        if st.sites:
+            self._scan_due(st, snap)
+
+    def _scan_due(self, st: '_ThreadState', snap: Snapshot) -> None:
+        """Scan the lasers due at the snapshot's time, each at its own (declared) rate."""
+        due = []
+        for site in st.sites:
+            schedule = st.scan_dues.get(site, st.scan_due)
+            if schedule.due(snap.time) and self._wanted(site, snap.info):
+                due.append(site)
+        for schedule in {id(x): x for x in [st.scan_dues.get(site, st.scan_due)
+                                            for site in due]}.values():
+            schedule.done(snap.time)
+        for reading in st.scanner.scan(due, st.sweeps):
+            period = st.scan_dues.get(reading.site, st.scan_due).period
+            self._publish_scan(reading, snap.info, period)
+
+    def _wanted(self, site: str, info: ModelInfo) -> bool:
+        """Say whether a laser scans now: one declared not ``always_on`` only while heard."""
+        declared = info.lasers.get(site)
+        if declared is None or declared.always_on:
+            return True
+        pub = self._laser_pubs.get(site)
+        return pub is not None and pub.get_subscription_count() > 0
 
     def _sync_device_publishers(self, info: ModelInfo) -> tuple:
         """Create and destroy camera and laser publishers for a new model generation."""
         cams = select(info.cameras, self.config.cameras)
-        sites = scanner_sites([s.name for s in info.sites], self.config.lidar_sites)
+        names = [s.name for s in info.sites]
+        # a robot's declared lasers are its own: they publish whatever lidar_sites selects
+        sites = tuple(dict.fromkeys(scanner_sites(names, self.config.lidar_sites)
+                                    + tuple(n for n in names if n in info.lasers)))
         self._sync(self._camera_pubs, [c.name for c in cams], self._camera_publishers)
-        self._sync(self._laser_pubs, list(sites), lambda name: self._create_publisher(
-            LaserScan, f'lasers/{pm.topic_token(name)}/scan', qos_profile_sensor_data))
+        keys = [(n, info.lasers.get(n)) for n in sites]
+        for gone in [k for k in self._laser_pubs if k not in sites]:
+            self._node.destroy_publisher(self._laser_pubs.pop(gone))
+        for site, declared in keys:
+            if self._laser_decl.get(site) != declared and site in self._laser_pubs:
+                self._node.destroy_publisher(self._laser_pubs.pop(site))
+            if site not in self._laser_pubs:
+                self._laser_pubs[site] = self._laser_publisher(site, declared)
+            self._laser_decl[site] = declared
         return cams, sites
+
+    def _laser_publisher(self, site: str, declared) -> Publisher:
+        """LaserScan, or PointCloud2 for a 3D lidar; on its declared topic where it has one."""
+        points = declared is not None and declared.points
+        msg_type = PointCloud2 if points else LaserScan
+        default = f'lasers/{pm.topic_token(site)}/{"points" if points else "scan"}'
+        topic = declared.topic if declared is not None and declared.topic else default
+        try:
+            return self._create_publisher(msg_type, topic, qos_profile_sensor_data)
+        except Exception as exc:  # noqa: B902 (a name rclpy refuses: ours instead)
+            self._node.get_logger().warning(
+                f'laser {site!r}: topic {topic!r} is refused ({exc}); publishing on {default}')
+            return self._create_publisher(msg_type, default, qos_profile_sensor_data)
 
     def _camera_publishers(self, name: str) -> tuple:
         base = f'cameras/{pm.topic_token(name)}'
@@ -322,8 +374,18 @@ class Perception:
         site = next((s for s in info.sites if s.name == reading.site), None)
         if pub is None or site is None:
             return
-        pub.publish(pm.laser_scan(reading, self._laser_config,
-                                  pm.site_frame(info, site, self._prefix), period))
+        declared = info.lasers.get(reading.site)
+        frame = (self._prefix + declared.frame if declared is not None and declared.frame
+                 else pm.site_frame(info, site, self._prefix))
+        if declared is not None and declared.points:
+            # in its declared frame: the site's pose in its link when that is the link named
+            on_link = declared.frame == info.body_names[site.body] or (
+                info.body_alias[info.body_root[site.body]] == declared.frame
+                and site.body == info.body_root[site.body])
+            where = (site.pos, site.quat_wxyz) if on_link else ()
+            pub.publish(pm.laser_points(reading, frame, *where))
+            return
+        pub.publish(pm.laser_scan(reading, self._laser_config, frame, period))
 
     def _current_info(self) -> Optional[ModelInfo]:
         sim = self._loaded

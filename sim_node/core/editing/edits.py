@@ -24,8 +24,8 @@ from .. import checks, quat, state
 from ..checks import check_finite, check_pose
 from ..control import bases
 from ..errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
-                      NameNotUniqueError)
-from ..models import sources
+                      NameNotUniqueError, NamespaceInvalidError)
+from ..models import sensor_tags, sources
 from ..records import ROBOT, STATIC
 from ..stepping.live import Live
 
@@ -37,6 +37,8 @@ ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth
 ERR_NOT_SPAWNED = '{name!r} is part of the loaded scene; only spawned entities can be deleted'
 ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
 ERR_NO_MASS = '{name!r} has no mass to scale'
+ERR_TOPIC_TAKEN = ('{name!r} declares its sensor {site!r} on topic {topic!r}, which {other!r} '
+                   'already publishes on: spawn it with a namespace of its own')
 log = logging.getLogger(__name__)
 
 
@@ -111,6 +113,10 @@ class Edits:
         contact = design.contact_of(None) if design.default_contact.is_set else None
         casters_roll = self.live.config.casters_roll
 
+        lasers = tuple(sensor_tags.entity_laser(d, name, namespace)
+                       for d in getattr(source.urdf_notes, 'lasers', ()))
+        _check_topics(name, lasers, design.spawned)
+
         def apply(spec: mujoco.MjSpec) -> Spawned:
             frame, bodies, root, defaults = editor.attach(spec, name, source, pos, q,
                                                           casters_roll)
@@ -125,7 +131,8 @@ class Edits:
                            urdf=source.text if source.kind == 'urdf' else '',
                            world_link=getattr(source.urdf_notes, 'world_link', None),
                            drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
-                                                            ())))
+                                                            ())),
+                           lasers=lasers)
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,
@@ -335,3 +342,18 @@ class Edits:
                 editor.free(spec, rec) if rec.category == STATIC else None,
                 editor.scale_mass(spec, model, index, rec, m_new / total)))
         self.transaction.change(plan)
+
+
+def _check_topics(name: str, lasers: tuple, spawned) -> None:
+    """Refuse a spawn whose declared sensor topics another entity's already use."""
+    taken = {_absolute(d.topic): other for other, rec in spawned.items()
+             for d in getattr(rec, 'lasers', ()) if d.topic}
+    for d in lasers:
+        other = taken.get(_absolute(d.topic)) if d.topic else None
+        if other is not None:
+            raise NamespaceInvalidError(ERR_TOPIC_TAKEN.format(
+                name=name, site=d.site, topic=d.topic, other=other))
+
+
+def _absolute(topic: str) -> str:
+    return topic if topic.startswith('/') else f'/{topic}'

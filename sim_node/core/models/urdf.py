@@ -105,6 +105,8 @@ class Prepared:
     joint_limits: dict = field(default_factory=dict)
     #: What :mod:`.urdf_declared` made of the extensions (sensors, interfaces), as text.
     declared: list = field(default_factory=list)
+    #: The lasers its sensor tags declare (:class:`~sim_node.core.records.DeclaredLaser`).
+    lasers: list = field(default_factory=list)
     #: For a root fixed to a link named ``world``: where that link is in the root link's
     #: frame, (position (3,), quaternion wxyz (4,)): the description names it, so /tf has it.
     world_link: Optional[tuple] = None
@@ -206,7 +208,8 @@ def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
             for g in geoms:
                 if g.contype or g.conaffinity:
                     g.group = COLLISION_GROUP
-    prepared.declared = urdf_declared.add(spec, prepared.extensions, prepared.joint_limits)
+    prepared.declared, prepared.lasers = urdf_declared.add(spec, prepared.extensions,
+                                                           prepared.joint_limits)
     _start_inside_ranges(spec)
     if not prepared.self_collide:
         _exclude_self_contacts(spec)

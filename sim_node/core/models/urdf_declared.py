@@ -28,6 +28,8 @@ from xml.etree import ElementTree as ET
 import mujoco
 import numpy as np
 
+from . import sensor_tags
+
 log = logging.getLogger(__name__)
 
 CAMERAS = ('camera', 'depth', 'depth_camera', 'rgbd_camera', 'rgbd', 'multicamera')
@@ -36,13 +38,15 @@ LASERS = ('ray', 'gpu_ray', 'lidar', 'gpu_lidar')
 VELOCITY_GAIN, STEP = 0.5, 0.002
 
 
-def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> list:
+def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> tuple:
     """
-    Add the declared sensors and interfaces to `spec`; return what was added (text).
+    Add the declared sensors and interfaces to `spec`.
 
     :param limits: joint -> {'velocity', 'effort'} from the URDF (:func:`joint_limits`).
+    :returns: (what was added, as text; the declared lasers, :class:`.records.DeclaredLaser`
+        with the robot's own names, read by :func:`.sensor_tags.laser`).
     """
-    done = []
+    done, lasers = [], []
     bodies = {b.name: b for b in spec.bodies if b.name}
     for ext in extensions:
         if ext.tag != 'gazebo':
@@ -55,7 +59,7 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> list:
                             sensor.get('name'), link)
                 continue
             try:
-                text = _sensor(spec, body, sensor)
+                text = _sensor(spec, body, sensor, lasers)
             except ValueError as exc:  # MuJoCo refused a name or value: the robot still spawns
                 log.warning('URDF sensor %r on %r left out: %s', sensor.get('name'), link, exc)
                 continue
@@ -69,7 +73,7 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> list:
             continue
         if text:
             done.append(text)
-    return done
+    return done, lasers
 
 
 def _floats(text: Optional[str], n: int) -> Optional[list]:
@@ -80,7 +84,7 @@ def _floats(text: Optional[str], n: int) -> Optional[list]:
     return values if len(values) == n and all(math.isfinite(v) for v in values) else None
 
 
-def _sensor(spec, body, sensor: ET.Element) -> str:
+def _sensor(spec, body, sensor: ET.Element, lasers: list) -> str:
     kind = (sensor.get('type') or '').lower()
     name = _free_name(spec, sensor.get('name') or f'{body.name}_{kind}')
     pose = _floats(sensor.findtext('pose'), 6) or [0.0] * 6
@@ -109,6 +113,8 @@ def _sensor(spec, body, sensor: ET.Element) -> str:
         return f'IMU {name!r} on {body.name!r}'
     if kind in LASERS:
         body.add_site(name=f'{name}_lidar', pos=pos, quat=quat)
+        lasers.append(sensor_tags.laser(sensor, f'{name}_lidar', body.name,
+                                        [b.name for b in spec.bodies if b.name]))
         return f'laser {name!r} on {body.name!r}'
     log.warning('URDF sensor %r of type %r: not a kind this simulator makes (cameras, IMUs, '
                 'lasers); left out', name, kind)

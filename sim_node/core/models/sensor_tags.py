@@ -1,0 +1,196 @@
+"""
+What a robot file's sensor tags declare, read and checked: a laser's sweep, rate, frame, topic.
+
+A ``<sensor type="ray|gpu_ray|lidar|gpu_lidar">`` of Gazebo classic (``<ray>``) or current Gazebo
+(``<lidar>``) gives its ``<update_rate>``, ``<always_on>``, ``<scan><horizontal>`` and
+``<vertical>`` (``samples`` times ``resolution``, ``min_angle``, ``max_angle``), ``<range>``
+(``min``, ``max``) and ``<noise>`` (``gaussian``: ``mean``, ``stddev``); its frame comes from
+the plugin's ``frame_name`` (``frameName`` of ROS 1) or ``<gz_frame_id>``, else its link; its
+topic from ``<topic>``, the plugin's ``<ros><namespace>`` and ``<remapping>~/out:=...``, or
+``topicName``. A value that is absurd (a rate above :data:`MAX_RATE_HZ`, more than
+:data:`MAX_RAYS` rays a sweep, a negative or infinite range, noise that is not a number, a frame
+that is not a link of the robot, a topic ROS would refuse) is left out with a warning naming the
+sensor and the value: the node's own setting applies to it, and the robot still spawns.
+
+ROS-free; the names it returns are the robot's own (:func:`entity_laser` puts them under the
+entity's name and namespace at a spawn).
+"""
+
+from dataclasses import replace
+import logging
+import math
+import re
+from typing import Optional, Sequence
+from xml.etree import ElementTree as ET
+
+from ..records import DeclaredLaser
+
+log = logging.getLogger(__name__)
+
+#: The most scans (or samples) per simulated second a declared sensor may ask for.
+MAX_RATE_HZ = 1000.0
+#: The most rays one sweep of a declared laser may cast (horizontal times vertical).
+MAX_RAYS = 100_000
+#: The farthest a declared laser may see (m).
+MAX_RANGE = 10_000.0
+_TOKEN = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')
+WARN = "URDF sensor {sensor!r}: {what} {value!r} {why}; the node's own setting is used"
+
+
+def laser(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> DeclaredLaser:
+    """
+    Read a laser sensor tag: what it declares, checked (see the module docstring).
+
+    :param site: the site made for it in the robot's model (``<sensor>_lidar``).
+    :param link: the link it is on; `links`: every link of the robot (frames it may name).
+    """
+    name = sensor.get('name') or site
+    ray = _first(sensor, 'ray', 'lidar')
+
+    def warn(what: str, value, why: str) -> None:
+        log.warning(WARN.format(sensor=name, what=what, value=value, why=why))
+
+    rate = _number(sensor.findtext('update_rate'))
+    if rate is not None and not 0 < rate <= MAX_RATE_HZ:
+        warn('update_rate', sensor.findtext('update_rate'), f'is not in (0, {MAX_RATE_HZ:g}] Hz')
+        rate = None
+    out = DeclaredLaser(site=site, rate_hz=rate,
+                        always_on=(sensor.findtext('always_on') or 'true').strip().lower()
+                        not in ('0', 'false'))
+    if ray is not None:
+        out = _sweep(out, ray, warn)
+    out = replace(out, frame=_frame(sensor, link, links, warn), topic=_topic(sensor, warn))
+    plugin = sensor.find('plugin')
+    output = (plugin.findtext('output_type') or '') if plugin is not None else ''
+    vertical = out.vertical[0] if out.vertical else 1
+    return replace(out, points=vertical > 1 or 'pointcloud' in output.lower())
+
+
+def _sweep(out: DeclaredLaser, ray: ET.Element, warn) -> DeclaredLaser:
+    """Read the horizontal and vertical sweeps, the range and the noise of a <ray>/<lidar>."""
+    scan = ray.find('scan')
+    horizontal = _axis(scan.find('horizontal') if scan is not None else None)
+    vertical = _axis(scan.find('vertical') if scan is not None else None)
+    rays = (horizontal[0] or 1) * (vertical[0] or 1)
+    if horizontal[0] is not None and not 1 <= horizontal[0] <= MAX_RAYS:
+        warn('horizontal samples', horizontal[0], f'are not in [1, {MAX_RAYS}]')
+        horizontal = (None,) + horizontal[1:]
+    elif rays > MAX_RAYS:
+        warn('rays a sweep', rays, f'are more than {MAX_RAYS}')
+        horizontal = vertical = (None, None, None)
+    samples, lo, hi = horizontal
+    if (lo is None) != (hi is None) or (lo is not None and not (
+            -2 * math.pi - 1e-6 <= lo <= hi <= 2 * math.pi + 1e-6 and hi - lo <= 2 * math.pi
+            + 1e-6)):
+        warn('horizontal angles', (lo, hi), 'are not a sweep of at most a turn')
+        lo = hi = None
+    out = replace(out, samples=samples, angle_min=lo, angle_max=hi)
+    if vertical[0] is not None:
+        vs, vlo, vhi = vertical
+        vlo, vhi = (0.0 if vlo is None else vlo), (0.0 if vhi is None else vhi)
+        if not (1 <= vs <= MAX_RAYS and -math.pi / 2 <= vlo <= vhi <= math.pi / 2):
+            warn('vertical sweep', (vs, vlo, vhi), 'is not 1 or more samples within +-90 deg')
+        else:
+            out = replace(out, vertical=(int(vs), vlo, vhi))
+    rng = ray.find('range')
+    if rng is not None:
+        rmin, rmax = _number(rng.findtext('min')), _number(rng.findtext('max'))
+        if rmin is not None or rmax is not None:
+            if rmin is None or rmax is None or not 0 <= rmin < rmax <= MAX_RANGE:
+                warn('range', (rng.findtext('min'), rng.findtext('max')),
+                     f'is not 0 <= min < max <= {MAX_RANGE:g} m')
+            else:
+                out = replace(out, range_min=rmin, range_max=rmax)
+    noise = ray.find('noise')
+    if noise is not None and (noise.findtext('type') or 'gaussian').strip() == 'gaussian':
+        mean = _number(noise.findtext('mean'), nan_ok=True) or 0.0
+        std = _number(noise.findtext('stddev'), nan_ok=True)
+        if std is not None and (not math.isfinite(std) or std < 0 or not math.isfinite(mean)):
+            warn('noise', (noise.findtext('mean'), noise.findtext('stddev')),
+                 'is not a finite mean and a standard deviation >= 0')
+        elif std:
+            out = replace(out, noise=(mean, std))
+    return out
+
+
+def _axis(el: Optional[ET.Element]) -> tuple:
+    """Return (samples x resolution, min angle, max angle) of a <horizontal>/<vertical>."""
+    if el is None:
+        return (None, None, None)
+    samples = _number(el.findtext('samples'))
+    resolution = _number(el.findtext('resolution'))
+    if samples is not None and resolution is not None and resolution >= 1:
+        samples *= resolution
+    return (None if samples is None else int(round(samples)),
+            _number(el.findtext('min_angle')), _number(el.findtext('max_angle')))
+
+
+def _frame(sensor: ET.Element, link: str, links: Sequence[str], warn) -> str:
+    """Return the frame its messages name: the plugin's or gz_frame_id if a link, else the link."""
+    names = [t for t in ('frame_name', 'frameName') for p in sensor.iter('plugin')
+             for t in [p.findtext(t)] if t] + [sensor.findtext('gz_frame_id') or '']
+    given = next((n.strip() for n in names if n and n.strip()), '')
+    if given and given not in links:
+        warn('frame', given, 'is not a link of the robot')
+        return link
+    return given or link
+
+
+def _topic(sensor: ET.Element, warn) -> str:
+    """Return its topic as declared ('' : none), relative names kept relative."""
+    plugin = sensor.find('plugin')
+    topic = (sensor.findtext('topic') or '').strip()
+    if plugin is not None:
+        ns = (plugin.findtext('ros/namespace') or plugin.findtext('robotNamespace') or '')
+        ns = ns.strip().rstrip('/')
+        out = ''
+        for remap in plugin.iter('remapping'):
+            src, _, dst = (remap.text or '').partition(':=')
+            if src.strip() in ('~/out', 'out') and dst.strip():
+                out = dst.strip()
+        out = out or (plugin.findtext('topicName') or '').strip()
+        if not out and ns:
+            out = f'{plugin.get("name") or sensor.get("name")}/out'
+        if out:
+            topic = out if out.startswith('/') or not ns else f'{ns}/{out}'
+    if topic and not valid_topic(topic):
+        warn('topic', topic, 'is not a name ROS takes')
+        return ''
+    return topic
+
+
+def valid_topic(name: str) -> bool:
+    """Return whether ROS takes `name` as a topic (tokens of letters, digits, _; / between)."""
+    body = name[1:] if name.startswith('/') else name
+    return bool(body) and all(_TOKEN.match(t) for t in body.split('/'))
+
+
+def entity_laser(decl: DeclaredLaser, entity: str, namespace: str) -> DeclaredLaser:
+    """
+    Return `decl` with its site and frame under `entity` and its topic under `namespace`.
+
+    A spawn's namespace goes before the declared topic, absolute or not, as a Gazebo spawn's
+    robot namespace goes before its plugins' namespaces: two robots spawned with namespaces
+    of their own never share a topic.
+    """
+    topic = decl.topic
+    if topic and namespace:
+        topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
+    return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
+                   topic=topic)
+
+
+def _first(el: ET.Element, *tags: str) -> Optional[ET.Element]:
+    for tag in tags:
+        found = el.find(tag)
+        if found is not None:
+            return found
+    return None
+
+
+def _number(text: Optional[str], nan_ok: bool = False) -> Optional[float]:
+    try:
+        value = float((text or '').strip())
+    except ValueError:
+        return math.nan if nan_ok and text and text.strip() else None
+    return value if nan_ok or math.isfinite(value) else None

@@ -1,0 +1,168 @@
+"""
+Lasers as a robot file declares them (issue 43): their sweep, range, rate, noise, frame, topic.
+
+RANGER declares, as ROS description packages do, a 270-degree laser of 541 rays between 0.2
+and 12 m at 15 Hz with noise (Gazebo classic's ray sensor and its ROS 2 plugin), a 16-ring 3D
+lidar (current Gazebo's gpu_lidar with its own topic and frame id), and a laser whose every
+value is absurd. The sweeps are checked against the scene's geometry, as the camera tests do.
+"""
+
+from dataclasses import replace
+import logging
+import math
+
+from conftest import DEFAULT_SCENE
+import numpy as np
+import pytest
+from sim_node.core.devices.lidar import LaserConfig, LaserScanner, sweep_of
+from sim_node.core.errors import NamespaceInvalidError
+from sim_node.core.models import sensor_tags, sources
+from sim_node.core.world import World
+
+_INERTIA = '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+#: The 3D lidar's height above the floor when RANGER is spawned at z = 0.1 (base) + 0.4.
+LIDAR3D_Z = 0.5
+RANGER = f"""<robot name="ranger">
+  <link name="world"/>
+  <link name="base_link"><inertial><mass value="5"/>{_INERTIA}</inertial></link>
+  <link name="base_front_laser_link"><inertial><mass value="0.1"/>{_INERTIA}</inertial></link>
+  <link name="lidar3d_link"><inertial><mass value="0.1"/>{_INERTIA}</inertial></link>
+  <joint name="anchor" type="fixed"><parent link="world"/><child link="base_link"/></joint>
+  <joint name="front_laser" type="fixed"><parent link="base_link"/>
+    <child link="base_front_laser_link"/><origin xyz="0.2 0 0.1"/></joint>
+  <joint name="lidar3d" type="fixed"><parent link="base_link"/>
+    <child link="lidar3d_link"/><origin xyz="0 0 0.4"/></joint>
+  <gazebo reference="base_front_laser_link">
+    <sensor type="ray" name="front_laser">
+      <update_rate>15</update_rate>
+      <ray>
+        <scan><horizontal><samples>541</samples><resolution>1</resolution>
+          <min_angle>-2.356194</min_angle><max_angle>2.356194</max_angle></horizontal></scan>
+        <range><min>0.2</min><max>12.0</max><resolution>0.01</resolution></range>
+        <noise><type>gaussian</type><mean>0.0</mean><stddev>0.01</stddev></noise>
+      </ray>
+      <plugin name="front_laser" filename="libgazebo_ros_ray_sensor.so">
+        <ros><namespace>/ranger</namespace><remapping>~/out:=scan</remapping></ros>
+        <output_type>sensor_msgs/LaserScan</output_type>
+        <frame_name>base_front_laser_link</frame_name>
+      </plugin>
+    </sensor>
+  </gazebo>
+  <gazebo reference="lidar3d_link">
+    <sensor type="gpu_lidar" name="lidar3d">
+      <topic>points3d</topic><gz_frame_id>lidar3d_link</gz_frame_id>
+      <update_rate>10</update_rate>
+      <lidar>
+        <scan>
+          <horizontal><samples>360</samples><min_angle>-3.14159</min_angle>
+            <max_angle>3.14159</max_angle></horizontal>
+          <vertical><samples>16</samples><min_angle>-0.2618</min_angle>
+            <max_angle>0.2618</max_angle></vertical>
+        </scan>
+        <range><min>0.1</min><max>30</max></range>
+      </lidar>
+    </sensor>
+  </gazebo>
+  <gazebo reference="base_link">
+    <sensor type="ray" name="junk">
+      <update_rate>1000000</update_rate>
+      <ray>
+        <scan><horizontal><samples>1000000000</samples><min_angle>-1</min_angle>
+          <max_angle>1</max_angle></horizontal></scan>
+        <range><min>-1</min><max>-2</max></range>
+        <noise><type>gaussian</type><mean>0</mean><stddev>nan</stddev></noise>
+      </ray>
+      <plugin name="junk" filename="libgazebo_ros_ray_sensor.so">
+        <ros><remapping>~/out:=bad topic!</remapping></ros>
+        <frame_name>not_a_link</frame_name>
+      </plugin>
+    </sensor>
+  </gazebo>
+</robot>"""
+BOX = ('<mujoco><worldbody><body name="crate"><geom type="box" size="0.25 0.25 0.25"/>'
+       '</body></worldbody></mujoco>')
+
+
+@pytest.fixture
+def world():
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('ranger', sources.from_model_text(RANGER), position=[2.0, -2.0, 0.1])
+    return w
+
+
+def declared(w: World) -> dict:
+    return w.model_info.lasers
+
+
+def test_each_declared_value_is_read_with_the_robots_names_under_the_entity(world):
+    front = declared(world)['ranger/front_laser_lidar']
+    assert (front.samples, front.angle_min, front.angle_max) == (541, -2.356194, 2.356194)
+    assert (front.range_min, front.range_max, front.rate_hz) == (0.2, 12.0, 15.0)
+    assert front.noise == (0.0, 0.01) and front.always_on and not front.points
+    assert (front.frame, front.topic) == ('ranger/base_front_laser_link', '/ranger/scan')
+    lidar = declared(world)['ranger/lidar3d_lidar']
+    assert lidar.vertical == (16, -0.2618, 0.2618) and lidar.points
+    assert (lidar.frame, lidar.topic, lidar.rate_hz) == ('ranger/lidar3d_link', 'points3d',
+                                                         10.0)
+
+
+def test_absurd_values_are_left_out_with_a_warning_naming_the_sensor_and_value(caplog):
+    with caplog.at_level(logging.WARNING):
+        src = sources.from_model_text(RANGER)
+    junk = next(d for d in src.urdf_notes.lasers if d.site == 'junk_lidar')
+    assert (junk.rate_hz, junk.samples, junk.range_min, junk.range_max, junk.noise) == \
+        (None, None, None, None, None)
+    assert (junk.frame, junk.topic) == ('base_link', '')  # its link; the node's own topic
+    said = [r.getMessage() for r in caplog.records if "'junk'" in r.getMessage()]
+    for value in ("'1000000'", '1000000000', "('-1', '-2')", "'nan'", "'not_a_link'",
+                  "'bad topic!'"):
+        assert any(value in s for s in said), (value, said)
+    # and the robot spawns with them
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('ranger', src, position=[2.0, -2.0, 0.1])
+    assert 'ranger/junk_lidar' in declared(w)
+
+
+def test_the_declared_sweep_sees_the_scene_as_declared_with_seeded_noise(world):
+    world.spawn('crate', sources.from_model_text(BOX), position=[3.0, -2.0, 0.25])
+    world.step(1)
+    site = 'ranger/front_laser_lidar'
+    sweep = sweep_of(declared(world)[site], LaserConfig())
+    (first,) = LaserScanner(world).scan([site], {site: sweep})
+    (again,) = LaserScanner(world).scan([site], {site: sweep})
+    assert first.ranges.shape == (541,)
+    ahead = round((0.0 - sweep.config.angle_min) / sweep.config.angle_increment)
+    # the laser 0.2 m ahead of the base at x = 2.0, the crate's face at x = 2.75
+    assert first.ranges[ahead] == pytest.approx(0.55, abs=0.05)
+    hits = np.isfinite(first.ranges)
+    (clean,) = LaserScanner(world).scan([site], {site: replace(sweep, noise=None)})
+    noise = first.ranges[hits] - clean.ranges[hits]
+    assert 0.005 < np.std(noise) < 0.02  # its 0.01 m
+    np.testing.assert_array_equal(first.ranges, again.ranges)  # seeded: a run repeats
+
+
+def test_a_3d_lidar_sweeps_its_rings_and_its_lowest_ring_meets_the_floor(world):
+    site = 'ranger/lidar3d_lidar'
+    sweep = sweep_of(declared(world)[site], LaserConfig())
+    world.step(1)
+    (reading,) = LaserScanner(world).scan([site], {site: sweep})
+    assert reading.ranges.shape == (16, 360)
+    lowest = reading.ranges[0]
+    expect = LIDAR3D_Z / math.sin(0.2618)  # down 15 degrees to the floor
+    assert np.median(lowest[np.isfinite(lowest)]) == pytest.approx(expect, rel=0.02)
+    assert not np.isfinite(reading.ranges[-1]).any()  # the highest looks up: the sky
+
+
+def test_a_second_robot_on_the_same_declared_topic_is_refused_unless_namespaced(world):
+    with pytest.raises(NamespaceInvalidError, match="'/ranger/scan'.*'ranger'.*namespace"):
+        world.spawn('twin', sources.from_model_text(RANGER), position=[-2.0, -2.0, 0.1])
+    world.spawn('twin', sources.from_model_text(RANGER), position=[-2.0, -2.0, 0.1],
+                namespace='twin')
+    assert declared(world)['twin/front_laser_lidar'].topic == '/twin/ranger/scan'
+    assert declared(world)['twin/lidar3d_lidar'].topic == '/twin/points3d'
+
+
+@pytest.mark.parametrize('name, ok', [('scan', True), ('/a/b_2', True), ('bad topic!', False),
+                                      ('2scan', False), ('a//b', False), ('', False)])
+def test_topic_names_are_judged_as_ros_judges_them(name, ok):
+    assert sensor_tags.valid_topic(name) is ok
