@@ -284,3 +284,19 @@ def laser_points(reading: LaserReading, frame: str, pos=None, quat_wxyz=None) ->
                   for i, n in enumerate(('x', 'y', 'z'))]
     msg.data = array.array('B', xyz.astype('<f4').tobytes())
     return msg
+
+
+def declared_wrench(msg: WrenchStamped, sign: float, turn_wxyz=None) -> WrenchStamped:
+    """
+    Return a declared force-torque sensor's message from MuJoCo's reading in `msg`.
+
+    `sign` -1: the wrench the child applies to the parent (SDF's ``child_to_parent``);
+    `turn_wxyz`: the child's orientation in the frame to express it in (its parent's).
+    """
+    w = msg.wrench
+    force = sign * np.array([w.force.x, w.force.y, w.force.z])
+    torque = sign * np.array([w.torque.x, w.torque.y, w.torque.z])
+    if turn_wxyz is not None:
+        force, torque = quat.rotate(turn_wxyz, force), quat.rotate(turn_wxyz, torque)
+    msg.wrench.force, msg.wrench.torque = vec(force), vec(torque)
+    return msg

@@ -109,7 +109,7 @@ def test_each_declared_value_is_read_with_the_robots_names_under_the_entity(worl
 def test_absurd_values_are_left_out_with_a_warning_naming_the_sensor_and_value(caplog):
     with caplog.at_level(logging.WARNING):
         src = sources.from_model_text(RANGER)
-    junk = next(d for d in src.urdf_notes.lasers if d.site == 'junk_lidar')
+    junk = next(d for d in src.urdf_notes.sensors if d.site == 'junk_lidar')
     assert (junk.rate_hz, junk.samples, junk.range_min, junk.range_max, junk.noise) == \
         (None, None, None, None, None)
     assert (junk.frame, junk.topic) == ('base_link', '')  # its link; the node's own topic

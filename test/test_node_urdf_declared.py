@@ -9,10 +9,10 @@ view from the tag's horizontal one) and the IMU's gravity.
 import math
 
 from conftest import serve_node, wait_for, Watcher
-import numpy as np
 import pytest
 from sensor_msgs.msg import CameraInfo, Imu, LaserScan, PointCloud2
 from test_core_declared_lasers import RANGER
+from test_core_declared_wrench import HANGER, MASS, ROLL
 from test_core_urdf_declared import SCOUT
 
 BOX = ('<mujoco><worldbody><body name="crate"><geom type="box" size="0.25 0.25 0.25"/>'
@@ -67,18 +67,35 @@ def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, wat
     sub = watch.node.create_subscription(LaserScan, '/ranger/scan', got.append,
                                          qos_profile_sensor_data)
     try:
-        wait_for(lambda: len(got) >= 6, timeout=30)
+        wait_for(lambda: len(got) >= 16, timeout=30)
     finally:
         watch.node.destroy_subscription(sub)
     scan = got[-1]
     assert scan.header.frame_id == 'ranger/base_front_laser_link'
     assert len(scan.ranges) == 541 and scan.angle_min == pytest.approx(-2.356194, abs=1e-6)
     assert (scan.range_min, scan.range_max) == pytest.approx((0.2, 12.0))
-    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got]
-    gaps = np.diff(stamps)
-    assert np.median(gaps) == pytest.approx(1 / 15, abs=0.003)  # 15 Hz of simulated time
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got[1:]]
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    assert rate == pytest.approx(15.0, rel=0.1)  # its 15 Hz, in simulated time
     cloud = latest(watch, PointCloud2, '/points3d')
     assert (cloud.header.frame_id, cloud.height, cloud.width) == ('ranger/lidar3d_link', 16,
                                                                   360)
     junk = latest(watch, LaserScan, 'lasers/ranger/junk_lidar/scan')  # the node's own
     assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'
+
+
+def test_a_declared_force_torque_sensor_reads_m_g_in_its_frame_and_direction(sim, watch):
+    """HANGER (``test_core_declared_wrench``): before, a sensor on a joint published nothing."""
+    from geometry_msgs.msg import WrenchStamped
+    sim.spawn('hanger', resource_string=HANGER, position=(-3.0, -3.0, 1.0))
+    weight = MASS * 9.81
+    child = latest(watch, WrenchStamped, '/hanger/wrist_ft')  # SDF's defaults
+    assert child.header.frame_id == 'hanger/tool'
+    # the tool pulls its parent down, seen from the tool's frame (rolled by ROLL about x)
+    f = child.wrench.force
+    assert (f.x, f.y, f.z) == pytest.approx(
+        (0.0, -weight * math.sin(ROLL), -weight * math.cos(ROLL)), abs=0.02 * weight)
+    held = latest(watch, WrenchStamped, 'sensors/hanger/held_ft/wrench')
+    assert held.header.frame_id == 'hanger/base'
+    f = held.wrench.force  # the parent holds it up, in the parent's (upright) frame
+    assert (f.x, f.y, f.z) == pytest.approx((0.0, 0.0, weight), abs=0.02 * weight)

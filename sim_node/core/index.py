@@ -16,8 +16,8 @@ from .checks import closest_hint
 from .devices import catalog
 from .errors import NotFoundError
 from .models import description
-from .records import (DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT,
-                      STATIC, VELOCITY)
+from .records import (DeclaredLaser, DeclaredWrench, DYNAMIC, EFFORT, EntityRecord, GeomVisual,
+                      ModelInfo, POSITION, ROBOT, STATIC, VELOCITY)
 
 ERR_UNKNOWN_ENTITY = 'no entity named {name!r}; existing: {names}'
 ERR_UNKNOWN_JOINT = 'no commandable (hinge or slide) joint named {name!r}'
@@ -145,7 +145,10 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         link_frames=tuple((alias[rec.root_body], f'{rec.name}/world', *own.world_link)
                           for rec in entities for own in [spawned.get(rec.name)]
                           if own is not None and own.world_link and alias[rec.root_body]),
-        lasers={d.site: d for rec in spawned.values() for d in getattr(rec, 'lasers', ())})
+        lasers={d.site: d for rec in spawned.values() for d in rec.sensors
+                if isinstance(d, DeclaredLaser)},
+        wrenches={d.site: d for rec in spawned.values() for d in rec.sensors
+                  if isinstance(d, DeclaredWrench)})
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

@@ -159,6 +159,28 @@ class DeclaredLaser:
 
 
 @dataclass(frozen=True)
+class DeclaredWrench:
+    """
+    A force-torque sensor a robot file declares on a joint (SDF's ``force_torque``), on its site.
+
+    MuJoCo's force and torque sensors on a site of the joint's child give the wrench the parent
+    applies to the child, in the site's frame, about the site: ``sign`` -1 turns that into
+    SDF's default ``child_to_parent``; ``frame`` 'child' and 'sensor' are the site's frame
+    ('sensor' at the tag's ``<pose>``), 'parent' is turned into the parent link's frame.
+
+    :param site: ``<entity>/<sensor>_ft``; `parent`: the parent link's body name.
+    :param frame_id: the frame its messages name; `topic`: as declared ('' : none).
+    """
+
+    site: str
+    sign: float = -1.0
+    frame: str = 'child'
+    parent: str = ''
+    frame_id: str = ''
+    topic: str = ''
+
+
+@dataclass(frozen=True)
 class ModelInfo:
     """Names and structure of one compiled model; replaced on every recompile (generation)."""
 
@@ -196,6 +218,8 @@ class ModelInfo:
     link_frames: tuple = ()
     #: Site name -> :class:`DeclaredLaser` for the lasers spawned robots declare.
     lasers: dict = field(default_factory=dict)
+    #: Site name -> :class:`DeclaredWrench` for their force-torque sensors.
+    wrenches: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

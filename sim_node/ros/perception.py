@@ -23,6 +23,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Rang
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
+from ..core import quat
 from ..core.config import PerceptionConfig
 from ..core.devices.cameras import CameraRig, select
 from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
@@ -98,6 +99,7 @@ class Perception:
         self._sensor_pubs: dict = {}  # (kind, name) -> publisher
         self._sensor_generation = None
         self._sensor_frames: dict = {}
+        self._sensor_declared: dict = {}  # (kind, name) -> (its DeclaredWrench, parent body)
         self._sensor_lock = threading.Lock()  # the publisher thread reads what sync_sensors sets
         self._running = threading.Event()
         self._thread: Optional[threading.Thread] = None
@@ -146,7 +148,16 @@ class Perception:
                 if sensor.kind == 'imu':
                     pub.publish(pm.imu(sensor, data, snap.time, frame))
                 elif sensor.kind == 'wrench':
-                    pub.publish(pm.wrench(sensor, data, snap.time, frame))
+                    declared = self._sensor_declared.get((sensor.kind, sensor.name))
+                    msg = pm.wrench(sensor, data, snap.time, frame)
+                    if declared is not None:
+                        decl, parent = declared
+                        turn = None
+                        if decl.frame == 'parent' and parent is not None:
+                            turn = quat.mul(quat.conj(snap.body_xquat_wxyz[parent]),
+                                            snap.body_xquat_wxyz[sensor.site.body])
+                        msg = pm.declared_wrench(msg, decl.sign, turn)
+                    pub.publish(msg)
                 elif sensor.kind == 'range':
                     pub.publish(pm.range_reading(sensor, data, snap.time, frame))
                 else:
@@ -169,17 +180,32 @@ class Perception:
         waits for neither (92 touch sensors: 92 publishers).
         """
         sensors = () if info is None else info.sensors
-        frames = {}
+        frames, declared, topics = {}, {}, {}
         for s in sensors:
             if s.kind == 'range':
                 frames[(s.kind, s.name)] = pm.range_frame(info, s, self._prefix)
             elif s.site is not None:
                 frames[(s.kind, s.name)] = pm.site_frame(info, s.site, self._prefix)
+            decl = info.wrenches.get(s.name) if s.kind == 'wrench' else None
+            if decl is not None:  # a force-torque sensor a robot file declares
+                frames[(s.kind, s.name)] = self._prefix + decl.frame_id
+                parent = info.body_names.index(decl.parent) if decl.parent in \
+                    info.body_names else None
+                declared[(s.kind, s.name)] = (decl, parent)
+                if decl.topic:
+                    topics[(s.kind, s.name)] = decl.topic
 
         def create(key):
             msg_type, leaf = SENSOR_TYPES[key[0]]
-            return self._create_publisher(
-                msg_type, f'sensors/{pm.topic_token(key[1])}/{leaf}', qos_profile_sensor_data)
+            default = f'sensors/{pm.topic_token(key[1])}/{leaf}'
+            try:
+                return self._create_publisher(msg_type, topics.get(key, default),
+                                              qos_profile_sensor_data)
+            except Exception as exc:  # noqa: B902 (a name rclpy refuses: ours instead)
+                self._node.get_logger().warning(
+                    f'sensor {key[1]!r}: topic {topics.get(key)!r} is refused ({exc}); '
+                    f'publishing on {default}')
+                return self._create_publisher(msg_type, default, qos_profile_sensor_data)
         keys = [(s.kind, s.name) for s in sensors]
         pubs = dict(self._sensor_pubs)
         for key in keys:
@@ -189,6 +215,7 @@ class Perception:
         with self._sensor_lock:
             self._sensor_pubs = pubs
             self._sensor_frames = frames
+            self._sensor_declared = declared
             self._sensor_generation = None if info is None else info.generation
         for pub in gone:
             self._node.destroy_publisher(pub)

@@ -69,9 +69,9 @@ class Spawned:
     world_link: Optional[tuple] = None
     #: A URDF's Gazebo drive plugin (:func:`sim_node.core.control.bases.drive_plugin`).
     drive: Optional[dict] = None
-    #: The lasers its robot file declares (:class:`~sim_node.core.records.DeclaredLaser`), under
-    #: its name and namespace.
-    lasers: tuple = ()
+    #: The sensors its robot file declares (:class:`~sim_node.core.records.DeclaredLaser`,
+    #: :class:`~sim_node.core.records.DeclaredWrench`), under its name and namespace.
+    sensors: tuple = ()
     #: Bytes of its meshes in the model (:func:`mesh_bytes`), set by the build that spawned it.
     mesh_bytes: int = 0
     #: Bytes its spawn added to MuJoCo's cache of processed meshes (0: they were there).

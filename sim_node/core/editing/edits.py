@@ -113,9 +113,10 @@ class Edits:
         contact = design.contact_of(None) if design.default_contact.is_set else None
         casters_roll = self.live.config.casters_roll
 
-        lasers = tuple(sensor_tags.entity_laser(d, name, namespace)
-                       for d in getattr(source.urdf_notes, 'lasers', ()))
-        _check_topics(name, lasers, design.spawned)
+        tops = [b.name for b in source.spec.worldbody.bodies]
+        sensors = tuple(sensor_tags.entity_sensor(d, name, namespace, tops[0] if tops else '')
+                        for d in getattr(source.urdf_notes, 'sensors', ()))
+        _check_topics(name, sensors, design.spawned)
 
         def apply(spec: mujoco.MjSpec) -> Spawned:
             frame, bodies, root, defaults = editor.attach(spec, name, source, pos, q,
@@ -132,7 +133,7 @@ class Edits:
                            world_link=getattr(source.urdf_notes, 'world_link', None),
                            drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
                                                             ())),
-                           lasers=lasers)
+                           sensors=sensors)
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,
@@ -344,11 +345,11 @@ class Edits:
         self.transaction.change(plan)
 
 
-def _check_topics(name: str, lasers: tuple, spawned) -> None:
+def _check_topics(name: str, sensors: tuple, spawned) -> None:
     """Refuse a spawn whose declared sensor topics another entity's already use."""
     taken = {_absolute(d.topic): other for other, rec in spawned.items()
-             for d in getattr(rec, 'lasers', ()) if d.topic}
-    for d in lasers:
+             for d in rec.sensors if d.topic}
+    for d in sensors:
         other = taken.get(_absolute(d.topic)) if d.topic else None
         if other is not None:
             raise NamespaceInvalidError(ERR_TOPIC_TAKEN.format(

@@ -1,6 +1,9 @@
 """
 What a robot file's sensor tags declare, read and checked: a laser's sweep, rate, frame, topic.
 
+Lasers (:func:`laser`) and force-torque sensors on joints (:func:`force_torque`: SDF's
+``<frame>`` and ``<measure_direction>``, a frame id and a topic as for lasers).
+
 A ``<sensor type="ray|gpu_ray|lidar|gpu_lidar">`` of Gazebo classic (``<ray>``) or current Gazebo
 (``<lidar>``) gives its ``<update_rate>``, ``<always_on>``, ``<scan><horizontal>`` and
 ``<vertical>`` (``samples`` times ``resolution``, ``min_angle``, ``max_angle``), ``<range>``
@@ -23,7 +26,7 @@ import re
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from ..records import DeclaredLaser
+from ..records import DeclaredLaser, DeclaredWrench
 
 log = logging.getLogger(__name__)
 
@@ -165,6 +168,13 @@ def valid_topic(name: str) -> bool:
     return bool(body) and all(_TOKEN.match(t) for t in body.split('/'))
 
 
+def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
+    """Return a declared sensor's record under `entity` (see :func:`entity_laser`)."""
+    if isinstance(decl, DeclaredWrench):
+        return entity_wrench(decl, entity, namespace, root)
+    return entity_laser(decl, entity, namespace)
+
+
 def entity_laser(decl: DeclaredLaser, entity: str, namespace: str) -> DeclaredLaser:
     """
     Return `decl` with its site and frame under `entity` and its topic under `namespace`.
@@ -178,6 +188,49 @@ def entity_laser(decl: DeclaredLaser, entity: str, namespace: str) -> DeclaredLa
         topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
     return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
                    topic=topic)
+
+
+def force_torque(sensor: ET.Element, site: str, parent: str, child: str,
+                 links: Sequence[str]) -> DeclaredWrench:
+    """
+    Read a force_torque tag on a joint: its frame, measure direction, frame id and topic.
+
+    :param parent, child: the joint's links; `links`: every link of the robot.
+    """
+    name = sensor.get('name') or site
+
+    def warn(what: str, value, why: str) -> None:
+        log.warning(WARN.format(sensor=name, what=what, value=value, why=why))
+    frame = (sensor.findtext('force_torque/frame') or 'child').strip().lower()
+    if frame not in ('child', 'parent', 'sensor'):
+        warn('frame', frame, "is not 'child', 'parent' or 'sensor'")
+        frame = 'child'
+    direction = (sensor.findtext('force_torque/measure_direction') or 'child_to_parent')
+    direction = direction.strip().lower()
+    if direction not in ('child_to_parent', 'parent_to_child'):
+        warn('measure_direction', direction, "is not 'child_to_parent' or 'parent_to_child'")
+        direction = 'child_to_parent'
+    own = {'child': child, 'parent': parent, 'sensor': site}[frame]
+    frame_id = _frame(sensor, own, list(links) + [site], warn)
+    return DeclaredWrench(site=site, sign=-1.0 if direction == 'child_to_parent' else 1.0,
+                          frame=frame, parent=parent, frame_id=frame_id,
+                          topic=_topic(sensor, warn))
+
+
+def entity_wrench(decl: DeclaredWrench, entity: str, namespace: str,
+                  root: str = '') -> DeclaredWrench:
+    """
+    Return `decl` under `entity` (and its topic under `namespace`), as :func:`entity_laser`.
+
+    :param root: the robot's root link: its body is the entity itself.
+    """
+    def body(link: str) -> str:
+        return entity if link == root else f'{entity}/{link}'
+    topic = decl.topic
+    if topic and namespace:
+        topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
+    return replace(decl, site=f'{entity}/{decl.site}', parent=body(decl.parent),
+                   frame_id=f'{entity}/{decl.frame_id}', topic=topic)
 
 
 def _first(el: ET.Element, *tags: str) -> Optional[ET.Element]:

@@ -105,8 +105,11 @@ class Prepared:
     joint_limits: dict = field(default_factory=dict)
     #: What :mod:`.urdf_declared` made of the extensions (sensors, interfaces), as text.
     declared: list = field(default_factory=list)
-    #: The lasers its sensor tags declare (:class:`~sim_node.core.records.DeclaredLaser`).
-    lasers: list = field(default_factory=list)
+    #: What its sensor tags declare (:class:`~sim_node.core.records.DeclaredLaser`,
+    #: :class:`~sim_node.core.records.DeclaredWrench`), with its own names.
+    sensors: list = field(default_factory=list)
+    #: joint -> (parent link, child link).
+    joint_links: dict = field(default_factory=dict)
     #: For a root fixed to a link named ``world``: where that link is in the root link's
     #: frame, (position (3,), quaternion wxyz (4,)): the description names it, so /tf has it.
     world_link: Optional[tuple] = None
@@ -138,6 +141,7 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
     model = [e for e in out.extensions if e.tag == 'gazebo' and 'reference' not in e.attrib]
     out.static = any(_true(e.findtext('static')) for e in model)
     out.joint_limits = urdf_declared.joint_limits(root)
+    out.joint_links = urdf_declared.joint_links(root)
     out.self_collide = any(_true(e.findtext('self_collide')) for e in model)
     out.unknown = _drop_unknown(root)
     links = list(root.findall('link'))
@@ -208,8 +212,8 @@ def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
             for g in geoms:
                 if g.contype or g.conaffinity:
                     g.group = COLLISION_GROUP
-    prepared.declared, prepared.lasers = urdf_declared.add(spec, prepared.extensions,
-                                                           prepared.joint_limits)
+    prepared.declared, prepared.sensors = urdf_declared.add(
+        spec, prepared.extensions, prepared.joint_limits, prepared.joint_links)
     _start_inside_ranges(spec)
     if not prepared.self_collide:
         _exclude_self_contacts(spec)

@@ -38,15 +38,20 @@ LASERS = ('ray', 'gpu_ray', 'lidar', 'gpu_lidar')
 VELOCITY_GAIN, STEP = 0.5, 0.002
 
 
-def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> tuple:
+def add(spec: mujoco.MjSpec, extensions: list, limits: dict,
+        joints: Optional[dict] = None) -> tuple:
     """
     Add the declared sensors and interfaces to `spec`.
 
     :param limits: joint -> {'velocity', 'effort'} from the URDF (:func:`joint_limits`).
-    :returns: (what was added, as text; the declared lasers, :class:`.records.DeclaredLaser`
-        with the robot's own names, read by :func:`.sensor_tags.laser`).
+    :param joints: joint -> (parent link, child link), for sensors on joints
+        (:func:`joint_links`).
+    :returns: (what was added, as text; the declared lasers and force-torque sensors,
+        :class:`.records.DeclaredLaser` and :class:`.records.DeclaredWrench` with the robot's
+        own names, read by :mod:`.sensor_tags`).
     """
-    done, lasers = [], []
+    done, declared = [], []
+    joints = joints or {}
     bodies = {b.name: b for b in spec.bodies if b.name}
     for ext in extensions:
         if ext.tag != 'gazebo':
@@ -54,12 +59,17 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> tuple:
         link = ext.get('reference', '')
         for sensor in ext.iter('sensor'):
             body = bodies.get(link)
+            if (sensor.get('type') or '').lower() == 'force_torque' and link in joints:
+                text = _force_torque(spec, link, joints[link], sensor, declared)
+                if text:
+                    done.append(text)
+                continue
             if body is None:
                 log.warning('URDF sensor %r names link %r, which the model lacks: left out',
                             sensor.get('name'), link)
                 continue
             try:
-                text = _sensor(spec, body, sensor, lasers)
+                text = _sensor(spec, body, sensor, declared)
             except ValueError as exc:  # MuJoCo refused a name or value: the robot still spawns
                 log.warning('URDF sensor %r on %r left out: %s', sensor.get('name'), link, exc)
                 continue
@@ -73,7 +83,7 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict) -> tuple:
             continue
         if text:
             done.append(text)
-    return done, lasers
+    return done, declared
 
 
 def _floats(text: Optional[str], n: int) -> Optional[list]:
@@ -121,6 +131,34 @@ def _sensor(spec, body, sensor: ET.Element, lasers: list) -> str:
     return ''
 
 
+def _force_torque(spec, joint: str, links: tuple, sensor: ET.Element, declared: list) -> str:
+    """Add a force-torque sensor on a joint: force and torque sensors on a site of its child."""
+    parent, child = links
+    body = spec.body(child)
+    if body is None:
+        log.warning('URDF sensor %r: joint %r has no child link the model keeps; left out',
+                    sensor.get('name'), joint)
+        return ''
+    name = _free_name(spec, sensor.get('name') or f'{joint}_ft')
+    frame = (sensor.findtext('force_torque/frame') or 'child').strip().lower()
+    pose = (_floats(sensor.findtext('pose'), 6) if frame == 'sensor' else None) or [0.0] * 6
+    site = body.add_site(name=f'{name}_ft', pos=pose[:3], quat=_rpy_quat(*pose[3:]))
+    for stype, suffix in ((mujoco.mjtSensor.mjSENS_FORCE, 'force'),
+                          (mujoco.mjtSensor.mjSENS_TORQUE, 'torque')):
+        spec.add_sensor(name=f'{name}_{suffix}', type=stype, objtype=mujoco.mjtObj.mjOBJ_SITE,
+                        objname=site.name)
+    declared.append(sensor_tags.force_torque(sensor, site.name, parent, child,
+                                             [b.name for b in spec.bodies if b.name]))
+    return f'force-torque sensor {name!r} on joint {joint!r}'
+
+
+def joint_links(root: ET.Element) -> dict:
+    """Return joint -> (parent link, child link) of a URDF's joints."""
+    return {j.get('name', ''): (j.find('parent').get('link', ''), j.find('child').get('link', ''))
+            for j in root.findall('joint')
+            if j.find('parent') is not None and j.find('child') is not None}
+
+
 def _free_name(spec, name: str) -> str:
     """
     Return `name`, or `name_2`, `name_3`... if a sensor's element already takes it.
@@ -130,7 +168,7 @@ def _free_name(spec, name: str) -> str:
     """
     def taken(n):
         return (spec.camera(n) is not None or spec.site(f'{n}_imu') is not None
-                or spec.site(f'{n}_lidar') is not None
+                or spec.site(f'{n}_lidar') is not None or spec.site(f'{n}_ft') is not None
                 or spec.sensor(f'{n}_orientation') is not None)
     out, k = name, 1
     while taken(out):
