@@ -176,12 +176,16 @@ def imu(sensor: SensorSpec, sensordata: np.ndarray, sim_time: float, frame: str)
 
     A missing part has its covariance's first element at -1, as Imu.msg asks.
     """
+    return imu_sample(_values(sensordata, sensor.adr.get('quat')),
+                      _values(sensordata, sensor.adr.get('gyro')),
+                      _values(sensordata, sensor.adr.get('accelerometer')), sim_time, frame)
+
+
+def imu_sample(q, gyro, acc, sim_time: float, frame: str) -> Imu:
+    """Return an IMU's orientation (wxyz), angular velocity and acceleration as Imu (None: -1)."""
     msg = Imu()
     msg.header.stamp = stamp(sim_time)
     msg.header.frame_id = frame
-    q = _values(sensordata, sensor.adr.get('quat'))
-    gyro = _values(sensordata, sensor.adr.get('gyro'))
-    acc = _values(sensordata, sensor.adr.get('accelerometer'))
     if q is not None:
         msg.orientation = quat_to_msg(q)
     else:

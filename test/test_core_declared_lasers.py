@@ -1,10 +1,11 @@
 """
-Lasers as a robot file declares them (issue 43): their sweep, range, rate, noise, frame, topic.
+Lasers and IMUs as a robot file declares them (issue 43): sweep, range, rate, noise, frame, topic.
 
 RANGER declares, as ROS description packages do, a 270-degree laser of 541 rays between 0.2
 and 12 m at 15 Hz with noise (Gazebo classic's ray sensor and its ROS 2 plugin), a 16-ring 3D
-lidar (current Gazebo's gpu_lidar with its own topic and frame id), and a laser whose every
-value is absurd. The sweeps are checked against the scene's geometry, as the camera tests do.
+lidar (current Gazebo's gpu_lidar with its own topic and frame id), an IMU at 250 Hz with
+noise, and a laser whose every value is absurd. The sweeps are checked against the scene's
+geometry, as the camera tests do; the IMU against gravity, at rest.
 """
 
 from dataclasses import replace
@@ -64,6 +65,22 @@ RANGER = f"""<robot name="ranger">
     </sensor>
   </gazebo>
   <gazebo reference="base_link">
+    <sensor type="imu" name="base_imu">
+      <update_rate>250</update_rate>
+      <imu>
+        <angular_velocity>
+          <x><noise type="gaussian"><mean>0</mean><stddev>0.01</stddev></noise></x>
+          <y><noise type="gaussian"><mean>0</mean><stddev>0.01</stddev></noise></y>
+          <z><noise type="gaussian"><mean>0</mean><stddev>0.01</stddev></noise></z>
+        </angular_velocity>
+        <linear_acceleration>
+          <z><noise type="gaussian"><mean>0</mean><stddev>0.1</stddev></noise></z>
+        </linear_acceleration>
+      </imu>
+      <plugin name="base_imu" filename="libgazebo_ros_imu_sensor.so">
+        <ros><namespace>/ranger</namespace><remapping>~/out:=imu</remapping></ros>
+      </plugin>
+    </sensor>
     <sensor type="ray" name="junk">
       <update_rate>1000000</update_rate>
       <ray>
@@ -166,3 +183,28 @@ def test_a_second_robot_on_the_same_declared_topic_is_refused_unless_namespaced(
                                       ('2scan', False), ('a//b', False), ('', False)])
 def test_topic_names_are_judged_as_ros_judges_them(name, ok):
     assert sensor_tags.valid_topic(name) is ok
+
+
+def test_a_declared_imu_samples_at_its_rate_in_simulated_time_with_its_seeded_noise(world):
+    world.take_sensor_samples()  # what the settling left
+    t0 = world.time
+    world.step(500)  # one second of simulated time, in one batch
+    got = [x for x in world.take_sensor_samples() if x[0] == 'ranger/base_imu_imu']
+    times = np.array([x[1] for x in got])
+    assert len(got) == pytest.approx(250, abs=1)
+    # the first when the model came, then every 4 ms on multiples of it
+    assert np.diff(times[1:]) == pytest.approx(np.full(len(times) - 2, 1 / 250), abs=1e-9)
+    assert t0 <= times[0] < t0 + 1 / 250 + 1e-9
+    gyro = np.array([x[3] for x in got])
+    acc = np.array([x[4] for x in got])
+    assert np.std(gyro, axis=0) == pytest.approx([0.01] * 3, rel=0.2)  # at rest: noise only
+    assert np.mean(acc[:, 2]) == pytest.approx(9.81, abs=0.03)  # gravity, held up
+    assert np.std(acc[:, 2]) == pytest.approx(0.1, rel=0.2) and np.std(acc[:, 0]) < 1e-6
+    imu = world.model_info.imus['ranger/base_imu_imu']
+    assert (imu.frame, imu.topic, imu.rate_hz) == ('ranger/base_link', '/ranger/imu', 250.0)
+    other = World.from_file(str(DEFAULT_SCENE))  # seeded: the same run, the same noise
+    other.spawn('ranger', sources.from_model_text(RANGER), position=[2.0, -2.0, 0.1])
+    other.take_sensor_samples()
+    other.step(500)
+    again = [x for x in other.take_sensor_samples() if x[0] == 'ranger/base_imu_imu']
+    np.testing.assert_array_equal(np.array([x[3] for x in again]), gyro)

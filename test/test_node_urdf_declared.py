@@ -61,7 +61,7 @@ def test_the_declared_laser_camera_and_imu_publish_what_the_scene_shows(sim, wat
 
 def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, watch):
     """RANGER (``test_core_declared_lasers``): before, every laser was the node's own."""
-    from rclpy.qos import qos_profile_sensor_data
+    from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
     sim.spawn('ranger', resource_string=RANGER, position=(-2.0, 2.0, 0.1))
     got = []
     sub = watch.node.create_subscription(LaserScan, '/ranger/scan', got.append,
@@ -80,6 +80,18 @@ def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, wat
     cloud = latest(watch, PointCloud2, '/points3d')
     assert (cloud.header.frame_id, cloud.height, cloud.width) == ('ranger/lidar3d_link', 16,
                                                                   360)
+    # the IMU: its topic and link frame, 250 samples per simulated second, each stamped
+    imus = []
+    sub = watch.node.create_subscription(Imu, '/ranger/imu', imus.append, QoSProfile(
+        depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+    try:
+        wait_for(lambda: len(imus) >= 200, timeout=30)
+    finally:
+        watch.node.destroy_subscription(sub)
+    assert imus[-1].header.frame_id == 'ranger/base_link'
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in imus[1:]]
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(250.0, rel=0.02)
+    assert imus[-1].linear_acceleration.z == pytest.approx(9.81, abs=0.5)
     junk = latest(watch, LaserScan, 'lasers/ranger/junk_lidar/scan')  # the node's own
     assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'
 

@@ -159,6 +159,25 @@ class DeclaredLaser:
 
 
 @dataclass(frozen=True)
+class DeclaredImu:
+    """
+    An IMU as a robot file declares it, on its site ``<entity>/<sensor>_imu``.
+
+    Sampled in the stepping loop at `rate_hz` of simulated time (:mod:`.stepping.sampling`),
+    with Gaussian noise on its gyro and accelerometer: (mean (3,), standard deviation (3,)) per
+    axis as the tag gives them, or None.
+    """
+
+    site: str
+    rate_hz: float = 100.0
+    gyro_noise: Optional[tuple] = None
+    accel_noise: Optional[tuple] = None
+    always_on: bool = True
+    frame: str = ''
+    topic: str = ''
+
+
+@dataclass(frozen=True)
 class DeclaredWrench:
     """
     A force-torque sensor a robot file declares on a joint (SDF's ``force_torque``), on its site.
@@ -220,6 +239,8 @@ class ModelInfo:
     lasers: dict = field(default_factory=dict)
     #: Site name -> :class:`DeclaredWrench` for their force-torque sensors.
     wrenches: dict = field(default_factory=dict)
+    #: Site name -> :class:`DeclaredImu` for their IMUs.
+    imus: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

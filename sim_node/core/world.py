@@ -7,9 +7,8 @@ its contract in its docstring. What is current (the lock, the model, data, index
 generation) is one :class:`~.stepping.live.Live`; the steps and the stepping loop's protocol are
 :mod:`.stepping.steps` (``world.stepping``); structural edits are planned in
 :mod:`.editing.edits` and made by the one commit path, :mod:`.editing.transaction`; state
-writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
-:mod:`.control.motion`; addresses come from :mod:`.index`, reads from :mod:`.state`. The
-threading contract is in the package docstring (``sim_node.core``).
+writes are :mod:`.editing.writes`; trajectories, bases, pushes, gains :mod:`.control.motion`;
+addresses :mod:`.index`, reads :mod:`.state`. Threading: the package docstring.
 """
 
 import contextlib
@@ -33,7 +32,7 @@ from .index import STATE_SPEC
 from .models import asset_store, description, sources
 from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
                       RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
-from .stepping import guard
+from .stepping import guard, sampling
 from .stepping.live import Live
 from .stepping.steps import Stepping
 
@@ -161,6 +160,10 @@ class World:
     def model_info(self) -> ModelInfo:
         with self._live.lock:
             return self._live.index.info
+
+    def take_sensor_samples(self) -> list:
+        """Take the declared IMUs' samples so far (:func:`.stepping.sampling.drain`)."""
+        return sampling.drain(self._live.samples)
 
     @property
     def timestep(self) -> float:
@@ -367,13 +370,11 @@ class World:
         Drive an entity's base at `vx`, `vy` (m/s) and `wz` (rad/s), in its own frame.
 
         From the next step on, until another command, a reset, or `timeout` simulated seconds
-        without one (then it stops; 0: never, as Gazebo's DiffDrive system). The base's own
-        motion tracks the command (see :mod:`.control.bases`). A differential drive ignores
-        `vy`.
+        without one (then it stops; 0: never, as Gazebo's DiffDrive system). Its motion tracks
+        the command (:mod:`.control.bases`). A differential drive ignores `vy`.
 
-        :returns: what the base could not take, in words (empty: all of it): `vy` on a
-            differential drive; the command before this one needing more than the model's
-            actuators give (:data:`.bases.NOTE_BEYOND`).
+        :returns: what it could not take, in words: `vy` on a differential drive, a command
+            beyond its actuators (:data:`.control.bases.NOTE_BEYOND`); empty: all of it.
 
         :raises NotFoundError: no such entity.
         :raises InvalidArgumentError: it has no base; a value not finite or beyond

@@ -18,7 +18,7 @@ from msg_adapters import perception as pm
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Range
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
@@ -31,6 +31,9 @@ from ..core.devices.rendering import RenderingUnavailableError
 from ..core.records import ModelInfo, Snapshot
 from ..session import Loaded
 
+#: For sensors sampled at their own rates: the samples of one publishing tick at 1 kHz fit.
+SAMPLED_QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,
+                         durability=DurabilityPolicy.VOLATILE)
 SENSOR_TYPES = {'imu': (Imu, 'imu'), 'wrench': (WrenchStamped, 'wrench'),
                 'range': (Range, 'range'), 'generic': (Float64MultiArray, 'values')}
 #: Niceness of the camera and laser thread (and of the renderer threads it starts).
@@ -142,9 +145,12 @@ class Perception:
             if info.generation != self._sensor_generation:
                 return
             data = snap.sensordata
+            self._publish_samples(info)
             for sensor in info.sensors:
                 pub = self._sensor_pubs[(sensor.kind, sensor.name)]
                 frame = self._sensor_frames.get((sensor.kind, sensor.name), '')
+                if sensor.kind == 'imu' and sensor.name in info.imus:
+                    continue  # sampled at its own rate: _publish_samples
                 if sensor.kind == 'imu':
                     pub.publish(pm.imu(sensor, data, snap.time, frame))
                 elif sensor.kind == 'wrench':
@@ -162,6 +168,20 @@ class Perception:
                     pub.publish(pm.range_reading(sensor, data, snap.time, frame))
                 else:
                     pub.publish(pm.generic(sensor, data))
+
+    def _publish_samples(self, info: ModelInfo) -> None:
+        """Publish the declared IMUs' samples the loop took, each with its simulated time."""
+        sim = self._loaded
+        if sim is None:
+            return
+        for site, t, q, gyro, acc in sim.world.take_sensor_samples():
+            pub = self._sensor_pubs.get(('imu', site))
+            decl = info.imus.get(site)
+            if pub is None or decl is None:
+                continue  # its model is gone
+            if not decl.always_on and pub.get_subscription_count() == 0:
+                continue
+            pub.publish(pm.imu_sample(q, gyro, acc, t, self._sensor_frames[('imu', site)]))
 
     def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
         """
@@ -186,6 +206,11 @@ class Perception:
                 frames[(s.kind, s.name)] = pm.range_frame(info, s, self._prefix)
             elif s.site is not None:
                 frames[(s.kind, s.name)] = pm.site_frame(info, s.site, self._prefix)
+            imu = info.imus.get(s.name) if s.kind == 'imu' else None
+            if imu is not None:  # an IMU a robot file declares
+                frames[(s.kind, s.name)] = self._prefix + imu.frame
+                if imu.topic:
+                    topics[(s.kind, s.name)] = imu.topic
             decl = info.wrenches.get(s.name) if s.kind == 'wrench' else None
             if decl is not None:  # a force-torque sensor a robot file declares
                 frames[(s.kind, s.name)] = self._prefix + decl.frame_id
@@ -198,9 +223,11 @@ class Perception:
         def create(key):
             msg_type, leaf = SENSOR_TYPES[key[0]]
             default = f'sensors/{pm.topic_token(key[1])}/{leaf}'
+            # a declared IMU's samples go out in bursts (those of one publishing tick)
+            qos = SAMPLED_QOS if key[0] == 'imu' and key[1] in info.imus else \
+                qos_profile_sensor_data
             try:
-                return self._create_publisher(msg_type, topics.get(key, default),
-                                              qos_profile_sensor_data)
+                return self._create_publisher(msg_type, topics.get(key, default), qos)
             except Exception as exc:  # noqa: B902 (a name rclpy refuses: ours instead)
                 self._node.get_logger().warning(
                     f'sensor {key[1]!r}: topic {topics.get(key)!r} is refused ({exc}); '

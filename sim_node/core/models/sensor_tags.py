@@ -26,12 +26,14 @@ import re
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from ..records import DeclaredLaser, DeclaredWrench
+from ..records import DeclaredImu, DeclaredLaser, DeclaredWrench
 
 log = logging.getLogger(__name__)
 
 #: The most scans (or samples) per simulated second a declared sensor may ask for.
 MAX_RATE_HZ = 1000.0
+#: An IMU's samples per simulated second when its tag gives no update_rate.
+DEFAULT_IMU_RATE_HZ = 100.0
 #: The most rays one sweep of a declared laser may cast (horizontal times vertical).
 MAX_RAYS = 100_000
 #: The farthest a declared laser may see (m).
@@ -47,17 +49,9 @@ def laser(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> Dec
     :param site: the site made for it in the robot's model (``<sensor>_lidar``).
     :param link: the link it is on; `links`: every link of the robot (frames it may name).
     """
-    name = sensor.get('name') or site
     ray = _first(sensor, 'ray', 'lidar')
-
-    def warn(what: str, value, why: str) -> None:
-        log.warning(WARN.format(sensor=name, what=what, value=value, why=why))
-
-    rate = _number(sensor.findtext('update_rate'))
-    if rate is not None and not 0 < rate <= MAX_RATE_HZ:
-        warn('update_rate', sensor.findtext('update_rate'), f'is not in (0, {MAX_RATE_HZ:g}] Hz')
-        rate = None
-    out = DeclaredLaser(site=site, rate_hz=rate,
+    warn = _warner(sensor, site)
+    out = DeclaredLaser(site=site, rate_hz=_rate(sensor, warn),
                         always_on=(sensor.findtext('always_on') or 'true').strip().lower()
                         not in ('0', 'false'))
     if ray is not None:
@@ -172,6 +166,12 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
     """Return a declared sensor's record under `entity` (see :func:`entity_laser`)."""
     if isinstance(decl, DeclaredWrench):
         return entity_wrench(decl, entity, namespace, root)
+    if isinstance(decl, DeclaredImu):
+        topic = decl.topic
+        if topic and namespace:
+            topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
+        return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
+                       topic=topic)
     return entity_laser(decl, entity, namespace)
 
 
@@ -190,6 +190,37 @@ def entity_laser(decl: DeclaredLaser, entity: str, namespace: str) -> DeclaredLa
                    topic=topic)
 
 
+def imu(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> DeclaredImu:
+    """Read an IMU tag: its rate, its gyro's and accelerometer's noise, frame and topic."""
+    warn = _warner(sensor, site)
+    rate = _rate(sensor, warn)
+    noises = {}
+    for part in ('angular_velocity', 'linear_acceleration'):
+        axes = [sensor.find(f'imu/{part}/{axis}/noise') for axis in 'xyz']
+        if not any(a is not None for a in axes):
+            continue
+        mean, std = [0.0] * 3, [0.0] * 3
+        for k, noise in enumerate(axes):
+            if noise is None or (noise.get('type') or noise.findtext('type') or
+                                 'gaussian').strip() != 'gaussian':
+                continue
+            m = _number(noise.findtext('mean'), nan_ok=True) or 0.0
+            sd = _number(noise.findtext('stddev'), nan_ok=True) or 0.0
+            if not (math.isfinite(m) and math.isfinite(sd) and sd >= 0):
+                warn(f'{part} noise', (noise.findtext('mean'), noise.findtext('stddev')),
+                     'is not a finite mean and a standard deviation >= 0')
+                continue
+            mean[k], std[k] = m, sd
+        if any(std) or any(mean):
+            noises[part] = (tuple(mean), tuple(std))
+    return DeclaredImu(site=site, rate_hz=rate or DEFAULT_IMU_RATE_HZ,
+                       gyro_noise=noises.get('angular_velocity'),
+                       accel_noise=noises.get('linear_acceleration'),
+                       always_on=(sensor.findtext('always_on') or 'true').strip().lower()
+                       not in ('0', 'false'),
+                       frame=_frame(sensor, link, links, warn), topic=_topic(sensor, warn))
+
+
 def force_torque(sensor: ET.Element, site: str, parent: str, child: str,
                  links: Sequence[str]) -> DeclaredWrench:
     """
@@ -197,10 +228,7 @@ def force_torque(sensor: ET.Element, site: str, parent: str, child: str,
 
     :param parent, child: the joint's links; `links`: every link of the robot.
     """
-    name = sensor.get('name') or site
-
-    def warn(what: str, value, why: str) -> None:
-        log.warning(WARN.format(sensor=name, what=what, value=value, why=why))
+    warn = _warner(sensor, site)
     frame = (sensor.findtext('force_torque/frame') or 'child').strip().lower()
     if frame not in ('child', 'parent', 'sensor'):
         warn('frame', frame, "is not 'child', 'parent' or 'sensor'")
@@ -231,6 +259,24 @@ def entity_wrench(decl: DeclaredWrench, entity: str, namespace: str,
         topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
     return replace(decl, site=f'{entity}/{decl.site}', parent=body(decl.parent),
                    frame_id=f'{entity}/{decl.frame_id}', topic=topic)
+
+
+def _warner(sensor: ET.Element, site: str):
+    """Return a function that warns, naming the sensor, the value and why it is left out."""
+    name = sensor.get('name') or site
+
+    def warn(what: str, value, why: str) -> None:
+        log.warning(WARN.format(sensor=name, what=what, value=value, why=why))
+    return warn
+
+
+def _rate(sensor: ET.Element, warn) -> Optional[float]:
+    """Return the tag's update rate (Hz); None where it gives none or an absurd one (said)."""
+    rate = _number(sensor.findtext('update_rate'))
+    if rate is not None and not 0 < rate <= MAX_RATE_HZ:
+        warn('update_rate', sensor.findtext('update_rate'), f'is not in (0, {MAX_RATE_HZ:g}] Hz')
+        return None
+    return rate
 
 
 def _first(el: ET.Element, *tags: str) -> Optional[ET.Element]:

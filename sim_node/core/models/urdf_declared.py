@@ -94,7 +94,7 @@ def _floats(text: Optional[str], n: int) -> Optional[list]:
     return values if len(values) == n and all(math.isfinite(v) for v in values) else None
 
 
-def _sensor(spec, body, sensor: ET.Element, lasers: list) -> str:
+def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
     kind = (sensor.get('type') or '').lower()
     name = _free_name(spec, sensor.get('name') or f'{body.name}_{kind}')
     pose = _floats(sensor.findtext('pose'), 6) or [0.0] * 6
@@ -120,11 +120,13 @@ def _sensor(spec, body, sensor: ET.Element, lasers: list) -> str:
                               (mujoco.mjtSensor.mjSENS_ACCELEROMETER, 'accel')):
             spec.add_sensor(name=f'{name}_{suffix}', type=stype,
                             objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site.name)
+        links = [b.name for b in spec.bodies if b.name]
+        declared.append(sensor_tags.imu(sensor, site.name, body.name, links))
         return f'IMU {name!r} on {body.name!r}'
     if kind in LASERS:
         body.add_site(name=f'{name}_lidar', pos=pos, quat=quat)
-        lasers.append(sensor_tags.laser(sensor, f'{name}_lidar', body.name,
-                                        [b.name for b in spec.bodies if b.name]))
+        links = [b.name for b in spec.bodies if b.name]
+        declared.append(sensor_tags.laser(sensor, f'{name}_lidar', body.name, links))
         return f'laser {name!r} on {body.name!r}'
     log.warning('URDF sensor %r of type %r: not a kind this simulator makes (cameras, IMUs, '
                 'lasers); left out', name, kind)

@@ -18,6 +18,7 @@ from typing import Optional
 import mujoco
 import numpy as np
 
+from . import sampling
 from .guard import DivergenceGuard
 from .lock import WorldLock
 from .. import index as model_index
@@ -61,6 +62,9 @@ class Live:
         self.stale_kinematics = self.stale_dynamics = True
         #: Notified (a leaf lock) each time a new model becomes the world's.
         self.new_model = threading.Condition(threading.Lock())
+        #: Declared sensors sampled as the world steps (:mod:`.sampling`), and their queue.
+        self.sampler = None
+        self.samples = sampling.new_queue()
         self.adopt_locked(model, mujoco.MjData(model))
         self.reset_state_locked(keep_time=False)
 

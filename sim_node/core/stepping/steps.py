@@ -14,6 +14,7 @@ from typing import Callable, Optional
 import mujoco
 import numpy as np
 
+from . import sampling
 from .guard import clean
 from .live import Live
 from .. import state
@@ -131,22 +132,29 @@ class Stepping:
             before = np.empty(live.index.state_size)
             mujoco.mj_getState(m, d, before, STATE_SPEC)
             ctrl = None  # already in `before`
+        sampler = live.sampler
+        if sampler is None or sampler.generation != live.index.generation:
+            sampler = live.sampler = sampling.Sampler(live.index.info, live.samples)
         if control.per_step:
-            for _ in range(n):
-                control.apply(m, d)
-                mujoco.mj_step(m, d)
-        elif control.batched:  # a base's timeout inside the batch stops it on time
+            self._step_each(m, d, n, sampler)
+        elif control.batched or sampler:
+            # stop the batch where a base's command times out or a declared sensor samples
             left = n
             while left > 0:
-                due = control.batch_deadline(d.time)
-                k = left if due == math.inf else min(left, max(1, math.ceil(
-                    (due - d.time) / m.opt.timestep + 1e-9)))
+                k = left
+                due = control.batch_deadline(d.time) if control.batched else math.inf
+                if due != math.inf:
+                    k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep + 1e-9)))
+                due = sampler.next_due(float(d.time)) if sampler else math.inf
+                if due != math.inf:
+                    k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep - 1e-6)))
                 mujoco.mj_step(m, d, k)
                 left -= k
-                if left and control.before_batch(m, d) and control.per_step:
-                    for _ in range(left):
-                        control.apply(m, d)
-                        mujoco.mj_step(m, d)
+                if sampler:
+                    sampler.collect(d)
+                if left and control.batched and control.before_batch(m, d) \
+                        and control.per_step:
+                    self._step_each(m, d, left, sampler)
                     left = 0
         else:
             mujoco.mj_step(m, d, n)
@@ -165,6 +173,15 @@ class Stepping:
         if then is not None:
             then(m, d)
         return live.step_count
+
+    def _step_each(self, m: mujoco.MjModel, d: mujoco.MjData, n: int, sampler) -> None:
+        """Step `n` times with the controls applied before each step (and samples after)."""
+        control = self.live.control
+        for _ in range(n):
+            control.apply(m, d)
+            mujoco.mj_step(m, d)
+            if sampler:
+                sampler.collect(d)
 
     def _diverged_locked(self, before: np.ndarray, n: int, ctrl: Optional[np.ndarray]) -> None:
         live = self.live
