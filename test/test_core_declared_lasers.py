@@ -33,6 +33,21 @@ RANGER = f"""<robot name="ranger">
     <child link="base_front_laser_link"/><origin xyz="0.2 0 0.1"/></joint>
   <joint name="lidar3d" type="fixed"><parent link="base_link"/>
     <child link="lidar3d_link"/><origin xyz="0 0 0.4"/></joint>
+  <link name="head_cam_optical_frame"/>
+  <joint name="head_cam_optical" type="fixed"><parent link="base_link"/>
+    <child link="head_cam_optical_frame"/><origin rpy="-1.5708 0 -1.5708"/></joint>
+  <gazebo reference="base_link">
+    <sensor type="camera" name="head_cam">
+      <update_rate>7</update_rate>
+      <camera><horizontal_fov>1.2</horizontal_fov>
+        <image><width>400</width><height>300</height></image></camera>
+      <plugin name="head_cam" filename="libgazebo_ros_camera.so">
+        <ros><namespace>/ranger</namespace></ros>
+        <camera_name>head_front_camera</camera_name>
+        <frame_name>head_cam_optical_frame</frame_name>
+      </plugin>
+    </sensor>
+  </gazebo>
   <gazebo reference="base_front_laser_link">
     <sensor type="ray" name="front_laser">
       <update_rate>15</update_rate>
@@ -126,7 +141,7 @@ def test_each_declared_value_is_read_with_the_robots_names_under_the_entity(worl
 def test_absurd_values_are_left_out_with_a_warning_naming_the_sensor_and_value(caplog):
     with caplog.at_level(logging.WARNING):
         src = sources.from_model_text(RANGER)
-    junk = next(d for d in src.urdf_notes.sensors if d.site == 'junk_lidar')
+    junk = next(d for d in src.urdf_notes.sensors if getattr(d, 'site', '') == 'junk_lidar')
     assert (junk.rate_hz, junk.samples, junk.range_min, junk.range_max, junk.noise) == \
         (None, None, None, None, None)
     assert (junk.frame, junk.topic) == ('base_link', '')  # its link; the node's own topic
@@ -171,7 +186,7 @@ def test_a_3d_lidar_sweeps_its_rings_and_its_lowest_ring_meets_the_floor(world):
 
 
 def test_a_second_robot_on_the_same_declared_topic_is_refused_unless_namespaced(world):
-    with pytest.raises(NamespaceInvalidError, match="'/ranger/scan'.*'ranger'.*namespace"):
+    with pytest.raises(NamespaceInvalidError, match="on topic '/ranger/.*'ranger'.*namespace"):
         world.spawn('twin', sources.from_model_text(RANGER), position=[-2.0, -2.0, 0.1])
     world.spawn('twin', sources.from_model_text(RANGER), position=[-2.0, -2.0, 0.1],
                 namespace='twin')
@@ -208,3 +223,10 @@ def test_a_declared_imu_samples_at_its_rate_in_simulated_time_with_its_seeded_no
     other.step(500)
     again = [x for x in other.take_sensor_samples() if x[0] == 'ranger/base_imu_imu']
     np.testing.assert_array_equal(np.array([x[3] for x in again]), gyro)
+
+
+def test_a_declared_camera_keeps_its_size_rate_frame_and_topic(world):
+    cam = world.model_info.cameras_declared['ranger/head_cam']
+    assert (cam.width, cam.height, cam.rate_hz) == (400, 300, 7.0)
+    assert (cam.frame, cam.topic) == ('ranger/head_cam_optical_frame',
+                                      '/ranger/head_front_camera')

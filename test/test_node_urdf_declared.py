@@ -92,6 +92,20 @@ def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, wat
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in imus[1:]]
     assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(250.0, rel=0.02)
     assert imus[-1].linear_acceleration.z == pytest.approx(9.81, abs=0.5)
+    # the camera: its size, its optical frame link, its camera_name's topics, 7 Hz
+    images = []
+    sub = watch.node.create_subscription(CameraInfo, '/ranger/head_front_camera/camera_info',
+                                         images.append, qos_profile_sensor_data)
+    try:
+        wait_for(lambda: len(images) >= 6, timeout=60)
+    finally:
+        watch.node.destroy_subscription(sub)
+    info = images[-1]
+    assert (info.width, info.height, info.header.frame_id) == (
+        400, 300, 'ranger/head_cam_optical_frame')
+    assert info.k[0] == pytest.approx(200 / math.tan(0.6), rel=1e-3)  # its hfov of 1.2 rad
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in images[1:]]
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(7.0, rel=0.1)
     junk = latest(watch, LaserScan, 'lasers/ranger/junk_lidar/scan')  # the node's own
     assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'
 

@@ -16,8 +16,9 @@ from .checks import closest_hint
 from .devices import catalog
 from .errors import NotFoundError
 from .models import description
-from .records import (DeclaredImu, DeclaredLaser, DeclaredWrench, DYNAMIC, EFFORT, EntityRecord,
-                      GeomVisual, ModelInfo, POSITION, ROBOT, STATIC, VELOCITY)
+from .records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench, DYNAMIC,
+                      EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT, STATIC,
+                      VELOCITY)
 
 ERR_UNKNOWN_ENTITY = 'no entity named {name!r}; existing: {names}'
 ERR_UNKNOWN_JOINT = 'no commandable (hinge or slide) joint named {name!r}'
@@ -150,7 +151,9 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         wrenches={d.site: d for rec in spawned.values() for d in rec.sensors
                   if isinstance(d, DeclaredWrench)},
         imus={d.site: d for rec in spawned.values() for d in rec.sensors
-              if isinstance(d, DeclaredImu)})
+              if isinstance(d, DeclaredImu)},
+        cameras_declared={d.camera: d for rec in spawned.values() for d in rec.sensors
+                          if isinstance(d, DeclaredCamera)})
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

@@ -159,6 +159,26 @@ class DeclaredLaser:
 
 
 @dataclass(frozen=True)
+class DeclaredCamera:
+    """
+    A camera as a robot file declares it (a Gazebo camera, depth or RGB-D sensor).
+
+    :param camera: its MuJoCo camera, ``<entity>/<sensor>``.
+    :param width, height: pixels; `rate_hz`: images per simulated second (None: the node's).
+    :param frame: the frame its images name (an optical frame link of the robot, or '': the
+        node's own optical frame); `topic`: the base of its topics ('' : the node's own).
+    """
+
+    camera: str
+    width: Optional[int] = None
+    height: Optional[int] = None
+    rate_hz: Optional[float] = None
+    always_on: bool = True
+    frame: str = ''
+    topic: str = ''
+
+
+@dataclass(frozen=True)
 class DeclaredImu:
     """
     An IMU as a robot file declares it, on its site ``<entity>/<sensor>_imu``.
@@ -241,6 +261,8 @@ class ModelInfo:
     wrenches: dict = field(default_factory=dict)
     #: Site name -> :class:`DeclaredImu` for their IMUs.
     imus: dict = field(default_factory=dict)
+    #: Camera name -> :class:`DeclaredCamera` for their cameras.
+    cameras_declared: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

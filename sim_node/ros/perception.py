@@ -70,6 +70,7 @@ class _ThreadState:
         self.generation = None
         self.cams, self.sites = (), ()
         self.cam_due = Schedule(config.camera_rate_hz)
+        self.cam_dues: dict = {}  # camera -> its own Schedule (a declared rate)
         self.scan_due = Schedule(config.lidar_rate_hz)
         self.scan_dues: dict = {}  # site -> its own Schedule (a declared rate)
         self.sweeps: dict = {}  # site -> its declared Sweep
@@ -99,6 +100,7 @@ class Perception:
         self._camera_pubs: dict = {}
         self._laser_pubs: dict = {}  # site name -> publisher
         self._laser_decl: dict = {}  # site name -> its DeclaredLaser (None: the node's)
+        self._camera_decl: dict = {}  # camera name -> its DeclaredCamera (None: the node's)
         self._sensor_pubs: dict = {}  # (kind, name) -> publisher
         self._sensor_generation = None
         self._sensor_frames: dict = {}
@@ -328,11 +330,34 @@ class Perception:
                             and abs(st.scan_dues[n].period - 1.0 / d.rate_hz) < 1e-12
                             else Schedule(d.rate_hz)
                             for n, d in declared.items() if d.rate_hz}
-        if st.cams and not self._cameras_failed and st.cam_due.due(snap.time):
-            st.cam_due.done(snap.time)
-            self._publish_frames(st.rig)
+        if st.cams and not self._cameras_failed:
+            self._capture_due(st, snap)
         if st.sites:
             self._scan_due(st, snap)
+
+    def _capture_due(self, st: '_ThreadState', snap: Snapshot) -> None:
+        """Render the cameras due at the snapshot's time, each at its own (declared) rate."""
+        info = snap.info
+        declared = info.cameras_declared
+        due = []
+        for cam in st.cams:
+            decl = declared.get(cam.name)
+            if decl is not None and decl.rate_hz and cam.name not in st.cam_dues:
+                st.cam_dues[cam.name] = Schedule(decl.rate_hz)
+            schedule = st.cam_dues.get(cam.name, st.cam_due)
+            if not schedule.due(snap.time):
+                continue
+            if decl is not None and not decl.always_on and not any(
+                    p is not None and p.get_subscription_count()
+                    for p in self._camera_pubs.get(cam.name, ())):
+                continue
+            due.append(cam.name)
+        for schedule in {id(x): x for x in [st.cam_dues.get(n, st.cam_due)
+                                            for n in due]}.values():
+            schedule.done(snap.time)
+        if due:
+            sizes = {n: (d.width, d.height) for n, d in declared.items() if d.width}
+            self._publish_frames(st.rig, due, sizes)
 
     def _scan_due(self, st: '_ThreadState', snap: Snapshot) -> None:
         """Scan the lasers due at the snapshot's time, each at its own (declared) rate."""
@@ -363,7 +388,16 @@ class Perception:
         # a robot's declared lasers are its own: they publish whatever lidar_sites selects
         sites = tuple(dict.fromkeys(scanner_sites(names, self.config.lidar_sites)
                                     + tuple(n for n in names if n in info.lasers)))
-        self._sync(self._camera_pubs, [c.name for c in cams], self._camera_publishers)
+        keys = [c.name for c in cams]
+        for name in keys:  # a camera whose declaration changed gets its publishers anew
+            if self._camera_decl.get(name) != info.cameras_declared.get(name) and \
+                    name in self._camera_pubs:
+                for pub in self._camera_pubs.pop(name):
+                    if pub is not None:
+                        self._node.destroy_publisher(pub)
+            self._camera_decl[name] = info.cameras_declared.get(name)
+        self._sync(self._camera_pubs, keys, lambda name: self._camera_publishers(
+            name, info.cameras_declared.get(name)))
         keys = [(n, info.lasers.get(n)) for n in sites]
         for gone in [k for k in self._laser_pubs if k not in sites]:
             self._node.destroy_publisher(self._laser_pubs.pop(gone))
@@ -388,8 +422,10 @@ class Perception:
                 f'laser {site!r}: topic {topic!r} is refused ({exc}); publishing on {default}')
             return self._create_publisher(msg_type, default, qos_profile_sensor_data)
 
-    def _camera_publishers(self, name: str) -> tuple:
+    def _camera_publishers(self, name: str, declared=None) -> tuple:
         base = f'cameras/{pm.topic_token(name)}'
+        if declared is not None and declared.topic:
+            base = declared.topic  # camera_name/image_raw ..., as gazebo_ros' camera names them
         qos = qos_profile_sensor_data
         create = self._create_publisher
         depth = self.config.camera_depth
@@ -399,9 +435,9 @@ class Perception:
                 create(PointCloud2, f'{base}/points', qos)
                 if depth and self.config.camera_points else None)
 
-    def _publish_frames(self, rig: CameraRig) -> None:
+    def _publish_frames(self, rig: CameraRig, only=None, sizes=None) -> None:
         try:
-            frames = rig.capture()
+            frames = rig.capture(only, sizes)
         except RenderingUnavailableError as exc:
             self._cameras_failed = str(exc)
             self._node.get_logger().error(f'cameras are off: {exc}')
@@ -411,13 +447,16 @@ class Perception:
             pubs = self._camera_pubs.get(f.camera.name)
             if pubs is None or info is None or info.generation != f.generation:
                 continue  # the model changed meanwhile: the next frame has it right
-            frame = pm.camera_frame(info, f.camera, self._prefix)
+            decl = info.cameras_declared.get(f.camera.name)
+            frame = (self._prefix + decl.frame if decl is not None and decl.frame
+                     else pm.camera_frame(info, f.camera, self._prefix))
             image_pub, info_pub, depth_pub, points_pub = pubs
             if not f.camera.fixed:
                 self._tf_pub.publish(pm.moving_camera_tf(frame, self._world_frame, f.pos,
                                                          f.quat_wxyz, f.time))
             image_pub.publish(pm.image(f.rgb, f.time, frame))
-            info_pub.publish(pm.camera_info(f.intrinsics, rig.width, rig.height, f.time, frame))
+            height, width = f.rgb.shape[:2]
+            info_pub.publish(pm.camera_info(f.intrinsics, width, height, f.time, frame))
             if depth_pub is not None and f.depth is not None:
                 depth_pub.publish(pm.depth_image(f.depth, f.time, frame))
             if points_pub is not None and f.depth is not None:

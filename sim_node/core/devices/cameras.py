@@ -126,6 +126,8 @@ class CameraRig:
         self._cameras: tuple = ()
         self._scenes: list = []
         self._model: Optional[mujoco.MjModel] = None
+        self._last_model: Optional[mujoco.MjModel] = None  # to upload again to a new renderer
+        self._sizes: dict = {}
         self._option = _view_option()
 
     @property
@@ -141,23 +143,38 @@ class CameraRig:
         """Return the selected cameras of the world's current model."""
         return select(self.world.model_info.cameras, self.patterns)
 
-    def capture(self) -> list:
+    def capture(self, only: Optional[Sequence[str]] = None,
+                sizes: Optional[dict] = None) -> list:
         """
         Render every selected camera of the current state; returns [:class:`CameraFrame`].
 
         Empty (and no renderer started) when the world has no selected camera.
+
+        :param only: the names of the cameras to render now (None: all selected).
+        :param sizes: camera name -> (width, height) of its own (a robot file declares it);
+            the rig's size for the others.
         """
+        self._sizes = dict(sizes or {})
         frames = self.world.observe(self._fill_scenes)
-        if not frames:
+        picked = [(f, s) for f, s in zip(frames, self._scenes)
+                  if only is None or f[0].name in only]
+        if not picked:
             return []
+        need = (max([self.width] + [w for w, _ in self._sizes.values()]),
+                max([self.height] + [h for _, h in self._sizes.values()]))
+        if self._renderer is not None and (self._renderer.width < need[0]
+                                           or self._renderer.height < need[1]):
+            self._renderer.close()  # a larger camera came: a buffer that holds it
+            self._renderer, self._model = None, self._last_model
         if self._renderer is None:
-            self._renderer = Renderer(self.width, self.height)
+            self._renderer = Renderer(*need)
         if self._model is not None:
             self._renderer.use_model(self._model, self.shadow_size)
             self._model = None
         out = []
-        for (cam, sim_time, generation, pos, q, k), scene in zip(frames, self._scenes):
-            rgb, depth = self._renderer.render(scene, self.depth)
+        for (cam, sim_time, generation, pos, q, k), scene in picked:
+            size = self._sizes.get(cam.name, (self.width, self.height))
+            rgb, depth = self._renderer.render(scene, self.depth, size)
             out.append(CameraFrame(camera=cam, time=sim_time, generation=generation, rgb=rgb,
                                    depth=depth, pos=pos, quat_wxyz=q, intrinsics=k))
         return out
@@ -170,6 +187,7 @@ class CameraRig:
             self._cameras = select(catalog.cameras(m), self.patterns)
             if self._cameras:
                 self._model = copy.copy(m)  # the renderer uploads it outside the lock
+                self._last_model = self._model
                 self._scenes = [_new_scene(m) for _ in self._cameras]
                 for scene in self._scenes:
                     # The skybox is drawn as a surface some 50 m away: depth would read it as
@@ -189,7 +207,8 @@ class CameraRig:
             q = np.empty(4)
             mujoco.mju_mat2Quat(q, d.cam_xmat[cam.cam_id])
             pos, q = optical_pose(d.cam_xpos[cam.cam_id], q)
-            k = frustum_intrinsics(scene.camera[0], self.width, self.height)
+            k = frustum_intrinsics(scene.camera[0],
+                                   *self._sizes.get(cam.name, (self.width, self.height)))
             out.append((cam, float(d.time), generation, pos, q, k))
         return out
 

@@ -212,17 +212,23 @@ class Renderer:
         self._con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._model = model
 
-    def render(self, scene: mujoco.MjvScene, depth: bool = True) -> tuple:
+    def render(self, scene: mujoco.MjvScene, depth: bool = True,
+               size: Optional[tuple] = None) -> tuple:
         """
         Draw `scene`; return (rgb (h, w, 3) uint8, depth (h, w) float32 metres or None).
 
         Rows run from the top of the image down, as sensor_msgs/Image stores them.
+
+        :param size: (width, height) of this image, at most the renderer's (a camera's own
+            size, drawn in a corner of the offscreen buffer); None: the renderer's.
         """
         self._gl.make_current()
-        mujoco.mjr_render(self._rect, scene, self._con)
-        rgb = np.empty((self.height, self.width, 3), dtype=np.uint8)
-        raw = np.empty((self.height, self.width), dtype=np.float32) if depth else None
-        mujoco.mjr_readPixels(rgb, raw, self._rect, self._con)
+        width, height = size or (self.width, self.height)
+        rect = self._rect if size is None else mujoco.MjrRect(0, 0, width, height)
+        mujoco.mjr_render(rect, scene, self._con)
+        rgb = np.empty((height, width, 3), dtype=np.uint8)
+        raw = np.empty((height, width), dtype=np.float32) if depth else None
+        mujoco.mjr_readPixels(rgb, raw, rect, self._con)
         rgb = np.ascontiguousarray(rgb[::-1])
         if raw is None:
             return rgb, None

@@ -353,7 +353,8 @@ def _check_topics(name: str, sensors: tuple, spawned) -> None:
         other = taken.get(_absolute(d.topic)) if d.topic else None
         if other is not None:
             raise NamespaceInvalidError(ERR_TOPIC_TAKEN.format(
-                name=name, site=d.site, topic=d.topic, other=other))
+                name=name, site=getattr(d, 'site', '') or getattr(d, 'camera', ''),
+                topic=d.topic, other=other))
 
 
 def _absolute(topic: str) -> str:

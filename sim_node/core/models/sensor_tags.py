@@ -26,12 +26,14 @@ import re
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from ..records import DeclaredImu, DeclaredLaser, DeclaredWrench
+from ..records import DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench
 
 log = logging.getLogger(__name__)
 
 #: The most scans (or samples) per simulated second a declared sensor may ask for.
 MAX_RATE_HZ = 1000.0
+#: The largest image a declared camera may ask for (pixels a side).
+MAX_IMAGE_SIDE = 4096
 #: An IMU's samples per simulated second when its tag gives no update_rate.
 DEFAULT_IMU_RATE_HZ = 100.0
 #: The most rays one sweep of a declared laser may cast (horizontal times vertical).
@@ -166,12 +168,13 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
     """Return a declared sensor's record under `entity` (see :func:`entity_laser`)."""
     if isinstance(decl, DeclaredWrench):
         return entity_wrench(decl, entity, namespace, root)
+    if isinstance(decl, DeclaredCamera):
+        return replace(decl, camera=f'{entity}/{decl.camera}',
+                       frame=f'{entity}/{decl.frame}' if decl.frame else '',
+                       topic=_under(namespace, decl.topic))
     if isinstance(decl, DeclaredImu):
-        topic = decl.topic
-        if topic and namespace:
-            topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
         return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
-                       topic=topic)
+                       topic=_under(namespace, decl.topic))
     return entity_laser(decl, entity, namespace)
 
 
@@ -183,11 +186,52 @@ def entity_laser(decl: DeclaredLaser, entity: str, namespace: str) -> DeclaredLa
     robot namespace goes before its plugins' namespaces: two robots spawned with namespaces
     of their own never share a topic.
     """
-    topic = decl.topic
-    if topic and namespace:
-        topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
     return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
-                   topic=topic)
+                   topic=_under(namespace, decl.topic))
+
+
+def camera(sensor: ET.Element, name: str, links: Sequence[str]) -> DeclaredCamera:
+    """
+    Read a camera tag: its image size and rate, the frame and topics its plugin names.
+
+    :param name: its camera in the robot's model; `links`: every link of the robot.
+    """
+    warn = _warner(sensor, name)
+    width = _number(sensor.findtext('.//image/width'))
+    height = _number(sensor.findtext('.//image/height'))
+    if width is not None or height is not None:
+        if not (width and height and 1 <= width <= MAX_IMAGE_SIDE
+                and 1 <= height <= MAX_IMAGE_SIDE):
+            warn('image size', (sensor.findtext('.//image/width'),
+                                sensor.findtext('.//image/height')),
+                 f'is not 1 to {MAX_IMAGE_SIDE} pixels a side')
+            width = height = None
+    plugin = sensor.find('plugin')
+    frame = ''
+    given = ''
+    if plugin is not None:
+        given = (plugin.findtext('frame_name') or plugin.findtext('frameName') or '').strip()
+    given = given or (sensor.findtext('gz_frame_id') or '').strip()
+    if given and given not in links:
+        warn('frame', given, 'is not a link of the robot')
+    elif given:
+        frame = given
+    topic = ''
+    if plugin is not None:
+        ns = (plugin.findtext('ros/namespace') or '').strip().rstrip('/')
+        cam = (plugin.findtext('camera_name') or plugin.findtext('cameraName') or '').strip()
+        if cam or ns:
+            topic = f'{ns}/{cam or sensor.get("name") or name}' if ns else cam
+    topic = topic or (sensor.findtext('topic') or '').strip()
+    if topic and not valid_topic(topic):
+        warn('topic', topic, 'is not a name ROS takes')
+        topic = ''
+    return DeclaredCamera(camera=name, width=None if width is None else int(width),
+                          height=None if height is None else int(height),
+                          rate_hz=_rate(sensor, warn),
+                          always_on=(sensor.findtext('always_on') or 'true').strip().lower()
+                          not in ('0', 'false'),
+                          frame=frame, topic=topic)
 
 
 def imu(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> DeclaredImu:
@@ -254,11 +298,15 @@ def entity_wrench(decl: DeclaredWrench, entity: str, namespace: str,
     """
     def body(link: str) -> str:
         return entity if link == root else f'{entity}/{link}'
-    topic = decl.topic
-    if topic and namespace:
-        topic = f'/{namespace.strip("/")}/{topic.lstrip("/")}'
     return replace(decl, site=f'{entity}/{decl.site}', parent=body(decl.parent),
-                   frame_id=f'{entity}/{decl.frame_id}', topic=topic)
+                   frame_id=f'{entity}/{decl.frame_id}', topic=_under(namespace, decl.topic))
+
+
+def _under(namespace: str, topic: str) -> str:
+    """Return a declared `topic` under a spawn's `namespace` (absolute or not; '' stays '')."""
+    if topic and namespace:
+        return f'/{namespace.strip("/")}/{topic.lstrip("/")}'
+    return topic
 
 
 def _warner(sensor: ET.Element, site: str):

@@ -112,6 +112,8 @@ def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
         turn = np.zeros(4)
         mujoco.mju_mulQuat(turn, quat, _xyaxes_quat((0, -1, 0), (0, 0, 1)))
         body.add_camera(name=name, pos=pos, quat=turn, fovy=fovy)
+        declared.append(sensor_tags.camera(sensor, name, [b.name for b in spec.bodies
+                                                          if b.name]))
         return f'camera {name!r} on {body.name!r}'
     if kind == 'imu':
         site = body.add_site(name=f'{name}_imu', pos=pos, quat=quat)
