@@ -230,3 +230,34 @@ def test_a_declared_camera_keeps_its_size_rate_frame_and_topic(world):
     assert (cam.width, cam.height, cam.rate_hz) == (400, 300, 7.0)
     assert (cam.frame, cam.topic) == ('ranger/head_cam_optical_frame',
                                       '/ranger/head_front_camera')
+
+
+ODD = """<robot name="odd">
+  <link name="base_link"><inertial><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <gazebo reference="base_link">
+    <sensor type="camera" name="huge"><update_rate>1e6</update_rate>
+      <camera><image><width>100000</width><height>100000</height></image></camera>
+      <plugin name="huge" filename="libgazebo_ros_camera.so">
+        <camera_name>bad name!</camera_name><frame_name>no_such_frame</frame_name></plugin>
+    </sensor>
+    <sensor type="imu" name="shaky"><update_rate>-5</update_rate>
+      <imu><angular_velocity><x><noise type="gaussian"><mean>0</mean><stddev>nan</stddev>
+      </noise></x></angular_velocity></imu></sensor>
+  </gazebo>
+</robot>"""
+
+
+def test_absurd_camera_and_imu_values_are_left_out_each_named_and_the_robot_spawns(caplog):
+    with caplog.at_level(logging.WARNING):
+        w = World.from_file(str(DEFAULT_SCENE))
+        w.spawn('odd', sources.from_model_text(ODD), position=[0.0, 3.0, 0.5])
+    cam = w.model_info.cameras_declared['odd/huge']
+    assert (cam.width, cam.height, cam.rate_hz, cam.frame, cam.topic) == (
+        None, None, None, '', '')  # the node's own size, rate, optical frame and topics
+    imu = w.model_info.imus['odd/shaky_imu']
+    assert imu.rate_hz == sensor_tags.DEFAULT_IMU_RATE_HZ and imu.gyro_noise is None
+    said = caplog.text
+    for value in ("'huge'", "('100000', '100000')", "'1e6'", "'no_such_frame'", "'bad name!'",
+                  "'shaky'", "'-5'", "('0', 'nan')"):
+        assert value in said, value
