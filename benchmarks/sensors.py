@@ -1,5 +1,5 @@
 """
-A mobile manipulator's declared sensors: do they keep their rates, and what do they cost?
+A mobile manipulator's declared sensors: their rates kept, and what they cost.
 
 ``make bench-sensors`` (about a minute). The robot (written here, as a description package has
 it) declares two lasers (541 rays over 270 degrees at 15 Hz), an IMU at 250 Hz and an RGB-D

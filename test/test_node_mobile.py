@@ -232,25 +232,31 @@ def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from sim_node.ros.client import SimClient
     path = bases_corpus.write(tmp_path)[name]
-    start_node(f'resource_paths:=["{tmp_path}"]', namespace='/corpus')
-    sim = SimClient(namespace='/corpus', timeout_sec=30)
-    w = Watcher(namespace='/corpus')
+    # a namespace per case: the node of the case before may not have left yet, and two
+    # simulators in one namespace answer at random (the second exits)
+    ns = f'/corpus_{name}'
+    start_node(f'resource_paths:=["{tmp_path}"]', namespace=ns)
+    sim = SimClient(namespace=ns, timeout_sec=30)
+    w = Watcher(namespace=ns)
     odom, said = [], []
-    w.node.create_subscription(Odometry, f'/corpus/{name}/odom', odom.append, 50)
+    w.node.create_subscription(Odometry, f'{ns}/{name}/odom', odom.append, 50)
     w.node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: said.extend(
         st.message for st in m.status), 50)
     try:
         z = 0.0 if name == 'holonomic' else 0.1
         sim.spawn(name, uri=path.as_uri(), position=(0.0, -3.0, z))
-        wait_for(lambda: w.node.get_subscriptions_info_by_topic(f'/corpus/{name}/cmd_vel'),
+        wait_for(lambda: w.node.get_subscriptions_info_by_topic(f'{ns}/{name}/cmd_vel'),
                  timeout=10)
         vy = 0.2 if name == 'holonomic' else 0.0
-        send(w, f'/corpus/{name}/cmd_vel', twist(0.3, vy), 1.0)  # up to speed
-        t0, (p0, yaw0) = w.latest_clock(), planar(sim, name)
+        # The module's own node publishes /clock too: simulated time comes from this node's
+        # entity states, and commands go out for wall seconds.
+        send(w, f'{ns}/{name}/cmd_vel', twist(0.3, vy), 1.0, by_clock=False)  # up to speed
+        (p0, yaw0), t0 = planar(sim, name), sim.entity_state(name)['stamp']
         o0 = odom[-1].pose.pose.position
-        send(w, f'/corpus/{name}/cmd_vel', twist(0.3, vy), 2.0)
-        t1, (p1, _) = w.latest_clock(), planar(sim, name)
+        send(w, f'{ns}/{name}/cmd_vel', twist(0.3, vy), 2.0, by_clock=False)
+        (p1, _), t1 = planar(sim, name), sim.entity_state(name)['stamp']
         o1 = odom[-1].pose.pose.position
+        assert t1 - t0 >= 1.0, 'the simulation did not run'
         c, s = math.cos(yaw0), math.sin(yaw0)
         along, across = np.array([[c, s], [-s, c]]) @ (p1 - p0) / (t1 - t0)
         assert along == pytest.approx(0.3, rel=0.1) and across == pytest.approx(vy, abs=0.03)
@@ -262,10 +268,12 @@ def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy
             children = {child for child, (_, parent, *_) in w.tf.items()
                         if parent == f'{name}/odom'}
         assert children == {odom[-1].child_frame_id} == {name}
-        time.sleep(1.5)  # no command for longer than cmd_vel_timeout: it stops
+        # no command for longer than cmd_vel_timeout (0.5 s): it stops
+        last = sim.entity_state(name)['stamp']
+        wait_for(lambda: sim.entity_state(name)['stamp'] - last >= 1.5, timeout=30)
         assert np.linalg.norm(sim.entity_state(name)['linear'][:2]) < 0.02
         if name == 'holonomic':  # beyond its actuators' control range (1 m/s): said once
-            send(w, f'/corpus/{name}/cmd_vel', twist(3.0), 1.0)
+            send(w, f'{ns}/{name}/cmd_vel', twist(3.0), 1.0, by_clock=False)
             wait_for(lambda: any('cannot move as commanded' in m for m in said), timeout=10)
             assert sim.entity_state(name)['linear'][0] < 1.0
     finally:
