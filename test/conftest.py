@@ -293,14 +293,28 @@ class Watcher:
         n.create_subscription(JointState, ns + 'joint_states', self._on_js, 10)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(n)
+        # Tests destroy what they made on this node from their own thread. Destroyed while
+        # this one waited in spin_once, an entity raised InvalidHandle there, and what that
+        # spin had already taken was lost with it: an action goal's response once never came
+        # (test_node_trajectory, in CI). Destroying waits for the spin to end (<= 50 ms).
+        self.spin_lock = threading.Lock()
+        for name in ('destroy_subscription', 'destroy_publisher', 'destroy_client'):
+            setattr(n, name, self._between_spins(getattr(n, name)))
         self._stop = False
         self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
 
+    def _between_spins(self, destroy):
+        def call(entity):
+            with self.spin_lock:
+                return destroy(entity)
+        return call
+
     def _spin(self):
         while not self._stop:
             try:
-                self.executor.spin_once(timeout_sec=0.05)
+                with self.spin_lock:
+                    self.executor.spin_once(timeout_sec=0.05)
             except Exception as exc:  # noqa: B902 (see below)
                 # A subscription destroyed by the test's thread while this one waited on it
                 # (robot_description's) raises here. Uncaught, it ended this thread: under load

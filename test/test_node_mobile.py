@@ -243,6 +243,7 @@ def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy
     w.node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: said.extend(
         st.message for st in m.status), 50)
     try:
+        sim.entities()  # the node is up and matched (a read is asked again; a spawn is not)
         z = 0.0 if name == 'holonomic' else 0.1
         sim.spawn(name, uri=path.as_uri(), position=(0.0, -3.0, z))
         wait_for(lambda: w.node.get_subscriptions_info_by_topic(f'{ns}/{name}/cmd_vel'),
