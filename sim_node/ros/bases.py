@@ -26,7 +26,7 @@ from msg_adapters import odometry
 from msg_adapters.perception import interface_base
 from nav_msgs.msg import Odometry
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from tf2_msgs.msg import TFMessage
 
 from .params import Frames
@@ -100,7 +100,11 @@ class BaseControllers:
             TwistStamped if stamped else Twist, f'{topic_base}/cmd_vel',
             lambda msg: self._on_command(spec.entity, topic_base,
                                          msg.twist if stamped else msg), 10,
-            callback_group=self._group)
+            callback_group=self._group,
+            # No QoS event handlers: they are waitables, and one whose subscription was
+            # destroyed (a base deleted) while the executor built its wait set ended the node
+            # with InvalidHandle (seen once in CI, a spawn-tool test deleting its cart).
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         pub = self._node.create_publisher(
             Odometry, f'{topic_base}/odom', 10,
             event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))

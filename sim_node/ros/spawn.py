@@ -54,20 +54,25 @@ def quaternion_xyzw(roll: float, pitch: float, yaw: float) -> tuple:
 
 def _from_topic(node, topic: str, timeout: float) -> Optional[str]:
     """Return the first description published on `topic` (latched or not), or None."""
-    import rclpy
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import String
     got = []
     qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      reliability=ReliabilityPolicy.RELIABLE)
     sub = node.create_subscription(String, topic, lambda msg: got.append(msg.data), qos)
+    # One executor for the whole wait: rclpy.spin_once makes one per call, and a Ctrl-C that
+    # came while one was being made printed its half-made __del__'s traceback.
+    from rclpy.executors import SingleThreadedExecutor
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
     print(f'waiting for a robot description on {node.resolve_topic_name(topic)} '
           f'(up to {timeout:g} s, -timeout to change)', flush=True)
     try:
         deadline = node.get_clock().now().nanoseconds + int(timeout * 1e9)
         while not got and node.get_clock().now().nanoseconds < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
+            executor.spin_once(timeout_sec=0.1)
     finally:
+        executor.remove_node(node)
         node.destroy_subscription(sub)
     return got[0] if got else None
 
