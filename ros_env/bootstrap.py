@@ -8,8 +8,9 @@ Two cases:
   it is used as it is; only the `sim` package is built with colcon.
 * No ROS: a project-local venv (``.venv``) gets rclpy and common_interfaces from the package
   index, plus mujoco, numpy, trimesh, gymnasium, pytest and colcon. ``tf2_msgs``,
-  ``simulation_interfaces`` and ``control_msgs`` are built from the definitions in
-  ``ros_env/interfaces`` (about four minutes the first time) and cached under
+  ``simulation_interfaces``, ``control_msgs``, ``controller_manager_msgs`` and
+  ``ros_gz_interfaces`` (its contact messages) are built from the definitions in
+  ``ros_env/interfaces`` (about six minutes the first time) and cached under
   ``.build/interfaces``; they are rebuilt only when those definitions or the requirements
   change.
 
@@ -74,11 +75,12 @@ def system_ros_sourced() -> bool:
     if os.environ.get('ROS_DISTRO') != 'jazzy':
         return False
     probe = ('import rclpy, tf2_msgs.msg, simulation_interfaces.srv, '
-             'control_msgs.action')
+             'control_msgs.action, controller_manager_msgs.srv, ros_gz_interfaces.msg')
     ok = subprocess.run(['python3', '-c', probe], capture_output=True).returncode == 0
     if not ok:
-        sys.exit('[setup] ROS 2 Jazzy is sourced but tf2_msgs, simulation_interfaces or '
-                 'control_msgs is missing. Run: rosdep install --from-paths . -y --ignore-src')
+        sys.exit('[setup] ROS 2 Jazzy is sourced but tf2_msgs, simulation_interfaces, '
+                 'control_msgs, controller_manager_msgs or ros_gz_interfaces is missing. Run: '
+                 'rosdep install --from-paths . -y --ignore-src')
     return True
 
 
@@ -131,18 +133,17 @@ def venv_env(python: Path) -> dict:
 
 
 def ensure_interfaces(python: Path) -> Path:
-    """Build tf2_msgs, simulation_interfaces and control_msgs with colcon; cached."""
+    """Build the interface packages of ros_env/interfaces with colcon; cached."""
     ws = BUILD / 'interfaces'
     install = ws / 'install'
     stamp = ws / '.stamp'
     key = digest(INTERFACES_SRC, REQUIREMENTS, extra=sys.version)
     if stamp_ok(stamp, key):
-        say('tf2_msgs, simulation_interfaces and control_msgs are up to date '
-            '(.build/interfaces)')
+        say('the interface packages are up to date (.build/interfaces)')
         return install
-    say('building tf2_msgs, simulation_interfaces and control_msgs from ros_env/interfaces with '
-        'colcon (about four minutes on 2 cores, once; colcon prints each package as it starts '
-        'and finishes)')
+    say('building tf2_msgs, simulation_interfaces, control_msgs, controller_manager_msgs and '
+        'ros_gz_interfaces from ros_env/interfaces with colcon (about six minutes on 2 cores, '
+        'once; colcon prints each package as it starts and finishes)')
     shutil.rmtree(ws, ignore_errors=True)
     # The definitions live under a COLCON_IGNORE so that a workspace on a real ROS machine
     # never builds them; copy them out to build here.

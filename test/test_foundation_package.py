@@ -14,7 +14,8 @@ import pytest
 REFERENCE_HASHES = json.loads((ROOT / 'test' / 'interface_type_hashes.json').read_text())
 
 
-@pytest.mark.parametrize('package', ['tf2_msgs', 'simulation_interfaces', 'control_msgs'])
+@pytest.mark.parametrize('package', ['tf2_msgs', 'simulation_interfaces', 'control_msgs',
+                                     'controller_manager_msgs', 'ros_gz_interfaces'])
 def test_interfaces_are_wire_identical_to_the_released_ones(package):
     from ament_index_python.packages import get_package_share_directory
     share = Path(get_package_share_directory(package))
