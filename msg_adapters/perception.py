@@ -92,14 +92,37 @@ def moving_camera_tf(frame: str, world_frame: str, pos, q_wxyz, sim_time: float)
     return TFMessage(transforms=[transform(world_frame, frame, pos, q_wxyz, stamp(sim_time))])
 
 
-def image(rgb: np.ndarray, sim_time: float, frame: str) -> Image:
-    """(h, w, 3) uint8 -> sensor_msgs/Image rgb8."""
+def image(rgb: np.ndarray, sim_time: float, frame: str, encoding: str = 'rgb8') -> Image:
+    """
+    (h, w, 3) uint8 -> sensor_msgs/Image in `encoding`: rgb8, bgr8, mono8 or mono16.
+
+    Grey is the luma of ITU-R BT.601 (what image_proc and OpenCV take); mono16 spans 0-65535.
+    """
     h, w = rgb.shape[:2]
-    msg = Image(height=h, width=w, encoding='rgb8', is_bigendian=0, step=3 * w)
+    if encoding == 'bgr8':
+        pixels, step = rgb[..., ::-1], 3 * w
+    elif encoding in ('mono8', 'mono16'):
+        grey = rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+        pixels = (np.round(grey).astype(np.uint8) if encoding == 'mono8'
+                  else np.round(grey * 257.0).astype('<u2'))
+        step = w * pixels.itemsize
+    else:
+        encoding, pixels, step = 'rgb8', rgb, 3 * w
+    msg = Image(height=h, width=w, encoding=encoding, is_bigendian=0, step=step)
     msg.header.stamp = stamp(sim_time)
     msg.header.frame_id = frame
-    msg.data = array.array('B', rgb.tobytes())
+    msg.data = array.array('B', np.ascontiguousarray(pixels).tobytes())
     return msg
+
+
+def clipped(depth: np.ndarray, clip: Optional[tuple]) -> np.ndarray:
+    """Return `depth` with what is nearer than clip[0] at -inf, farther than clip[1] +inf."""
+    if clip is None:
+        return depth
+    out = depth.copy()
+    out[depth < clip[0]] = -np.inf
+    out[depth > clip[1]] = np.inf
+    return out
 
 
 def depth_image(depth: np.ndarray, sim_time: float, frame: str) -> Image:

@@ -166,3 +166,16 @@ def test_joint_state_message():
     assert (list(msg.position), list(msg.velocity), list(msg.effort)) == (
         [0.1, 0.2], [1.0, 2.0], [3.0, 4.0])
     assert msg.header.stamp == Time(sec=0, nanosec=500_000_000)
+
+
+@pytest.mark.parametrize('encoding, pixel', [('rgb8', [200, 100, 50]), ('bgr8', [50, 100, 200]),
+                                             ('mono8', [124]), ('mono16', [31919])])
+def test_an_image_goes_out_in_the_encoding_its_camera_declares(encoding, pixel):
+    """Grey is BT.601's luma: 0.299 R + 0.587 G + 0.114 B = 124.2 of (200, 100, 50); x 257."""
+    from msg_adapters import perception
+    rgb = np.tile(np.array([200, 100, 50], np.uint8), (2, 3, 1))
+    msg = perception.image(rgb, 1.5, 'cam', encoding)
+    dtype = '<u2' if encoding == 'mono16' else np.uint8
+    got = np.frombuffer(bytes(msg.data), dtype).reshape(2, 3, -1)
+    assert msg.encoding == encoding and msg.step == 3 * len(pixel) * np.dtype(dtype).itemsize
+    assert got[1, 2].tolist() == pixel

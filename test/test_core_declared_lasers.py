@@ -232,6 +232,34 @@ def test_a_declared_camera_keeps_its_size_rate_frame_and_topic(world):
                                       '/ranger/head_front_camera')
 
 
+#: A depth camera 0.5 m up looking along x at what is 1.2 m ahead, seeing from 0.3 to 2 m,
+#: its images grey (Gazebo's L8).
+EYES = f"""<robot name="eyes">
+  <link name="world"/>
+  <link name="base_link"><inertial><mass value="1"/>{_INERTIA}</inertial></link>
+  <joint name="anchor" type="fixed"><parent link="world"/><child link="base_link"/>
+    <origin xyz="0 0 0.5"/></joint>
+  <gazebo reference="base_link">
+    <sensor type="depth" name="depth_cam">
+      <update_rate>10</update_rate>
+      <camera><horizontal_fov>1.0</horizontal_fov>
+        <image><width>160</width><height>120</height><format>L8</format></image>
+        <clip><near>0.3</near><far>2.0</far></clip></camera>
+      <plugin name="depth_cam" filename="libgazebo_ros_camera.so">
+        <ros><namespace>/eyes</namespace></ros></plugin>
+    </sensor>
+  </gazebo>
+</robot>"""
+
+
+def test_a_declared_depth_camera_keeps_its_format_clip_and_depth():
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('eyes', sources.from_model_text(EYES), position=[0.0, -3.0, 0.0])
+    cam = w.model_info.cameras_declared['eyes/depth_cam']
+    assert (cam.encoding, cam.clip, cam.depth, cam.topic) == (
+        'mono8', (0.3, 2.0), True, '/eyes/depth_cam')
+
+
 ODD = """<robot name="odd">
   <link name="base_link"><inertial><mass value="1"/>
     <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
@@ -241,6 +269,9 @@ ODD = """<robot name="odd">
       <plugin name="huge" filename="libgazebo_ros_camera.so">
         <camera_name>bad name!</camera_name><frame_name>no_such_frame</frame_name></plugin>
     </sensor>
+    <sensor type="depth" name="murky">
+      <camera><image><format>YUV_9000</format></image><clip><near>3</near><far>-1</far></clip>
+      </camera></sensor>
     <sensor type="imu" name="shaky"><update_rate>-5</update_rate>
       <imu><angular_velocity><x><noise type="gaussian"><mean>0</mean><stddev>nan</stddev>
       </noise></x></angular_velocity></imu></sensor>
@@ -255,9 +286,11 @@ def test_absurd_camera_and_imu_values_are_left_out_each_named_and_the_robot_spaw
     cam = w.model_info.cameras_declared['odd/huge']
     assert (cam.width, cam.height, cam.rate_hz, cam.frame, cam.topic) == (
         None, None, None, '', '')  # the node's own size, rate, optical frame and topics
+    murky = w.model_info.cameras_declared['odd/murky']
+    assert (murky.encoding, murky.clip, murky.depth) == ('rgb8', None, True)
     imu = w.model_info.imus['odd/shaky_imu']
     assert imu.rate_hz == sensor_tags.DEFAULT_IMU_RATE_HZ and imu.gyro_noise is None
     said = caplog.text
     for value in ("'huge'", "('100000', '100000')", "'1e6'", "'no_such_frame'", "'bad name!'",
-                  "'shaky'", "'-5'", "('0', 'nan')"):
+                  "'shaky'", "'-5'", "('0', 'nan')", "'murky'", "'YUV_9000'", "('3', '-1')"):
         assert value in said, value

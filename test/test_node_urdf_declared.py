@@ -11,7 +11,7 @@ import math
 from conftest import serve_node, wait_for, Watcher
 import pytest
 from sensor_msgs.msg import CameraInfo, Imu, LaserScan, PointCloud2
-from test_core_declared_lasers import RANGER
+from test_core_declared_lasers import EYES, RANGER
 from test_core_declared_wrench import HANGER, MASS, ROLL
 from test_core_urdf_declared import SCOUT
 
@@ -110,6 +110,26 @@ def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, wat
     assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'
 
 
+def test_a_declared_depth_camera_sends_grey_images_clipped_depth_and_points(sim, watch):
+    """EYES (``test_core_declared_lasers``): a crate 1.2 m ahead, the sky beyond its 2 m."""
+    import numpy as np
+    from sensor_msgs.msg import Image
+    sim.spawn('eyes', resource_string=EYES, position=(0.0, -3.0, 0.0))
+    sim.spawn('wall', resource_string=BOX, position=(1.45, -3.0, 0.5))  # its face at x = 1.2
+    grey = latest(watch, Image, '/eyes/depth_cam/image_raw')
+    assert (grey.encoding, grey.width, grey.height, grey.step) == ('mono8', 160, 120, 160)
+    depth = latest(watch, Image, '/eyes/depth_cam/depth/image_raw')
+    assert (depth.encoding, depth.width, depth.height) == ('32FC1', 160, 120)
+    metres = np.frombuffer(bytes(depth.data), '<f4').reshape(120, 160)
+    assert metres[60, 80] == pytest.approx(1.2, abs=0.01)  # the crate, straight ahead
+    # the floor to the crate's left: 1.23 m ahead at the bottom row, 3 m (beyond its far
+    # clip of 2 m: +inf, as REP 118 has it) nearer the horizon
+    assert metres[119, 133] == pytest.approx(0.5 / math.tan(math.atan(59.5 / 146.4)), rel=0.02)
+    assert np.isposinf(metres[84, 133])
+    cloud = latest(watch, PointCloud2, '/eyes/depth_cam/points')
+    assert cloud.width * cloud.height == 160 * 120
+
+
 def test_a_declared_force_torque_sensor_reads_m_g_in_its_frame_and_direction(sim, watch):
     """HANGER (``test_core_declared_wrench``): before, a sensor on a joint published nothing."""
     from geometry_msgs.msg import WrenchStamped
@@ -125,3 +145,68 @@ def test_a_declared_force_torque_sensor_reads_m_g_in_its_frame_and_direction(sim
     assert held.header.frame_id == 'hanger/base'
     f = held.wrench.force  # the parent holds it up, in the parent's (upright) frame
     assert (f.x, f.y, f.z) == pytest.approx((0.0, 0.0, weight), abs=0.02 * weight)
+
+
+def test_contacts_of_a_declared_sensor_and_of_an_entity_asked_for_arrive_as_gazebos(sim, watch):
+    """CRATE (``test_core_contacts``): its bumper plugin's topic; then any entity by parameter."""
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from ros_gz_interfaces.msg import Contacts, Entity
+    from test_core_contacts import CRATE, MASS as CRATE_MASS
+    from test_node_conventions import set_param
+    reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+    def heard(topic: str, n: int) -> list:
+        got = []
+        sub = watch.node.create_subscription(Contacts, topic, got.append, reliable)
+        try:
+            wait_for(lambda: len(got) >= n, timeout=30)
+        finally:
+            watch.node.destroy_subscription(sub)
+        return got
+
+    sim.spawn('crate', resource_string=CRATE, position=(3.0, 3.0, 0.1))
+    got = heard('/crate/bumper', 12)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got[1:]]
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(20.0, rel=0.01)
+    (contact,) = got[-1].contacts
+    assert (contact.collision1.name, contact.collision2.name) == (
+        'crate::base::base_collision', 'world::world::floor')
+    assert contact.collision1.type == Entity.COLLISION
+    n = len(contact.positions)
+    assert n == len(contact.normals) == len(contact.depths) == len(contact.wrenches) > 0
+    held = sum(w.body_1_wrench.force.z for w in contact.wrenches)
+    assert held == pytest.approx(CRATE_MASS * 9.81, rel=0.02)
+    assert contact.wrenches[0].body_1_name.data == 'crate::base'
+    assert contact.normals[0].z == pytest.approx(-1.0)
+    # any entity's contacts, asked for while the node runs
+    value = ParameterValue(type=ParameterType.PARAMETER_STRING_ARRAY,
+                           string_array_value=['crate'])
+    assert set_param(sim, 'contact_entities', value).successful
+    got = heard('contacts/crate', 3)
+    assert {c.collision2.name for c in got[-1].contacts} == {'world::world::floor'}
+    value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)
+    assert not set_param(sim, 'contact_rate_hz', value).successful
+
+
+def test_the_readmes_list_of_a_robots_sensors_is_what_the_node_publishes(sim, watch):
+    """Each line of the README's sensors block: topic, message type, frame id, rate."""
+    import re
+    from pathlib import Path
+    import importlib
+    text = (Path(__file__).resolve().parent.parent / 'README.md').read_text()
+    block = re.search(r'<!-- sensors -->\n```text\n(.*?)```', text, re.S).group(1)
+    if 'ranger' not in sim.entities():
+        sim.spawn('ranger', resource_string=RANGER, position=(-2.0, 2.0, 0.1))
+    rows = [line.split() for line in block.strip().splitlines()]
+    assert len(rows) >= 5
+    wait_for(lambda: {r[0] for r in rows} <= {n for n, _ in
+                                               watch.node.get_topic_names_and_types()})
+    types = dict(watch.node.get_topic_names_and_types())
+    for topic, kind, frame, rate, hz in rows:
+        (full,) = [t for t in types[topic] if t.endswith(f'/{kind}')]
+        package, _, name = full.split('/')
+        msg_type = getattr(importlib.import_module(f'{package}.msg'), name)
+        msg = latest(watch, msg_type, topic, timeout=30)
+        assert (topic, msg.header.frame_id) == (topic, frame)
+        assert hz == 'Hz' and float(rate) > 0

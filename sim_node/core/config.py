@@ -35,6 +35,10 @@ class WorldConfig:
     #: A spawned wheeled base's fixed casters (ball, omni wheel, swivel fixed in its URDF) roll:
     #: frictionless contacts, as Gazebo users set them (``.control.wheels.roll_casters``).
     casters_roll: bool = True
+    #: Entities whose contacts are reported (:func:`.stepping.sampling.request`), and how
+    #: often (simulated Hz; also the rate of contact sensors that declare none).
+    contact_entities: tuple = ()
+    contact_rate_hz: float = 50.0
     #: Largest model file (MJCF or URDF text) or other file a spawn may read, in bytes.
     max_resource_bytes: int = 20_000_000
     #: Largest mesh file, in bytes: the largest mesh of 69 URDFs of ROS description packages is

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from .checks import closest_hint
-from .devices import catalog
+from .devices import catalog, contacts
 from .errors import NotFoundError
 from .models import description
 from .records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench, DYNAMIC,
@@ -153,7 +153,10 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         imus={d.site: d for rec in spawned.values() for d in rec.sensors
               if isinstance(d, DeclaredImu)},
         cameras_declared={d.camera: d for rec in spawned.values() for d in rec.sensors
-                          if isinstance(d, DeclaredCamera)})
+                          if isinstance(d, DeclaredCamera)},
+        contacts=contacts.declared(m, spawned),
+        geom_scoped=contacts.scoped(m, names, root_of, spawned),
+        geom_body=m.geom_bodyid.copy())
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

@@ -167,6 +167,10 @@ class DeclaredCamera:
     :param width, height: pixels; `rate_hz`: images per simulated second (None: the node's).
     :param frame: the frame its images name (an optical frame link of the robot, or '': the
         node's own optical frame); `topic`: the base of its topics ('' : the node's own).
+    :param encoding: its images' sensor_msgs encoding, from the tag's ``<format>``.
+    :param clip: (near, far) metres: depth outside reads -inf (nearer) or +inf (farther),
+        as REP 118 has it; None: the node's.
+    :param depth: a depth or RGB-D camera: it publishes depth images and points too.
     """
 
     camera: str
@@ -176,6 +180,9 @@ class DeclaredCamera:
     always_on: bool = True
     frame: str = ''
     topic: str = ''
+    encoding: str = 'rgb8'
+    clip: Optional[tuple] = None
+    depth: bool = False
 
 
 @dataclass(frozen=True)
@@ -216,6 +223,33 @@ class DeclaredWrench:
     frame: str = 'child'
     parent: str = ''
     frame_id: str = ''
+    topic: str = ''
+
+
+@dataclass(frozen=True)
+class DeclaredContact:
+    """
+    A contact sensor: the contacts of some collision geometry, reported at a rate.
+
+    From a robot file's Gazebo ``<sensor type="contact">`` (on collisions of its link), a
+    MuJoCo ``contact`` or ``touch`` sensor, or an entity whose contacts were asked for
+    (:meth:`~sim_node.core.world.World.report_contacts`).
+
+    :param name: the key its messages go by (``<entity>/<sensor>``, a MuJoCo sensor's name, or
+        the entity's name).
+    :param geoms: the geom names whose contacts it reports (reported as collision 1).
+    :param others: geoms the other side must be one of (a MuJoCo ``contact`` sensor's
+        ``geom2``/``body2``); () : any.
+    :param rate_hz: reports per simulated second (None: the node's ``contact_rate_hz``).
+    :param frame: the frame id its messages name; `topic`: as declared ('' : the node's own).
+    """
+
+    name: str
+    geoms: tuple = ()
+    others: tuple = ()
+    rate_hz: Optional[float] = None
+    always_on: bool = True
+    frame: str = ''
     topic: str = ''
 
 
@@ -263,6 +297,13 @@ class ModelInfo:
     imus: dict = field(default_factory=dict)
     #: Camera name -> :class:`DeclaredCamera` for their cameras.
     cameras_declared: dict = field(default_factory=dict)
+    #: Name -> :class:`DeclaredContact` for their contact sensors and the model's MuJoCo
+    #: ``contact``/``touch`` sensors.
+    contacts: dict = field(default_factory=dict)
+    #: (ngeom,) each geom as Gazebo scopes a collision: ``model::link::collision``.
+    geom_scoped: tuple = ()
+    #: (ngeom,) the body each geom is on.
+    geom_body: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
 
 
 @dataclass(frozen=True)

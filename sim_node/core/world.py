@@ -106,11 +106,7 @@ class World:
 
     @contextlib.contextmanager
     def locked(self) -> Iterator[tuple]:
-        """
-        Direct access to ``(model, data)`` under the world lock, for advanced use.
-
-        Anything changed here is the caller's responsibility; the loop is held off meanwhile.
-        """
+        """``(model, data)`` under the world lock, the loop held off; changes are the caller's."""
         live = self._live
         with live.lock:
             live.cached = None  # the caller may change anything
@@ -162,8 +158,14 @@ class World:
             return self._live.index.info
 
     def take_sensor_samples(self) -> list:
-        """Take the declared IMUs' samples so far (:func:`.stepping.sampling.drain`)."""
+        """Take the IMU samples and contact reports so far (:func:`.stepping.sampling.drain`)."""
         return sampling.drain(self._live.samples)
+
+    def report_contacts(self, entities: Sequence[str], rate_hz: float = 50.0) -> None:
+        """Report these entities' contacts from now on: :func:`.stepping.sampling.request`."""
+        request = sampling.request(entities, rate_hz)
+        with self._live.lock:
+            self._live.contact_request = request
 
     @property
     def timestep(self) -> float:
@@ -225,11 +227,7 @@ class World:
         return self._descriptions.of(name, model, info, rec, mesh_dir)
 
     def entity_bounds(self, name: str, local: bool = False) -> tuple:
-        """
-        Axis-aligned bounds of an entity's geoms: (min (3,), max (3,)).
-
-        In the world frame, or with `local` in the entity's own (root body) frame.
-        """
+        """Axis-aligned bounds of an entity's geoms, (min (3,), max (3,)): world or `local`."""
         live = self._live
         with live.lock:
             rec = live.index.entity(name)

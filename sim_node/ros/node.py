@@ -85,8 +85,9 @@ class SimNode(Node):
         self.exit_code = 0  # main's exit status; 2 when another simulator had this name
         self._events = MutuallyExclusiveCallbackGroup()
         self.status = Status(self, self.session)
-        self.perception = Perception(self, params.perception_config(self), self.frames.world,
-                                     self.frames.prefix)
+        self.perception = Perception(
+            self, params.perception_config(self), self.frames.world, self.frames.prefix,
+            lambda: tuple(params.string_list(self, 'contact_entities')))
         self.publisher = StatePublisher(
             self, self.frames, 1.0 / p('tf_rate_hz'),
             1.0 / p('joint_states_rate_hz'), p('publish_clock'), self.perception.publish_sensors,
@@ -153,6 +154,12 @@ class SimNode(Node):
                               'max_sim_time': self.param('max_sim_time'), prm.name: prm.value}
                     loaded.loop.set_limits(int(limits['max_steps']),
                                            float(limits['max_sim_time']))
+                elif prm.name in ('contact_entities', 'contact_rate_hz'):
+                    wanted = {'contact_entities': params.string_list(self, 'contact_entities'),
+                              'contact_rate_hz': self.param('contact_rate_hz'),
+                              prm.name: prm.value}
+                    loaded.world.report_contacts(list(wanted['contact_entities'] or ()),
+                                                 float(wanted['contact_rate_hz']))
                 elif prm.name in ('kp', 'kd'):
                     gains = {'kp': self.param('kp'), 'kd': self.param('kd'),
                              prm.name: prm.value}

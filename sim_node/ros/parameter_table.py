@@ -120,6 +120,12 @@ PARAMETERS = (
          'holding only spheres, or spheres and meshes below the axles) get frictionless '
          'contacts and roll, as Gazebo users set mu 0; false: they drag as the URDF has them',
          **RO),
+    Spec('contact_entities', STRING_ARRAY, 'entities whose contacts are published on '
+         'contacts/<entity> (ros_gz_interfaces/Contacts: what touches what, where, how hard), '
+         'from spawn on; an entity not there yet is reported once it spawns'),
+    Spec('contact_rate_hz', _W.contact_rate_hz, 'contact reports per simulated second, of '
+         'contact_entities and of contact sensors that declare no update_rate',
+         limits=(0.001, 1000.0)),
     Spec('odom_rate_hz', 50.0, '<entity>/odom messages (and the odom TF) per wall second',
          limits=(0.1, 1000.0), **RO),
     Spec('odom_source', 'wheels', "where a base's odometry comes from: 'wheels' (integrated "

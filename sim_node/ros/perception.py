@@ -23,9 +23,11 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Rang
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
+from .contacts import ContactPublishers
 from ..core import quat
 from ..core.config import PerceptionConfig
 from ..core.devices.cameras import CameraRig, select
+from ..core.devices.contacts import ContactReport
 from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
 from ..core.devices.rendering import RenderingUnavailableError
 from ..core.records import ModelInfo, Snapshot
@@ -85,8 +87,9 @@ class Perception:
     """
 
     def __init__(self, node: Node, config: PerceptionConfig, world_frame: str,
-                 frame_prefix: str):
+                 frame_prefix: str, contact_entities: Callable[[], tuple] = tuple):
         self._node = node
+        self.contacts = ContactPublishers(node, frame_prefix + world_frame, contact_entities)
         self.config = config
         self._world_frame = frame_prefix + world_frame
         self._prefix = frame_prefix
@@ -176,7 +179,12 @@ class Perception:
         sim = self._loaded
         if sim is None:
             return
-        for site, t, q, gyro, acc in sim.world.take_sensor_samples():
+        for sample in sim.world.take_sensor_samples():
+            if isinstance(sample, ContactReport):
+                if sample.generation == info.generation:
+                    self.contacts.publish(sample, info)
+                continue
+            site, t, q, gyro, acc = sample
             pub = self._sensor_pubs.get(('imu', site))
             decl = info.imus.get(site)
             if pub is None or decl is None:
@@ -248,6 +256,7 @@ class Perception:
             self._sensor_generation = None if info is None else info.generation
         for pub in gone:
             self._node.destroy_publisher(pub)
+        self.contacts.sync(info)
 
     def _create_publisher(self, msg_type, topic: str, qos) -> Publisher:
         """
@@ -357,7 +366,8 @@ class Perception:
             schedule.done(snap.time)
         if due:
             sizes = {n: (d.width, d.height) for n, d in declared.items() if d.width}
-            self._publish_frames(st.rig, due, sizes)
+            self._publish_frames(st.rig, due, sizes,
+                                 [n for n, d in declared.items() if d.depth])
 
     def _scan_due(self, st: '_ThreadState', snap: Snapshot) -> None:
         """Scan the lasers due at the snapshot's time, each at its own (declared) rate."""
@@ -428,16 +438,17 @@ class Perception:
             base = declared.topic  # camera_name/image_raw ..., as gazebo_ros' camera names them
         qos = qos_profile_sensor_data
         create = self._create_publisher
-        depth = self.config.camera_depth
+        seen = declared is not None and declared.depth  # a depth camera: depth and points
+        depth = self.config.camera_depth or seen
         return (create(Image, f'{base}/image_raw', qos),
                 create(CameraInfo, f'{base}/camera_info', qos),
                 create(Image, f'{base}/depth/image_raw', qos) if depth else None,
                 create(PointCloud2, f'{base}/points', qos)
-                if depth and self.config.camera_points else None)
+                if seen or (depth and self.config.camera_points) else None)
 
-    def _publish_frames(self, rig: CameraRig, only=None, sizes=None) -> None:
+    def _publish_frames(self, rig: CameraRig, only=None, sizes=None, depth_for=()) -> None:
         try:
-            frames = rig.capture(only, sizes)
+            frames = rig.capture(only, sizes, depth_for)
         except RenderingUnavailableError as exc:
             self._cameras_failed = str(exc)
             self._node.get_logger().error(f'cameras are off: {exc}')
@@ -454,13 +465,16 @@ class Perception:
             if not f.camera.fixed:
                 self._tf_pub.publish(pm.moving_camera_tf(frame, self._world_frame, f.pos,
                                                          f.quat_wxyz, f.time))
-            image_pub.publish(pm.image(f.rgb, f.time, frame))
+            image_pub.publish(pm.image(f.rgb, f.time, frame,
+                                       decl.encoding if decl is not None else 'rgb8'))
             height, width = f.rgb.shape[:2]
             info_pub.publish(pm.camera_info(f.intrinsics, width, height, f.time, frame))
-            if depth_pub is not None and f.depth is not None:
-                depth_pub.publish(pm.depth_image(f.depth, f.time, frame))
-            if points_pub is not None and f.depth is not None:
-                points_pub.publish(pm.points(f.depth, f.rgb, f.intrinsics, f.time, frame))
+            depth = f.depth if f.depth is None or decl is None else pm.clipped(f.depth,
+                                                                               decl.clip)
+            if depth_pub is not None and depth is not None:
+                depth_pub.publish(pm.depth_image(depth, f.time, frame))
+            if points_pub is not None and depth is not None:
+                points_pub.publish(pm.points(depth, f.rgb, f.intrinsics, f.time, frame))
 
     def _publish_scan(self, reading, info: ModelInfo, period: float) -> None:
         pub = self._laser_pubs.get(reading.site)

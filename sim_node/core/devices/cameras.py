@@ -144,7 +144,7 @@ class CameraRig:
         return select(self.world.model_info.cameras, self.patterns)
 
     def capture(self, only: Optional[Sequence[str]] = None,
-                sizes: Optional[dict] = None) -> list:
+                sizes: Optional[dict] = None, depth_for: Sequence[str] = ()) -> list:
         """
         Render every selected camera of the current state; returns [:class:`CameraFrame`].
 
@@ -153,6 +153,8 @@ class CameraRig:
         :param only: the names of the cameras to render now (None: all selected).
         :param sizes: camera name -> (width, height) of its own (a robot file declares it);
             the rig's size for the others.
+        :param depth_for: cameras that read depth even when the rig does not (declared depth
+            cameras).
         """
         self._sizes = dict(sizes or {})
         frames = self.world.observe(self._fill_scenes)
@@ -174,7 +176,8 @@ class CameraRig:
         out = []
         for (cam, sim_time, generation, pos, q, k), scene in picked:
             size = self._sizes.get(cam.name, (self.width, self.height))
-            rgb, depth = self._renderer.render(scene, self.depth, size)
+            rgb, depth = self._renderer.render(scene, self.depth or cam.name in depth_for,
+                                               size)
             out.append(CameraFrame(camera=cam, time=sim_time, generation=generation, rgb=rgb,
                                    depth=depth, pos=pos, quat_wxyz=q, intrinsics=k))
         return out

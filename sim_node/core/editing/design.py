@@ -76,6 +76,8 @@ class Spawned:
     mesh_bytes: int = 0
     #: Bytes its spawn added to MuJoCo's cache of processed meshes (0: they were there).
     cached_bytes: int = 0
+    #: A URDF's geoms (own names) -> the names Gazebo gives those collisions.
+    collisions: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

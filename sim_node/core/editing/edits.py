@@ -131,6 +131,7 @@ class Edits:
                            description=source.description, namespace=namespace,
                            urdf=source.text if source.kind == 'urdf' else '',
                            world_link=getattr(source.urdf_notes, 'world_link', None),
+                           collisions=dict(getattr(source.urdf_notes, 'collisions', {})),
                            drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
                                                             ())),
                            sensors=sensors)

@@ -1,8 +1,11 @@
 """
 What a robot file's sensor tags declare, read and checked: a laser's sweep, rate, frame, topic.
 
-Lasers (:func:`laser`) and force-torque sensors on joints (:func:`force_torque`: SDF's
-``<frame>`` and ``<measure_direction>``, a frame id and a topic as for lasers).
+Lasers (:func:`laser`), cameras (:func:`camera`), IMUs (:func:`imu`), force-torque sensors on
+joints (:func:`force_torque`: SDF's ``<frame>`` and ``<measure_direction>``, a frame id and a
+topic as for lasers) and contact sensors (:func:`contact`: the link's collisions by
+the names Gazebo gives them, a topic from ``<topic>``, ``<contact><topic>`` or the bumper
+plugin's ``bumper_states`` remapping).
 
 A ``<sensor type="ray|gpu_ray|lidar|gpu_lidar">`` of Gazebo classic (``<ray>``) or current Gazebo
 (``<lidar>``) gives its ``<update_rate>``, ``<always_on>``, ``<scan><horizontal>`` and
@@ -26,7 +29,8 @@ import re
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from ..records import DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench
+from ..records import (DeclaredCamera, DeclaredContact, DeclaredImu, DeclaredLaser,
+                       DeclaredWrench)
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +44,11 @@ DEFAULT_IMU_RATE_HZ = 100.0
 MAX_RAYS = 100_000
 #: The farthest a declared laser may see (m).
 MAX_RANGE = 10_000.0
+#: A camera tag's image <format> (Gazebo classic's and current Gazebo's names) -> encoding.
+FORMATS = {'R8G8B8': 'rgb8', 'RGB_INT8': 'rgb8', 'B8G8R8': 'bgr8', 'BGR_INT8': 'bgr8',
+           'L8': 'mono8', 'L_INT8': 'mono8', 'L16': 'mono16', 'L_INT16': 'mono16'}
+#: Camera sensor types that see depth (they publish depth images and points).
+DEPTH_CAMERAS = ('depth', 'depth_camera', 'rgbd_camera', 'rgbd')
 _TOKEN = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')
 WARN = "URDF sensor {sensor!r}: {what} {value!r} {why}; the node's own setting is used"
 
@@ -54,8 +63,7 @@ def laser(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> Dec
     ray = _first(sensor, 'ray', 'lidar')
     warn = _warner(sensor, site)
     out = DeclaredLaser(site=site, rate_hz=_rate(sensor, warn),
-                        always_on=(sensor.findtext('always_on') or 'true').strip().lower()
-                        not in ('0', 'false'))
+                        always_on=_always_on(sensor))
     if ray is not None:
         out = _sweep(out, ray, warn)
     out = replace(out, frame=_frame(sensor, link, links, warn), topic=_topic(sensor, warn))
@@ -135,19 +143,25 @@ def _frame(sensor: ET.Element, link: str, links: Sequence[str], warn) -> str:
     return given or link
 
 
-def _topic(sensor: ET.Element, warn) -> str:
-    """Return its topic as declared ('' : none), relative names kept relative."""
+def _topic(sensor: ET.Element, warn, outs: tuple = ('~/out', 'out'),
+           old: str = 'topicName') -> str:
+    """
+    Return its topic as declared ('' : none), relative names kept relative.
+
+    :param outs: the names the plugin publishes on that a ``<remapping>`` may rename.
+    :param old: the plugin's ROS 1 element naming its topic.
+    """
     plugin = sensor.find('plugin')
-    topic = (sensor.findtext('topic') or '').strip()
+    topic = (sensor.findtext('topic') or sensor.findtext('contact/topic') or '').strip()
     if plugin is not None:
         ns = (plugin.findtext('ros/namespace') or plugin.findtext('robotNamespace') or '')
         ns = ns.strip().rstrip('/')
         out = ''
         for remap in plugin.iter('remapping'):
             src, _, dst = (remap.text or '').partition(':=')
-            if src.strip() in ('~/out', 'out') and dst.strip():
+            if src.strip() in outs and dst.strip():
                 out = dst.strip()
-        out = out or (plugin.findtext('topicName') or '').strip()
+        out = out or (plugin.findtext(old) or '').strip()
         if not out and ns:
             out = f'{plugin.get("name") or sensor.get("name")}/out'
         if out:
@@ -164,8 +178,47 @@ def valid_topic(name: str) -> bool:
     return bool(body) and all(_TOKEN.match(t) for t in body.split('/'))
 
 
+def contact(sensor: ET.Element, name: str, link: str, collisions: dict) -> DeclaredContact:
+    """
+    Read a contact sensor tag on `link`: the collisions it reports on, its rate and topic.
+
+    :param collisions: Gazebo's name -> geom name of the link's collisions. A ``<collision>``
+        the link lacks is left out with a warning; none given (or none left): all of them.
+    """
+    warn = _warner(sensor, name)
+    named = [(c.text or '').strip() for c in sensor.iter('collision') if (c.text or '').strip()]
+    geoms = []
+    for given in named:
+        # A lumped link's collision (sdformat's <parent>_fixed_joint_lump__<link>_collision):
+        # this simulator keeps links apart, so it is that link's own collision.
+        own = given.split('_fixed_joint_lump__', 1)[-1]
+        if own in collisions:
+            geoms.append(collisions[own])
+        else:
+            log.warning('URDF sensor %r: collision %r is not a collision of link %r (it has '
+                        '%s): left out', name, given, link, ', '.join(sorted(collisions))
+                        or 'none')
+    frame = next((t.strip() for p in sensor.iter('plugin')
+                  for t in [p.findtext('frame_name') or p.findtext('frameName')] if t), '')
+    if frame and frame != 'world':
+        log.warning("URDF sensor %r: frame %r is not 'world': its contacts are reported in "
+                    'the world frame', name, frame)
+    return DeclaredContact(name=name, geoms=tuple(dict.fromkeys(geoms or collisions.values())),
+                           rate_hz=_rate(sensor, warn), always_on=_always_on(sensor),
+                           topic=_topic(sensor, warn, ('bumper_states', '~/bumper_states',
+                                                       '~/out', 'out'), 'bumperTopicName'))
+
+
+def _always_on(sensor: ET.Element) -> bool:
+    return (sensor.findtext('always_on') or 'true').strip().lower() not in ('0', 'false')
+
+
 def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
     """Return a declared sensor's record under `entity` (see :func:`entity_laser`)."""
+    if isinstance(decl, DeclaredContact):
+        return replace(decl, name=f'{entity}/{decl.name}',
+                       geoms=tuple(f'{entity}/{g}' for g in decl.geoms),
+                       topic=_under(namespace, decl.topic))
     if isinstance(decl, DeclaredWrench):
         return entity_wrench(decl, entity, namespace, root)
     if isinstance(decl, DeclaredCamera):
@@ -226,12 +279,25 @@ def camera(sensor: ET.Element, name: str, links: Sequence[str]) -> DeclaredCamer
     if topic and not valid_topic(topic):
         warn('topic', topic, 'is not a name ROS takes')
         topic = ''
+    fmt = (sensor.findtext('.//image/format') or 'R8G8B8').strip()
+    encoding = FORMATS.get(fmt.upper())
+    if encoding is None:
+        warn('image format', fmt, f'is not one of {", ".join(sorted(FORMATS))}')
+        encoding = 'rgb8'
+    near, far = (_number(sensor.findtext(f'.//clip/{k}')) for k in ('near', 'far'))
+    clip = None
+    if sensor.find('.//clip') is not None:
+        if near is not None and far is not None and 0 <= near < far <= MAX_RANGE:
+            clip = (near, far)
+        else:
+            warn('clip', (sensor.findtext('.//clip/near'), sensor.findtext('.//clip/far')),
+                 f'is not 0 <= near < far <= {MAX_RANGE:g} m')
     return DeclaredCamera(camera=name, width=None if width is None else int(width),
                           height=None if height is None else int(height),
                           rate_hz=_rate(sensor, warn),
-                          always_on=(sensor.findtext('always_on') or 'true').strip().lower()
-                          not in ('0', 'false'),
-                          frame=frame, topic=topic)
+                          always_on=_always_on(sensor), frame=frame, topic=topic,
+                          encoding=encoding, clip=clip,
+                          depth=(sensor.get('type') or '').lower() in DEPTH_CAMERAS)
 
 
 def imu(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> DeclaredImu:
@@ -260,8 +326,7 @@ def imu(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> Decla
     return DeclaredImu(site=site, rate_hz=rate or DEFAULT_IMU_RATE_HZ,
                        gyro_noise=noises.get('angular_velocity'),
                        accel_noise=noises.get('linear_acceleration'),
-                       always_on=(sensor.findtext('always_on') or 'true').strip().lower()
-                       not in ('0', 'false'),
+                       always_on=_always_on(sensor),
                        frame=_frame(sensor, link, links, warn), topic=_topic(sensor, warn))
 
 

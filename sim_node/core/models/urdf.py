@@ -113,6 +113,9 @@ class Prepared:
     #: For a root fixed to a link named ``world``: where that link is in the root link's
     #: frame, (position (3,), quaternion wxyz (4,)): the description names it, so /tf has it.
     world_link: Optional[tuple] = None
+    #: link -> the names Gazebo gives its collisions (``<name or link>_collision[_<i>]``),
+    #: in order; then (:func:`finish`) geom name -> that name, the geoms named where unnamed.
+    collisions: dict = field(default_factory=dict)
     extensions: list = field(default_factory=list)  # the extension elements, as parsed
     unknown: list = field(default_factory=list)  # element names URDF does not define
     repairs: list = field(default_factory=list)  # one text per inertia repaired
@@ -174,7 +177,10 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
             if firsts[0].get('type') == 'fixed':
                 out.world_link = _inverse_origin(firsts[0].find('origin'))
     _check_mimics(joints)
+    gazebo_names = _collision_names(root)
     empty = _drop_empty_geometry(root)
+    out.collisions = {link.get('name', ''): [gazebo_names[c] for c in link.findall('collision')]
+                      for link in links}
     if empty:
         out.repairs.append(f'links {inertias.listed(empty)} have geometry of size zero, which '
                            'MuJoCo refuses and RViz does not draw: left out')
@@ -212,8 +218,10 @@ def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
             for g in geoms:
                 if g.contype or g.conaffinity:
                     g.group = COLLISION_GROUP
+    prepared.collisions = _name_collisions(spec, prepared.collisions)
     prepared.declared, prepared.sensors = urdf_declared.add(
-        spec, prepared.extensions, prepared.joint_limits, prepared.joint_links)
+        spec, prepared.extensions, prepared.joint_limits, prepared.joint_links,
+        prepared.collisions)
     _start_inside_ranges(spec)
     if not prepared.self_collide:
         _exclude_self_contacts(spec)
@@ -326,6 +334,44 @@ def _where(elem: ET.Element, root: ET.Element) -> str:
             if any(e is elem for e in owner.iter()):
                 return f'{kind} {owner.get("name")!r}'
     return 'the URDF'
+
+
+def _collision_names(root: ET.Element) -> dict:
+    """
+    Return each <collision> element's name as Gazebo's URDF reader makes it.
+
+    Its own name, or else its link's, then ``_collision``, then ``_<i>`` for all but a link's
+    first collision: what a contact sensor's ``<collision>`` names, and the middle of the
+    ``model::link::collision`` its reports scope it by.
+    """
+    out = {}
+    for link in root.findall('link'):
+        for i, part in enumerate(link.findall('collision')):
+            name = f"{part.get('name') or link.get('name', '')}_collision"
+            out[part] = f'{name}_{i}' if i else name
+    return out
+
+
+def _name_collisions(spec: mujoco.MjSpec, names: dict) -> dict:
+    """
+    Return geom name -> Gazebo's name of every collision MuJoCo made (see :func:`prepare`).
+
+    MuJoCo imports a link's collisions in order, before its visuals (which collide with
+    nothing); an unnamed one (or one whose name another took) is given Gazebo's name.
+    """
+    out, taken = {}, {g.name for g in spec.geoms if g.name}
+    for body in spec.bodies:
+        geoms = [g for g in body.geoms if g.contype or g.conaffinity]
+        given = names.get(body.name, [])
+        if len(geoms) != len(given):
+            continue  # not as read: its geoms keep MuJoCo's names
+        for geom, name in zip(geoms, given):
+            if not geom.name and name not in taken:
+                geom.name = name
+                taken.add(name)
+            if geom.name:
+                out[geom.name] = name
+    return out
 
 
 def _drop_empty_geometry(root: ET.Element) -> list:

@@ -8,10 +8,10 @@ elements :func:`.urdf.prepare` kept:
   link): ``camera``, ``depth``, ``rgbd_camera``/``rgbd`` become a camera on the link (looking
   along the link's x, z up, as Gazebo's do; vertical field of view from ``horizontal_fov`` and
   the tag's image size); ``imu`` a site ``<sensor>_imu`` with a framequat, a gyro and an
-  accelerometer; ``ray``, ``gpu_ray``, ``lidar``, ``gpu_lidar`` a site ``<sensor>_lidar`` (a
-  planar laser in the link's x-y plane). The node publishes them as it publishes every camera,
-  IMU and laser (its topics, its resolution, rate and range parameters: a tag's own are not
-  used, so an absurd one costs nothing); a sensor's ``<pose>`` places it on the link.
+  accelerometer; ``ray``, ``gpu_ray``, ``lidar``, ``gpu_lidar`` a site ``<sensor>_lidar``;
+  ``force_torque`` on a joint a site on its child; ``contact`` reports on the link's
+  collisions. What each tag declares (rates, sizes, sweeps, noise, frames, topics) is read by
+  :mod:`.sensor_tags`; a sensor's ``<pose>`` places it on the link.
 * ``<ros2_control>`` joints: a joint whose command interfaces are velocity without position
   gets a velocity actuator (``kv`` the link's inertia over twice a 2 ms step: a 4 ms time
   constant, stable; ``ctrlrange`` from the interface's min/max or the URDF velocity limit,
@@ -39,13 +39,14 @@ VELOCITY_GAIN, STEP = 0.5, 0.002
 
 
 def add(spec: mujoco.MjSpec, extensions: list, limits: dict,
-        joints: Optional[dict] = None) -> tuple:
+        joints: Optional[dict] = None, collisions: Optional[dict] = None) -> tuple:
     """
     Add the declared sensors and interfaces to `spec`.
 
     :param limits: joint -> {'velocity', 'effort'} from the URDF (:func:`joint_limits`).
     :param joints: joint -> (parent link, child link), for sensors on joints
         (:func:`joint_links`).
+    :param collisions: geom name -> Gazebo's collision name, for contact sensors.
     :returns: (what was added, as text; the declared lasers and force-torque sensors,
         :class:`.records.DeclaredLaser` and :class:`.records.DeclaredWrench` with the robot's
         own names, read by :mod:`.sensor_tags`).
@@ -67,6 +68,13 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict,
             if body is None:
                 log.warning('URDF sensor %r names link %r, which the model lacks: left out',
                             sensor.get('name'), link)
+                continue
+            if (sensor.get('type') or '').lower() == 'contact':
+                own = {gz: g.name for g in body.geoms if g.name
+                       for gz in [(collisions or {}).get(g.name)] if gz}
+                declared.append(sensor_tags.contact(
+                    sensor, sensor.get('name') or f'{link}_contact', link, own))
+                done.append(f'contact sensor {sensor.get("name")!r} on {link!r}')
                 continue
             try:
                 text = _sensor(spec, body, sensor, declared)

@@ -65,6 +65,9 @@ class Live:
         #: Declared sensors sampled as the world steps (:mod:`.sampling`), and their queue.
         self.sampler = None
         self.samples = sampling.new_queue()
+        #: The entities whose contacts are reported (:meth:`World.report_contacts`).
+        self.contact_request = sampling.request(config.contact_entities,
+                                                config.contact_rate_hz)
         self.adopt_locked(model, mujoco.MjData(model))
         self.reset_state_locked(keep_time=False)
 

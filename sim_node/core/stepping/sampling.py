@@ -1,5 +1,5 @@
 """
-Sensors sampled in the stepping loop at their own rates of simulated time: declared IMUs.
+Sensors sampled in the stepping loop at their own rates of simulated time: IMUs and contacts.
 
 A robot file's IMU says how often it samples (``update_rate``, :class:`~..records.DeclaredImu`).
 Snapshots come at a wall-clock rate, too seldom for a 250 Hz IMU and never in step with
@@ -7,18 +7,27 @@ simulated time; so the loop stops its batch of steps at each due time (as it doe
 timeout, :mod:`.steps`) and copies the IMU's values, with its Gaussian noise (seeded by the
 site's name: a run repeats), into a queue that the node drains and publishes, each sample
 stamped with its own simulated time. A time that goes back (a reset) starts the schedule over.
+
+Contact sensors (:class:`~..records.DeclaredContact`: declared, MuJoCo's, and the entities
+whose contacts were asked for, :class:`ContactRequest`) are sampled the same way, each a
+:class:`~..devices.contacts.ContactReport` in the same queue.
 """
 
 from collections import deque
 import math
-from typing import Optional
+from typing import NamedTuple, Optional
 import zlib
 
 import mujoco
 import numpy as np
 
+from ..devices import contacts
+from ..errors import InvalidArgumentError
+
 #: Samples kept for the node between two drains (a slow consumer loses the oldest).
 SAMPLES_KEPT = 10_000
+#: The most contact reports per simulated second.
+MAX_CONTACT_RATE_HZ = 1000.0
 #: Simulated time within this fraction of a period of a due time counts as due.
 DUE_TOLERANCE = 1e-6
 
@@ -36,6 +45,28 @@ class _Entry:
         self.next = math.nan
 
 
+class ContactRequest(NamedTuple):
+    """Entities whose contacts are reported, and how often (simulated Hz)."""
+
+    entities: tuple = ()
+    rate_hz: float = 50.0
+
+
+class _Contacts:
+    __slots__ = ('name', 'period', 'mine', 'others', 'next')
+
+    def __init__(self, name: str, period: float, mine: np.ndarray,
+                 others: Optional[np.ndarray]):
+        self.name, self.period, self.mine, self.others = name, period, mine, others
+        self.next = math.nan
+
+
+def _mask(n: int, ids) -> np.ndarray:
+    out = np.zeros(n, bool)
+    out[list(ids)] = True
+    return out
+
+
 def _slice(adr: Optional[tuple]) -> Optional[slice]:
     return None if adr is None else slice(adr[0], adr[0] + adr[1])
 
@@ -45,37 +76,56 @@ class Sampler:
     The declared IMUs of one model generation, sampled as the loop steps.
 
     :param info: the generation's :class:`~..records.ModelInfo` (its ``imus`` and the IMU
-        sensor groups they are).
+        sensor groups they are, its ``contacts`` and ``geom_scoped``).
+    :param request: the entities whose contacts were asked for (their reports are named as
+        the entity), and the rate of those and of contact sensors that declare none.
     """
 
-    def __init__(self, info, samples: deque):
-        self.generation = info.generation
+    def __init__(self, info, samples: deque, request: ContactRequest = ContactRequest()):
+        self.generation, self.request = info.generation, request
         self._entries = [_Entry(s.name, 1.0 / info.imus[s.name].rate_hz, s.adr,
                                 info.imus[s.name])
                          for s in info.sensors if s.kind == 'imu' and s.name in info.imus]
+        ngeom = len(info.geom_scoped)
+        self._contacts = [
+            _Contacts(c.name, 1.0 / (c.rate_hz or request.rate_hz), _mask(ngeom, c.geoms),
+                      _mask(ngeom, c.others) if c.others else None)
+            for c in info.contacts.values()]
+        roots = {e.name: e.root_body for e in info.entities}
+        self._contacts += [
+            _Contacts(name, 1.0 / request.rate_hz,
+                      info.body_root[info.geom_body] == roots[name], None)
+            for name in request.entities if name in roots and name not in info.contacts]
+        self._all = self._entries + self._contacts
         self._samples = samples
         self._last = -math.inf
 
     def __bool__(self) -> bool:
-        return bool(self._entries)
+        return bool(self._all)
 
     def next_due(self, now: float) -> float:
         """Return the earliest simulated time at or after `now` a sample is due."""
         if now < self._last:  # a reset: every schedule starts over
-            for e in self._entries:
+            for e in self._all:
                 e.next = math.nan
         self._last = now
         due = math.inf
-        for e in self._entries:
+        for e in self._all:
             if math.isnan(e.next):
                 e.next = now
             due = min(due, e.next)
         return due
 
-    def collect(self, d: mujoco.MjData) -> None:
+    def collect(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Take the samples due at the data's time (after a step ended there)."""
         t = float(d.time)
         self._last = t
+        for c in self._contacts:
+            if math.isnan(c.next) or t < c.next - DUE_TOLERANCE * c.period:
+                continue
+            self._samples.append(contacts.ContactReport(
+                c.name, t, contacts.read(m, d, c.mine, c.others), self.generation))
+            c.next = (math.floor(t / c.period + DUE_TOLERANCE) + 1) * c.period
         for e in self._entries:
             if math.isnan(e.next) or t < e.next - DUE_TOLERANCE * e.period:
                 continue
@@ -91,6 +141,24 @@ class Sampler:
             e.next = (math.floor(t / e.period + DUE_TOLERANCE) + 1) * e.period
 
 
+def request(entities, rate_hz: float = 50.0) -> ContactRequest:
+    """
+    Ask for the contacts of `entities`, `rate_hz` times per simulated second.
+
+    From the next step on, each is a :class:`~..devices.contacts.ContactReport` named as its
+    entity, taken with :meth:`~sim_node.core.world.World.take_sensor_samples`; a name no
+    entity has yet is reported once one spawns. The rate is also that of contact sensors
+    that declare none.
+
+    :raises InvalidArgumentError: a rate not in (0, :data:`MAX_CONTACT_RATE_HZ`] Hz.
+    """
+    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) \
+            or not 0 < rate_hz <= MAX_CONTACT_RATE_HZ:
+        raise InvalidArgumentError(
+            f'contact rate {rate_hz!r} Hz is not in (0, {MAX_CONTACT_RATE_HZ:g}]')
+    return ContactRequest(tuple(dict.fromkeys(str(e) for e in entities)), float(rate_hz))
+
+
 def new_queue() -> deque:
     """Return the queue a world's samplers fill and its node drains."""
     return deque(maxlen=SAMPLES_KEPT)
@@ -101,7 +169,8 @@ def drain(samples: deque) -> list:
     Take every sample queued so far, oldest first; thread-safe, without the world lock.
 
     Each is (site, simulated time, orientation wxyz, angular velocity, linear acceleration)
-    of an IMU a robot file declares, at its own rate; a part the sensor lacks is None.
+    of an IMU a robot file declares, at its own rate (a part the sensor lacks is None), or a
+    contact sensor's :class:`~..devices.contacts.ContactReport`.
     """
     out = []
     while True:

@@ -133,8 +133,10 @@ class Stepping:
             mujoco.mj_getState(m, d, before, STATE_SPEC)
             ctrl = None  # already in `before`
         sampler = live.sampler
-        if sampler is None or sampler.generation != live.index.generation:
-            sampler = live.sampler = sampling.Sampler(live.index.info, live.samples)
+        if sampler is None or sampler.generation != live.index.generation \
+                or sampler.request is not live.contact_request:
+            sampler = live.sampler = sampling.Sampler(live.index.info, live.samples,
+                                                      live.contact_request)
         if control.per_step:
             self._step_each(m, d, n, sampler)
         elif control.batched or sampler:
@@ -151,7 +153,7 @@ class Stepping:
                 mujoco.mj_step(m, d, k)
                 left -= k
                 if sampler:
-                    sampler.collect(d)
+                    sampler.collect(m, d)
                 if left and control.batched and control.before_batch(m, d) \
                         and control.per_step:
                     self._step_each(m, d, left, sampler)
@@ -181,7 +183,7 @@ class Stepping:
             control.apply(m, d)
             mujoco.mj_step(m, d)
             if sampler:
-                sampler.collect(d)
+                sampler.collect(m, d)
 
     def _diverged_locked(self, before: np.ndarray, n: int, ctrl: Optional[np.ndarray]) -> None:
         live = self.live
