@@ -172,8 +172,21 @@ def simulation_state(loop_state: str) -> SimulationState:
 
 
 def joint_state(info: ModelInfo, snap: Snapshot) -> JointState:
+    """
+    Return the snapshot's hinge and slide joints as JointState.
+
+    Not those of robots whose own controllers publish them (``info.ros2_control``: their
+    joint_state_broadcaster, under the URDF's names).
+    """
     msg = JointState()
     msg.header.stamp = stamp(snap.time)
+    if getattr(info, 'ros2_control', None):
+        keep = [i for i, e in enumerate(info.joint_entity) if e not in info.ros2_control]
+        msg.name = [info.joint_names[i] for i in keep]
+        msg.position = snap.joint_position[keep].tolist()
+        msg.velocity = snap.joint_velocity[keep].tolist()
+        msg.effort = snap.joint_effort[keep].tolist()
+        return msg
     msg.name = list(info.joint_names)
     msg.position = snap.joint_position.tolist()
     msg.velocity = snap.joint_velocity.tolist()

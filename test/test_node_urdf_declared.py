@@ -200,8 +200,8 @@ def test_the_readmes_list_of_a_robots_sensors_is_what_the_node_publishes(sim, wa
         sim.spawn('ranger', resource_string=RANGER, position=(-2.0, 2.0, 0.1))
     rows = [line.split() for line in block.strip().splitlines()]
     assert len(rows) >= 5
-    wait_for(lambda: {r[0] for r in rows} <= {n for n, _ in
-                                               watch.node.get_topic_names_and_types()})
+    wait_for(lambda: {r[0] for r in rows} <= {
+        n for n, _ in watch.node.get_topic_names_and_types()})
     types = dict(watch.node.get_topic_names_and_types())
     for topic, kind, frame, rate, hz in rows:
         (full,) = [t for t in types[topic] if t.endswith(f'/{kind}')]

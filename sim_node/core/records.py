@@ -304,6 +304,9 @@ class ModelInfo:
     geom_scoped: tuple = ()
     #: (ngeom,) the body each geom is on.
     geom_body: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    #: Entity -> its URDF's ros2_control declaration (``.models.ros2_control.Ros2Control``,
+    #: under its namespace): the robots whose joints their own controllers publish and drive.
+    ros2_control: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

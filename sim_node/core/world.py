@@ -131,9 +131,7 @@ class World:
         """
         Call ``read(model, data, generation)`` under the world lock with poses up to date.
 
-        For sensors that look at the world (cameras, ray casts): body, geom, site and camera
-        poses describe the current state. `read` must change nothing and be quick: the loop
-        waits meanwhile.
+        For cameras and ray casts; `read` must change nothing and be quick (the loop waits).
         """
         live = self._live
         with live.lock:
@@ -166,6 +164,13 @@ class World:
         request = sampling.request(entities, rate_hz)
         with self._live.lock:
             self._live.contact_request = request
+
+    def sample_joints(self, key: str, joints: Sequence[str], rate_hz: float = 0.0) -> None:
+        """Sample these joints `rate_hz` times per simulated second (0: stop): JointSample."""
+        with self._live.lock:
+            live = self._live
+            live.joint_requests = sampling.joint_requests(live.joint_requests, key, joints,
+                                                          rate_hz)
 
     @property
     def timestep(self) -> float:
@@ -255,11 +260,7 @@ class World:
         self._writes.set_state(physics_state)
 
     def get_entity_state(self, name: str, reference: str = '') -> EntityState:
-        """
-        Pose, twist and acceleration of the entity's root body origin.
-
-        In the world or `reference`'s frame (see :func:`state.entity_state`).
-        """
+        """Pose, twist, acceleration of its root body, in the world or `reference`'s frame."""
         live = self._live
         with live.lock:
             rec = live.index.entity(name)

@@ -32,6 +32,7 @@ from sensor_msgs.msg import JointState
 from . import instances, params
 from .bases import BaseControllers
 from .command_drain import CommandDrain
+from .controller_manager import ControllerManagers
 from .descriptions import default_mesh_dir, RobotDescriptions
 from .perception import Perception
 from .publishing import ModelTopics, StatePublisher
@@ -51,6 +52,10 @@ from ..view.window import check_display, Window
 NODE_NAME = 'sim'
 #: How often the housekeeping timer runs: the `paused` parameter, log lines, /diagnostics.
 HOUSEKEEPING_SEC = 0.2
+
+
+#: How long a node taken out of the executor is left before it is destroyed (s).
+DROP_SEC = 0.3
 
 
 class SimNode(Node):
@@ -104,6 +109,9 @@ class SimNode(Node):
         self.bases = BaseControllers(self, ReentrantCallbackGroup(), self.session, self.frames,
                                      self.param, self.publisher.set_tf_elsewhere,
                                      self.status.refused)
+        self.controllers = ControllerManagers(self.session, self.readable.roots, self._add_node,
+                                              self._drop_node, self.status.refused)
+        self.perception.joint_samples = self.controllers.on_sample
         self.descriptions = RobotDescriptions(
             self, self.session,
             Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())
@@ -112,6 +120,7 @@ class SimNode(Node):
         self.sim_services = Services(self, self.session, self.frames, self.readable, p,
                                      self.world_config, self.status.sync_paused_parameter,
                                      self.end_process)
+        self.sim_services.after_edit = self.controllers.sync_now
         self.create_timer(HOUSEKEEPING_SEC, self.status.housekeeping,
                           callback_group=self._events)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -175,7 +184,7 @@ class SimNode(Node):
         path = resources.resolve_scene(self.param('scene'), self.readable.scenes_dir)
         for listener in (self.publisher.on_model, self.model_topics, self.perception.on_model,
                          self.trajectories.on_model, self.descriptions.on_model,
-                         self.bases.on_model):
+                         self.bases.on_model, self.controllers.on_model):
             self.session.add_listener(listener)
         self.session.load_file(str(path), self.world_config())
         if self.param('viewer'):
@@ -203,11 +212,33 @@ class SimNode(Node):
         self.shutdown()
         os.kill(os.getpid(), signal.SIGINT)
 
+    def _add_node(self, node) -> None:
+        """Spin another node of this process (a robot's controller manager, a controller)."""
+        self.executor.add_node(node)
+
+    def _drop_node(self, *nodes) -> None:
+        """
+        Stop spinning nodes, then destroy them, before anything of the same name comes.
+
+        Left for later, a robot's manager outlived the next robot's for a moment: a client that
+        found the old one's service sent its request there, and no answer ever came. Taken
+        out of the executor first, its entities are in no later wait set (DROP_SEC lets a
+        wait and a callback of it that had begun end).
+        """
+        executor = self.executor
+        if executor is not None:
+            for node in nodes:
+                executor.remove_node(node)
+            time.sleep(DROP_SEC)
+        for node in nodes:
+            node.destroy_node()
+
     def shutdown(self) -> None:
         """Stop the loop, the session's thread and the publishers (before the executor)."""
         for view in (self.window, self.web_view):
             if view is not None:
                 view.close()
+        self.controllers.close()
         self.session.close()
         self.publisher.stop()
         self.perception.stop()

@@ -31,6 +31,7 @@ from ..core.devices.contacts import ContactReport
 from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
 from ..core.devices.rendering import RenderingUnavailableError
 from ..core.records import ModelInfo, Snapshot
+from ..core.stepping.sampling import JointSample
 from ..session import Loaded
 
 #: For sensors sampled at their own rates: the samples of one publishing tick at 1 kHz fit.
@@ -90,6 +91,7 @@ class Perception:
                  frame_prefix: str, contact_entities: Callable[[], tuple] = tuple):
         self._node = node
         self.contacts = ContactPublishers(node, frame_prefix + world_frame, contact_entities)
+        self.joint_samples: Callable = lambda sample: None  # told the loop's JointSamples
         self.config = config
         self._world_frame = frame_prefix + world_frame
         self._prefix = frame_prefix
@@ -140,11 +142,7 @@ class Perception:
     # ------------------------------------------------------------------ sensors
 
     def publish_sensors(self, snap: Snapshot) -> None:
-        """
-        Publish every sensor group of the snapshot's model (from the publisher thread).
-
-        Nothing until :meth:`sync_sensors` has made the publishers of that model generation.
-        """
+        """Publish the snapshot's sensors (publisher thread), once sync_sensors made theirs."""
         info = snap.info
         with self._sensor_lock:
             if info.generation != self._sensor_generation:
@@ -180,6 +178,9 @@ class Perception:
         if sim is None:
             return
         for sample in sim.world.take_sensor_samples():
+            if isinstance(sample, JointSample):  # a controller manager's
+                self.joint_samples(sample)
+                continue
             if isinstance(sample, ContactReport):
                 if sample.generation == info.generation:
                     self.contacts.publish(sample, info)

@@ -48,7 +48,7 @@ class StatePublisher:
     A listener of the session (:meth:`on_model`) like the node's other parts: it records which
     world is loaded, and its threads read that world's newest snapshot at their rates.
 
-    :param publish_sensors: called with each snapshot whose model has sensors.
+    :param publish_sensors: called with each snapshot at the joint_states rate.
     :param report_failure: called as ``report_failure(what, exc)`` when a job fails.
     """
 
@@ -139,8 +139,7 @@ class StatePublisher:
         snap = loaded.loop.latest_snapshot()
         if snap.info.joint_names:
             self._joint_pub.publish(convert.joint_state(snap.info, snap))
-        if snap.info.sensors:
-            self._publish_sensors(snap)
+        self._publish_sensors(snap)  # its sensors, and what the loop sampled (contacts...)
 
 
 class ModelTopics:

@@ -51,6 +51,10 @@ _REQUESTED = {SimulationState.STATE_PLAYING: lifecycle.PLAYING,
               SimulationState.STATE_STOPPED: lifecycle.STOPPED}
 
 
+#: The handlers that change which entities there are.
+EDITS = ('_spawn', '_spawn_many', '_delete', '_reset', '_load_world', '_unload_world')
+
+
 class Services:
     """
     The services and the simulate_steps action of a node over a session.
@@ -71,6 +75,8 @@ class Services:
         self._world_config = world_config
         self._on_state_change = on_state_change
         self._quit_process = quit_process
+        #: Called after a spawn, delete, reset or load answers (before its answer goes out).
+        self.after_edit: Callable[[], None] = lambda: None
         group = ReentrantCallbackGroup()
         table = {
             'get_simulator_features': (si_srv.GetSimulatorFeatures, self._features),
@@ -108,9 +114,13 @@ class Services:
 
     def _guard(self, srv_type, handler):
         """Every core error becomes a Result; nothing escapes to kill spin()."""
+        edits = handler.__name__ in EDITS
+
         def callback(request, response):
             try:
                 response = handler(request, response)
+                if edits:
+                    self.after_edit()
             except Exception as exc:  # a bug must not take the node down: report it
                 response.result = self._result_for(exc, srv_type.Response, handler.__name__)
             result = getattr(response, 'result', None)  # get_simulator_features has none

@@ -36,7 +36,7 @@ ERR_MULTI_DOF = 'multi-DOF trajectories are not supported: send joint trajectori
 ERR_GONE = 'entity {entity!r} is not in the world (any more)'
 
 
-class _LeavableActionServer(ActionServer):
+class LeavableActionServer(ActionServer):
     """
     An action server that may be destroyed while an executor waits on the node.
 
@@ -73,7 +73,7 @@ class _LeavableActionServer(ActionServer):
             pass
 
 
-def _seconds(d) -> float:
+def seconds(d) -> float:
     return d.sec + d.nanosec * 1e-9
 
 
@@ -98,7 +98,7 @@ def tolerances(names, given, default: float) -> dict:
     return out
 
 
-def _point(q=(), v=(), a=(), e=()) -> JointTrajectoryPoint:
+def point(q=(), v=(), a=(), e=()) -> JointTrajectoryPoint:
     return JointTrajectoryPoint(positions=[float(x) for x in q], velocities=[float(x) for x in v],
                                 accelerations=[float(x) for x in a], effort=[float(x) for x in e])
 
@@ -149,7 +149,7 @@ class TrajectoryServers:
             self._servers.clear()
 
     def _make(self, entity: str, base: str) -> tuple:
-        server = _LeavableActionServer(
+        server = LeavableActionServer(
             self._node, FollowJointTrajectory, f'{base}/follow_joint_trajectory',
             execute_callback=lambda goal: self._execute(entity, goal),
             goal_callback=lambda goal: self._check(entity, base, goal),
@@ -192,16 +192,16 @@ class TrajectoryServers:
             raise trajectory.TrajectoryError(trajectory.INVALID_JOINTS,
                                              ERR_GONE.format(entity=entity))
         names = list(jt.joint_names)
-        points = ([_seconds(p.time_from_start) for p in jt.points],
+        points = ([seconds(p.time_from_start) for p in jt.points],
                   [list(p.positions) for p in jt.points], [list(p.velocities) for p in jt.points],
                   [list(p.accelerations) for p in jt.points])
         if check:
             return sim.world.check_trajectory(entity, names, *points,
-                                              start_time=_seconds(jt.header.stamp),
+                                              start_time=seconds(jt.header.stamp),
                                               allow_end_velocity=allow_end_velocity)
-        gtt = _seconds(goal.goal_time_tolerance)
+        gtt = seconds(goal.goal_time_tolerance)
         return sim.world.follow_trajectory(
-            entity, names, *points, start_time=_seconds(jt.header.stamp),
+            entity, names, *points, start_time=seconds(jt.header.stamp),
             path_tolerance=tolerances(names, goal.path_tolerance, path_tol),
             goal_tolerance=tolerances(names, goal.goal_tolerance, goal_tol),
             goal_time_tolerance=gtt if gtt > 0 else goal_time,
@@ -230,15 +230,7 @@ class TrajectoryServers:
                 break
             self._report(entity, names, handle, goal_handle)
         self._report(entity, names, handle, None)
-        st = handle.status
-        result.error_code, result.error_string = int(st.code or 0), st.message
-        if goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-        elif st.code == trajectory.SUCCESSFUL and not st.canceled:
-            goal_handle.succeed()
-        else:
-            goal_handle.abort()
-        return result
+        return finish(goal_handle, handle, result)
 
     def _report(self, entity: str, names: list, handle, goal_handle) -> None:
         """Feedback (while running) and controller state, from the latest judgement."""
@@ -247,8 +239,8 @@ class TrajectoryServers:
             return
         (qd, vd, ad), (q, v) = st.desired, st.actual
         stamp = convert.clock(st.time).clock
-        desired, actual = _point(qd, vd, ad), _point(q, v)
-        error = _point(qd - q, vd - v)
+        desired, actual = point(qd, vd, ad), point(q, v)
+        error = point(qd - q, vd - v)
         if goal_handle is not None and goal_handle.is_active:
             fb = FollowJointTrajectory.Feedback(joint_names=names, desired=desired,
                                                 actual=actual, error=error)
@@ -259,10 +251,23 @@ class TrajectoryServers:
         if entry is not None:
             state = JointTrajectoryControllerState(joint_names=names, reference=desired,
                                                    feedback=actual, error=error,
-                                                   output=_point(e=st.effort),
+                                                   output=point(e=st.effort),
                                                    speed_scaling_factor=1.0)
             state.header.stamp = stamp
             entry[1].publish(state)
+
+
+def finish(goal_handle, handle, result):
+    """End a goal as its trajectory ended (canceled, succeeded or aborted); return `result`."""
+    st = handle.status
+    result.error_code, result.error_string = int(st.code or 0), st.message
+    if goal_handle.is_cancel_requested:
+        goal_handle.canceled()
+    elif st.code == trajectory.SUCCESSFUL and not st.canceled:
+        goal_handle.succeed()
+    else:
+        goal_handle.abort()
+    return result
 
 
 def duration(seconds: float) -> Duration:

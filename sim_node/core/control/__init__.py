@@ -8,5 +8,8 @@ them), :mod:`.bases` (differential-drive and holonomic bases: velocity commands 
 base's own motion), :mod:`.wheels` (what a spawn gives a wheeled model: wheel actuators,
 rolling casters), :mod:`.odometry` (a base's pose from its wheels or the ground truth),
 :mod:`.motion` (the world's control part: trajectories started and cancelled, bases found and
-driven, pushes and gains, each under the world lock).
+driven, pushes and gains, each under the world lock), :mod:`.manager` (a robot's controllers
+as ros2_control's controller manager keeps them) with :mod:`.controller_types` (what each
+controller type needs and claims), :mod:`.diff_drive` (diff_drive_controller's kinematics and
+odometry).
 """

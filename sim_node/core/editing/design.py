@@ -78,6 +78,9 @@ class Spawned:
     cached_bytes: int = 0
     #: A URDF's geoms (own names) -> the names Gazebo gives those collisions.
     collisions: dict = field(default_factory=dict)
+    #: A URDF's ros2_control declaration (:class:`~.models.ros2_control.Ros2Control`), its
+    #: namespace the spawn's when one was given.
+    ros2_control: Optional[object] = None
 
 
 @dataclass(frozen=True)

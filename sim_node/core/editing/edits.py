@@ -11,6 +11,8 @@ lock, checks against the live world (:class:`~sim_node.core.stepping.live.Live`)
 nothing.
 """
 
+from dataclasses import replace
+import itertools
 import logging
 from typing import Optional, Sequence
 
@@ -37,9 +39,13 @@ ERR_INTERPENETRATION = ('at this pose {name!r} would overlap {other!r} by {depth
 ERR_NOT_SPAWNED = '{name!r} is part of the loaded scene; only spawned entities can be deleted'
 ERR_ROBOT_WELD = '{name!r} is a robot: give it a positive mass'
 ERR_NO_MASS = '{name!r} has no mass to scale'
+ERR_MANAGER_TAKEN = ("{name!r}'s ros2_control joints and controller manager would share "
+                     "{ns} with {other!r}'s (joint_states, controller_manager): spawn it with "
+                     'a namespace of its own')
 ERR_TOPIC_TAKEN = ('{name!r} declares its sensor {site!r} on topic {topic!r}, which {other!r} '
                    'already publishes on: spawn it with a namespace of its own')
 log = logging.getLogger(__name__)
+_SPAWNS = itertools.count(1)  # numbers the spawns of ros2_control robots
 
 
 class Edits:
@@ -117,6 +123,11 @@ class Edits:
         sensors = tuple(sensor_tags.entity_sensor(d, name, namespace, tops[0] if tops else '')
                         for d in getattr(source.urdf_notes, 'sensors', ()))
         _check_topics(name, sensors, design.spawned)
+        control = getattr(source.urdf_notes, 'ros2_control', None)
+        if control is not None:
+            control = replace(control, namespace=namespace.strip('/') or control.namespace,
+                              spawn=next(_SPAWNS))
+            _check_managers(name, control, design.spawned)
 
         def apply(spec: mujoco.MjSpec) -> Spawned:
             frame, bodies, root, defaults = editor.attach(spec, name, source, pos, q,
@@ -132,6 +143,7 @@ class Edits:
                            urdf=source.text if source.kind == 'urdf' else '',
                            world_link=getattr(source.urdf_notes, 'world_link', None),
                            collisions=dict(getattr(source.urdf_notes, 'collisions', {})),
+                           ros2_control=control,
                            drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
                                                             ())),
                            sensors=sensors)
@@ -354,8 +366,21 @@ def _check_topics(name: str, sensors: tuple, spawned) -> None:
         other = taken.get(_absolute(d.topic)) if d.topic else None
         if other is not None:
             raise NamespaceInvalidError(ERR_TOPIC_TAKEN.format(
-                name=name, site=getattr(d, 'site', '') or getattr(d, 'camera', ''),
+                name=name, site=getattr(d, 'site', '') or getattr(d, 'camera', '')
+                or getattr(d, 'name', ''),
                 topic=d.topic, other=other))
+
+
+def _check_managers(name: str, control, spawned) -> None:
+    """Refuse a ros2_control robot whose controller manager another's namespace holds."""
+    where = control.namespace.strip('/')
+    for other, rec in spawned.items():
+        theirs = rec.ros2_control
+        if theirs is not None and theirs.namespace.strip('/') == where \
+                and (theirs.simulated or theirs.topic_based) \
+                and (control.simulated or control.topic_based):
+            raise NamespaceInvalidError(ERR_MANAGER_TAKEN.format(
+                name=name, other=other, ns=f'/{where}' if where else 'the root namespace'))
 
 
 def _absolute(topic: str) -> str:

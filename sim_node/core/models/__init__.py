@@ -8,8 +8,9 @@ checked copies MuJoCo reads, one per file identity), :mod:`.paths` (where a path
 :mod:`.resources` (which URIs and folders may be read), :mod:`.urdf` (URDF made ready for
 MuJoCo's importer) with :mod:`.inertias` (its inertias repaired as Gazebo loads them),
 :mod:`.urdf_declared` (Gazebo sensors and ros2_control interfaces a URDF declares) with
-:mod:`.sensor_tags` (what a laser's or a force-torque sensor's tag declares, read and
-checked),
+:mod:`.sensor_tags` (what a sensor's tag declares, read and checked) and
+:mod:`.ros2_control` (a ``<ros2_control>`` block and its Gazebo plugin), :mod:`.controller_yaml`
+(a controllers YAML as a controller manager reads it),
 :mod:`.xacro_files` and :mod:`.xacro_worker` (xacro expanded in an isolated child process),
 :mod:`.meshes`, :mod:`.mesh_worker` and :mod:`.collada_fast` (meshes MuJoCo cannot read,
 converted in child processes), :mod:`.description` (a URDF of a compiled model, for

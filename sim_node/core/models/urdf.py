@@ -37,6 +37,7 @@ import mujoco
 import numpy as np
 
 from . import inertias, urdf_declared
+from .ros2_control import read as read_ros2_control, Ros2Control
 from ..errors import CapacityError, ResourceParseError
 
 log = logging.getLogger(__name__)
@@ -116,6 +117,8 @@ class Prepared:
     #: link -> the names Gazebo gives its collisions (``<name or link>_collision[_<i>]``),
     #: in order; then (:func:`finish`) geom name -> that name, the geoms named where unnamed.
     collisions: dict = field(default_factory=dict)
+    #: Its ``<ros2_control>`` blocks and Gazebo control plugin (:mod:`.ros2_control`), or None.
+    ros2_control: Optional[Ros2Control] = None
     extensions: list = field(default_factory=list)  # the extension elements, as parsed
     unknown: list = field(default_factory=list)  # element names URDF does not define
     repairs: list = field(default_factory=list)  # one text per inertia repaired
@@ -143,6 +146,7 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
         out.extensions.append(ext)
     model = [e for e in out.extensions if e.tag == 'gazebo' and 'reference' not in e.attrib]
     out.static = any(_true(e.findtext('static')) for e in model)
+    out.ros2_control = read_ros2_control(out.extensions)
     out.joint_limits = urdf_declared.joint_limits(root)
     out.joint_links = urdf_declared.joint_links(root)
     out.self_collide = any(_true(e.findtext('self_collide')) for e in model)

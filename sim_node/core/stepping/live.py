@@ -68,6 +68,8 @@ class Live:
         #: The entities whose contacts are reported (:meth:`World.report_contacts`).
         self.contact_request = sampling.request(config.contact_entities,
                                                 config.contact_rate_hz)
+        #: Joints sampled at a rate ((key, names, Hz), :meth:`World.sample_joints`).
+        self.joint_requests: tuple = ()
         self.adopt_locked(model, mujoco.MjData(model))
         self.reset_state_locked(keep_time=False)
 

@@ -28,6 +28,8 @@ from ..errors import InvalidArgumentError
 SAMPLES_KEPT = 10_000
 #: The most contact reports per simulated second.
 MAX_CONTACT_RATE_HZ = 1000.0
+#: The most joint samples per simulated second (a controller manager's update rate).
+MAX_JOINT_RATE_HZ = 10_000.0
 #: Simulated time within this fraction of a period of a due time counts as due.
 DUE_TOLERANCE = 1e-6
 
@@ -50,6 +52,25 @@ class ContactRequest(NamedTuple):
 
     entities: tuple = ()
     rate_hz: float = 50.0
+
+
+class JointSample(NamedTuple):
+    """Joints' positions, velocities and actuator efforts at one simulated time."""
+
+    key: str
+    time: float
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+    generation: int = 0
+
+
+class _Joints:
+    __slots__ = ('name', 'period', 'qpos', 'dof', 'next')
+
+    def __init__(self, name: str, period: float, qpos: np.ndarray, dof: np.ndarray):
+        self.name, self.period, self.qpos, self.dof = name, period, qpos, dof
+        self.next = math.nan
 
 
 class _Contacts:
@@ -79,10 +100,14 @@ class Sampler:
         sensor groups they are, its ``contacts`` and ``geom_scoped``).
     :param request: the entities whose contacts were asked for (their reports are named as
         the entity), and the rate of those and of contact sensors that declare none.
+    :param joints: (key, joint names, rate Hz) of each set of joints sampled as a
+        :class:`JointSample` (a controller manager's joints at its update rate).
     """
 
-    def __init__(self, info, samples: deque, request: ContactRequest = ContactRequest()):
-        self.generation, self.request = info.generation, request
+    def __init__(self, index, samples: deque, request: ContactRequest = ContactRequest(),
+                 joints: tuple = ()):
+        info = index.info
+        self.generation, self.request, self.joints = info.generation, request, joints
         self._entries = [_Entry(s.name, 1.0 / info.imus[s.name].rate_hz, s.adr,
                                 info.imus[s.name])
                          for s in info.sensors if s.kind == 'imu' and s.name in info.imus]
@@ -96,7 +121,13 @@ class Sampler:
             _Contacts(name, 1.0 / request.rate_hz,
                       info.body_root[info.geom_body] == roots[name], None)
             for name in request.entities if name in roots and name not in info.contacts]
-        self._all = self._entries + self._contacts
+        self._joints = []
+        for key, names, rate in joints:
+            idx = [index.joint_index[n] for n in names if n in index.joint_index]
+            if idx and len(idx) == len(names):
+                self._joints.append(_Joints(key, 1.0 / rate, index.joint_qposadr[idx],
+                                            index.joint_dofadr[idx]))
+        self._all = self._entries + self._contacts + self._joints
         self._samples = samples
         self._last = -math.inf
 
@@ -120,6 +151,12 @@ class Sampler:
         """Take the samples due at the data's time (after a step ended there)."""
         t = float(d.time)
         self._last = t
+        for j in self._joints:
+            if math.isnan(j.next) or t < j.next - DUE_TOLERANCE * j.period:
+                continue
+            self._samples.append(JointSample(j.name, t, d.qpos[j.qpos], d.qvel[j.dof],
+                                             d.qfrc_actuator[j.dof], self.generation))
+            j.next = (math.floor(t / j.period + DUE_TOLERANCE) + 1) * j.period
         for c in self._contacts:
             if math.isnan(c.next) or t < c.next - DUE_TOLERANCE * c.period:
                 continue
@@ -159,6 +196,24 @@ def request(entities, rate_hz: float = 50.0) -> ContactRequest:
     return ContactRequest(tuple(dict.fromkeys(str(e) for e in entities)), float(rate_hz))
 
 
+def joint_requests(requests: tuple, key: str, joints, rate_hz: float) -> tuple:
+    """
+    Return `requests` with `key`'s joints sampled at `rate_hz` (0: not at all any more).
+
+    Each sample is a :class:`JointSample` named `key`, taken with
+    :meth:`~sim_node.core.world.World.take_sensor_samples`; joints the model lacks (an entity
+    deleted) make the request wait for a model that has them all.
+
+    :raises InvalidArgumentError: a rate not in [0, :data:`MAX_JOINT_RATE_HZ`] Hz.
+    """
+    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) \
+            or not 0 <= rate_hz <= MAX_JOINT_RATE_HZ:
+        raise InvalidArgumentError(
+            f'joint sampling rate {rate_hz!r} Hz is not in [0, {MAX_JOINT_RATE_HZ:g}]')
+    kept = tuple(r for r in requests if r[0] != key)
+    return kept + ((key, tuple(joints), float(rate_hz)),) if rate_hz > 0 else kept
+
+
 def new_queue() -> deque:
     """Return the queue a world's samplers fill and its node drains."""
     return deque(maxlen=SAMPLES_KEPT)
@@ -169,8 +224,8 @@ def drain(samples: deque) -> list:
     Take every sample queued so far, oldest first; thread-safe, without the world lock.
 
     Each is (site, simulated time, orientation wxyz, angular velocity, linear acceleration)
-    of an IMU a robot file declares, at its own rate (a part the sensor lacks is None), or a
-    contact sensor's :class:`~..devices.contacts.ContactReport`.
+    of an IMU a robot file declares, at its own rate (a part the sensor lacks is None), a
+    contact sensor's :class:`~..devices.contacts.ContactReport`, or a :class:`JointSample`.
     """
     out = []
     while True:

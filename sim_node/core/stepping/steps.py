@@ -134,9 +134,10 @@ class Stepping:
             ctrl = None  # already in `before`
         sampler = live.sampler
         if sampler is None or sampler.generation != live.index.generation \
-                or sampler.request is not live.contact_request:
-            sampler = live.sampler = sampling.Sampler(live.index.info, live.samples,
-                                                      live.contact_request)
+                or sampler.request is not live.contact_request \
+                or sampler.joints is not live.joint_requests:
+            sampler = live.sampler = sampling.Sampler(live.index, live.samples,
+                                                      live.contact_request, live.joint_requests)
         if control.per_step:
             self._step_each(m, d, n, sampler)
         elif control.batched or sampler:

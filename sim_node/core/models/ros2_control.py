@@ -1,0 +1,155 @@
+"""
+What a URDF's ``<ros2_control>`` block and its Gazebo control plugin declare, read and checked.
+
+A robot made for Gazebo and ros2_control carries (after xacro):
+
+* ``<ros2_control name=... type="system">`` with ``<hardware><plugin>`` (Gazebo's
+  ``gz_ros2_control/GazeboSimSystem``, ``ign_ros2_control/IgnitionSystem``, classic
+  ``gazebo_ros2_control/GazeboSystem``, ``mock_components/GenericSystem``, or
+  ``topic_based_ros2_control/TopicBasedSystem``), its joints with their
+  ``<command_interface>`` (``min``/``max`` params) and ``<state_interface>`` (an
+  ``initial_value`` param), and its sensors with their state interfaces;
+* ``<gazebo><plugin filename="gz_ros2_control-system">`` (or classic
+  ``libgazebo_ros2_control.so``) with the controllers YAML in ``<parameters>`` and a
+  ``<ros><namespace>``.
+
+:func:`read` returns a :class:`Ros2Control` of it, with the robot's own names; the node serves
+its controller manager (:mod:`sim_node.ros.controller_manager`). ROS-free.
+"""
+
+from dataclasses import dataclass, field
+import math
+from typing import Optional
+from xml.etree import ElementTree as ET
+
+#: Hardware plugins whose joints this simulator drives itself (a controller manager here).
+SIMULATED = ('gz_ros2_control/GazeboSimSystem', 'ign_ros2_control/IgnitionSystem',
+             'gazebo_ros2_control/GazeboSystem', 'mock_components/GenericSystem')
+#: The hardware plugin whose joints a controller manager elsewhere drives by topics.
+TOPIC_BASED = 'topic_based_ros2_control/TopicBasedSystem'
+#: Gazebo control plugins (their file names, without ``lib`` and ``.so``).
+CONTROL_PLUGINS = ('gz_ros2_control-system', 'ign_ros2_control-system', 'gazebo_ros2_control')
+INTERFACES = ('position', 'velocity', 'effort', 'acceleration')
+
+
+@dataclass(frozen=True)
+class HardwareJoint:
+    """
+    A joint of a ``<ros2_control>`` block.
+
+    :param command: command interface -> (min, max), None where not given.
+    :param state: its state interfaces, in order.
+    :param initial: state interface -> its ``initial_value``.
+    """
+
+    name: str
+    command: dict = field(default_factory=dict)
+    state: tuple = ()
+    initial: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class HardwareComponent:
+    """One ``<ros2_control>`` block: a hardware component and what it exports."""
+
+    name: str
+    kind: str  # 'system', 'actuator', 'sensor'
+    plugin: str
+    joints: tuple = ()  # HardwareJoint
+    sensors: dict = field(default_factory=dict)  # sensor name -> its state interfaces
+    params: dict = field(default_factory=dict)  # <hardware><param name=...>
+
+
+@dataclass(frozen=True)
+class Ros2Control:
+    """
+    A robot's ros2_control declaration, with its own (URDF) names.
+
+    :param parameters: the controllers YAML files its Gazebo plugin names, in order.
+    :param namespace: the plugin's ``<ros><namespace>`` ('' : none); a spawn's namespace
+        replaces it.
+    :param manager: the controller manager's node name (``controller_manager``).
+    :param spawn: which spawn it came with (a robot spawned again is another robot, with
+        controllers of its own, even when nothing was seen in between).
+    """
+
+    components: tuple = ()  # HardwareComponent
+    parameters: tuple = ()
+    namespace: str = ''
+    manager: str = 'controller_manager'
+    spawn: int = 0
+
+    @property
+    def simulated(self) -> bool:
+        """Whether a controller manager here drives its joints (Gazebo's or mock hardware)."""
+        return any(c.plugin in SIMULATED for c in self.components)
+
+    @property
+    def topic_based(self) -> Optional[HardwareComponent]:
+        """Its TopicBasedSystem component, whose joints come and go by topics, if any."""
+        return next((c for c in self.components if c.plugin == TOPIC_BASED), None)
+
+    def joints(self) -> dict:
+        """Return joint name -> :class:`HardwareJoint` over every component."""
+        return {j.name: j for c in self.components for j in c.joints}
+
+
+def read(extensions: list) -> Optional[Ros2Control]:
+    """Return what the extension elements declare for ros2_control, or None."""
+    blocks = [e for e in extensions if e.tag == 'ros2_control']
+    if not blocks:
+        return None
+    components = tuple(_component(b) for b in blocks)
+    parameters, namespace, manager = [], '', 'controller_manager'
+    for ext in extensions:
+        if ext.tag != 'gazebo':
+            continue
+        for plugin in ext.iter('plugin'):
+            filename = (plugin.get('filename') or '').strip()
+            base = filename[3:] if filename.startswith('lib') else filename
+            base = base[:-3] if base.endswith('.so') else base
+            if base not in CONTROL_PLUGINS:
+                continue
+            parameters += [(p.text or '').strip() for p in plugin.findall('parameters')
+                           if (p.text or '').strip()]
+            namespace = (plugin.findtext('ros/namespace') or namespace).strip().strip('/')
+            manager = (plugin.findtext('controller_manager_name') or manager).strip()
+    return Ros2Control(components=components, parameters=tuple(parameters),
+                       namespace=namespace, manager=manager.strip('/') or 'controller_manager')
+
+
+def _component(block: ET.Element) -> HardwareComponent:
+    hardware = block.find('hardware')
+    plugin = (hardware.findtext('plugin') if hardware is not None else '') or ''
+    params = {p.get('name', ''): (p.text or '').strip()
+              for p in (hardware.findall('param') if hardware is not None else [])}
+    joints = []
+    for joint in block.findall('joint'):
+        command = {}
+        for ci in joint.findall('command_interface'):
+            limits = {p.get('name'): _float(p.text) for p in ci.findall('param')}
+            command[(ci.get('name') or '').strip()] = (limits.get('min'), limits.get('max'))
+        state, initial = [], {}
+        for si in joint.findall('state_interface'):
+            name = (si.get('name') or '').strip()
+            state.append(name)
+            for p in si.findall('param'):
+                value = _float(p.text)
+                if p.get('name') == 'initial_value' and value is not None:
+                    initial[name] = value
+        joints.append(HardwareJoint(name=joint.get('name', ''), command=command,
+                                    state=tuple(state), initial=initial))
+    sensors = {s.get('name', ''): tuple((i.get('name') or '').strip()
+                                        for i in s.findall('state_interface'))
+               for s in block.findall('sensor')}
+    return HardwareComponent(name=block.get('name', ''), kind=(block.get('type') or 'system'),
+                             plugin=plugin.strip(), joints=tuple(joints), sensors=sensors,
+                             params=params)
+
+
+def _float(text: Optional[str]) -> Optional[float]:
+    try:
+        value = float((text or '').strip())
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None

@@ -1,0 +1,356 @@
+"""
+A controller manager on the wire for every robot that declares ros2_control, as Gazebo's.
+
+A spawned URDF whose ``<ros2_control>`` block names Gazebo's (or mock) hardware gets a node
+``controller_manager`` (the Gazebo plugin's ``<controller_manager_name>``) in its namespace
+(the spawn's, else the plugin's ``<ros><namespace>``) serving controller_manager_msgs as the
+Jazzy one does: ``~/list_controllers``, ``~/list_controller_types``, ``~/load_controller``,
+``~/configure_controller``, ``~/switch_controller``, ``~/unload_controller``,
+``~/cleanup_controller``, ``~/list_hardware_interfaces``, ``~/list_hardware_components``. Its
+parameters are the controllers YAML the plugin's ``<parameters>`` names (``update_rate``,
+``<controller>.type``) and what controller_manager's ``spawner`` sets (``<controller>.type``,
+``<controller>.params_file``), so the spawner and ``ros2 control`` work unchanged. The
+bookkeeping is :mod:`sim_node.core.control.manager`; the controllers :mod:`.controllers`.
+
+Joints go by the URDF's names here (the world's are ``<entity>/<joint>``); the loop samples
+them at the manager's ``update_rate`` of simulated time and each active controller runs at
+its own. Parameter files are read from the node's resource folders and installed packages'
+share folders only.
+"""
+
+import os
+import threading
+from typing import Callable, Optional
+
+from controller_manager_msgs.msg import (ControllerState, HardwareComponentState,
+                                         HardwareInterface)
+from controller_manager_msgs.srv import (CleanupController, ConfigureController,
+                                         ListControllers, ListControllerTypes,
+                                         ListHardwareComponents, ListHardwareInterfaces,
+                                         LoadController, SwitchController, UnloadController)
+from lifecycle_msgs.msg import State
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from . import controllers
+from .jtc import TrajectoryController
+from ..core.control import controller_types, manager as core
+from ..core.errors import SimError
+from ..core.models import controller_yaml
+from ..core.models.paths import inside_roots
+from ..core.records import ModelInfo, Snapshot
+from ..session import Loaded, Session
+
+_LIFECYCLE = {core.UNCONFIGURED: State.PRIMARY_STATE_UNCONFIGURED,
+              core.INACTIVE: State.PRIMARY_STATE_INACTIVE, core.ACTIVE: State.PRIMARY_STATE_ACTIVE}
+
+
+class _Parameters:
+    """The manager node's parameters, read as a dict (`get`)."""
+
+    def __init__(self, node: Node):
+        self._node = node
+
+    def get(self, key: str, default=None):
+        if not self._node.has_parameter(key):
+            return default
+        value = self._node.get_parameter(key).value
+        return default if value is None else value
+
+
+class RobotControl:
+    """One robot's controller manager node, its controllers and their runtimes."""
+
+    def __init__(self, host, entity: str, control):
+        self.host, self.entity, self.control = host, entity, control
+        self.namespace = f'/{control.namespace}' if control.namespace else ''
+        self.hardware = control.joints()
+        self.yaml_error = ''
+        self.docs = []
+        for path in control.parameters:
+            try:
+                self.docs.append(controller_yaml.load(path, host.readable))
+            except ValueError as exc:
+                self.yaml_error = str(exc)
+        params = controller_yaml.node_parameters(self.docs, control.manager, self.namespace)
+        self.node = Node(control.manager, namespace=self.namespace or '/',
+                         allow_undeclared_parameters=True)
+        for key, value in params.items():
+            try:
+                self.node.declare_parameter(key, value)
+            except Exception:  # noqa: B902 (a YAML value no parameter type takes: left out)
+                pass
+        commands = {f'{j.name}/{i}': lim for j in self.hardware.values()
+                    for i, lim in j.command.items()}
+        states = tuple(f'{j.name}/{i}' for j in self.hardware.values() for i in j.state) + \
+            tuple(f'{s}/{i}' for c in control.components for s, ifs in c.sensors.items()
+                  for i in ifs)
+        self.manager = core.Manager(commands, states, _Parameters(self.node), self._params)
+        self.runtimes: dict = {}
+        self.latest = None  # the last joint sample
+        self.key = f'{entity}:{self.namespace}/{control.manager}'
+        group = MutuallyExclusiveCallbackGroup()
+        for srv, name, call in (
+                (ListControllers, 'list_controllers', self._list),
+                (ListControllerTypes, 'list_controller_types', self._types),
+                (LoadController, 'load_controller', self._load),
+                (ConfigureController, 'configure_controller', self._configure),
+                (SwitchController, 'switch_controller', self._switch),
+                (UnloadController, 'unload_controller', self._unload),
+                (CleanupController, 'cleanup_controller', self._cleanup),
+                (ListHardwareInterfaces, 'list_hardware_interfaces', self._interfaces),
+                (ListHardwareComponents, 'list_hardware_components', self._components)):
+            self.node.create_service(srv, f'~/{name}', call, callback_group=group)
+        host.add_node(self.node)
+        host.sample(self.key, [self.internal(j) for j in self.hardware], self.manager.update_rate)
+
+    def internal(self, joint: str) -> str:
+        return f'{self.entity}/{joint}'
+
+    def close(self) -> None:
+        self.host.sample(self.key, [], 0.0)
+        nodes = [rt.node for rt in self.runtimes.values() if rt.node is not None]
+        for rt in self.runtimes.values():
+            rt.release()
+        self.runtimes.clear()
+        self.host.drop_node(self.node, *nodes)
+
+    # ------------------------------------------------------------------ parameters
+
+    def _params(self, name: str) -> dict:
+        """Return a controller's parameters: the plugin's YAML, then the spawner's files."""
+        if self.yaml_error:
+            raise ValueError(self.yaml_error)
+        files = self.manager.parameters.get(f'{name}.params_file') or []
+        files = [files] if isinstance(files, str) else list(files)
+        docs = list(self.docs) + [controller_yaml.load(f, self.host.readable) for f in files]
+        return controller_yaml.node_parameters(docs, name, self.namespace)
+
+    # ------------------------------------------------------------------ services
+
+    def _list(self, request, response):
+        with self.manager.lock:
+            for c in self.manager.controllers.values():
+                response.controller.append(ControllerState(
+                    name=c.name, state=c.state, type=c.kind, is_async=False,
+                    update_rate=int(c.update_rate),
+                    claimed_interfaces=list(c.claims) if c.state == core.ACTIVE else [],
+                    required_command_interfaces=list(c.claims),
+                    required_state_interfaces=[f'{j}/position' for j in c.joints]))
+        return response
+
+    def _types(self, request, response):
+        response.types = list(controller_types.TYPES)
+        response.base_classes = list(controller_types.TYPES.values())
+        return response
+
+    def _answer(self, response, ok: bool, message: str, what: str):
+        response.ok = ok
+        if ok:  # rclpy's logger takes one severity per line of code
+            self.node.get_logger().info(f'{what}: {message}')
+        else:
+            self.node.get_logger().error(f'{what}: {message}')
+        return response
+
+    def _load(self, request, response):
+        ok, message = self.manager.load(request.name)
+        if ok:
+            self.runtimes[request.name] = runtime_for(self, self.manager.controllers[request.name])
+        return self._answer(response, ok, message, 'load_controller')
+
+    def _configure(self, request, response):
+        ok, message = self.manager.configure(request.name)
+        if ok:
+            try:
+                self.runtimes[request.name].configure()
+            except (SimError, ValueError, KeyError, TypeError) as exc:
+                self.manager.controllers[request.name].state = core.UNCONFIGURED
+                ok, message = False, f"controller '{request.name}' cannot be configured: {exc}"
+        return self._answer(response, ok, message, 'configure_controller')
+
+    def _switch(self, request, response):
+        ok, message, on, off = self.manager.switch(
+            list(request.activate_controllers), list(request.deactivate_controllers),
+            request.strictness)
+        for name in off:
+            self.runtimes[name].deactivate()
+        for name in on:
+            self.runtimes[name].activate(self.latest)
+        response.message = message
+        return self._answer(response, ok, message, 'switch_controller')
+
+    def _unload(self, request, response):
+        ok, message = self.manager.unload(request.name)
+        if ok:
+            self.runtimes.pop(request.name).destroy()
+        return self._answer(response, ok, message, 'unload_controller')
+
+    def _cleanup(self, request, response):
+        ok, message = self.manager.cleanup(request.name)
+        if ok:
+            self.runtimes[request.name].destroy()
+        return self._answer(response, ok, message, 'cleanup_controller')
+
+    def _interfaces(self, request, response):
+        claimed = self.manager.claimed()
+        response.command_interfaces = [
+            HardwareInterface(name=i, data_type='double', is_available=True,
+                              is_claimed=i in claimed)
+            for i in sorted(self.manager.command_interfaces)]
+        response.state_interfaces = [
+            HardwareInterface(name=i, data_type='double', is_available=True, is_claimed=False)
+            for i in self.manager.state_interfaces]
+        return response
+
+    def _components(self, request, response):
+        claimed = self.manager.claimed()
+        for c in self.control.components:
+            state = State(id=State.PRIMARY_STATE_ACTIVE, label='active')
+            response.component.append(HardwareComponentState(
+                name=c.name, type=c.kind, is_async=False, rw_rate=self.manager.update_rate,
+                class_type=c.plugin, plugin_name=c.plugin, state=state,
+                command_interfaces=[HardwareInterface(
+                    name=f'{j.name}/{i}', data_type='double', is_available=True,
+                    is_claimed=f'{j.name}/{i}' in claimed) for j in c.joints for i in j.command],
+                state_interfaces=[HardwareInterface(
+                    name=f'{j.name}/{i}', data_type='double', is_available=True,
+                    is_claimed=False) for j in c.joints for i in j.state]))
+        return response
+
+    # ------------------------------------------------------------------ for the runtimes
+
+    def on_sample(self, sample) -> None:
+        """Run the active controllers due at a joint sample's simulated time."""
+        self.latest = sample
+        index = {j: i for i, j in enumerate(self.hardware)}
+        for rt in list(self.runtimes.values()):
+            if rt.active and sample.time >= rt.next_update:
+                rt.next_update = sample.time + 1.0 / rt.controller.update_rate - 1e-9
+                try:
+                    rt.update(sample, index)
+                except Exception as exc:  # noqa: B902 (one controller's failure stops no other)
+                    self.node.get_logger().error(f'{rt.name} update failed: {exc!r}',
+                                                 throttle_duration_sec=5.0)
+
+    def make_node(self, name: str, params: dict) -> Node:
+        overrides = []
+        for key, value in params.items():
+            try:
+                overrides.append(Parameter(key, value=value))
+            except Exception:  # noqa: B902 (a value no parameter type takes: left out)
+                pass
+        node = Node(name, namespace=self.namespace or '/', parameter_overrides=overrides,
+                    automatically_declare_parameters_from_overrides=True)
+        self.host.add_node(node)
+        return node
+
+    def drop_node(self, node: Node) -> None:
+        self.host.drop_node(node)
+
+    def topic(self, name: str) -> str:
+        return f'{self.namespace}/{name}'
+
+    def refused(self, topic: str, what: str, why: str, names: list) -> None:
+        self.host.refused(topic, what, why, names)
+
+    def world(self):
+        return self.host.session.require().world
+
+    def sim_time(self) -> float:
+        return self.latest.time if self.latest is not None else 0.0
+
+    def command(self, joints, values, interface: str) -> None:
+        """Command URDF-named joints through an interface, within its min and max."""
+        out = []
+        for j, v in zip(joints, values):
+            lo, hi = self.hardware[j].command.get(interface, (None, None))
+            out.append(min(max(v, lo if lo is not None else v), hi if hi is not None else v))
+        try:
+            self.world().command([self.internal(j) for j in joints], out, interface)
+        except SimError as exc:
+            self.refused(self.topic(self.control.manager), 'command', str(exc), list(joints))
+
+    def hold(self, joints, interface: str) -> None:
+        """Hold joints: where they are (position), or at zero (velocity, effort)."""
+        if interface == 'position':
+            states = self.world().get_joint_states()
+            values = [states[self.internal(j)][0] for j in joints]
+        else:
+            values = [0.0] * len(joints)
+        self.command(joints, values, interface)
+
+
+def runtime_for(host, controller) -> controllers.Runtime:
+    """Return the runtime of a loaded controller's type."""
+    kind = controller.kind
+    if kind == controller_types.JSB:
+        return controllers.JointStateBroadcaster(host, controller)
+    if kind == controller_types.FORWARD or kind in controller_types.GROUPS:
+        return controllers.ForwardCommand(host, controller)
+    if kind == controller_types.JTC:
+        return TrajectoryController(host, controller)
+    if kind == controller_types.DIFF_DRIVE:
+        return controllers.DiffDrive(host, controller)
+    raise SimError(f'no runtime for {kind}')
+
+
+class ControllerManagers:
+    """
+    The controller managers of a node's robots, made and removed with them.
+
+    :param add_node, drop_node: put a node into the node's executor, take one out (and
+        destroy it once no callback of it can run).
+    """
+
+    def __init__(self, session: Session, roots: tuple, add_node: Callable,
+                 drop_node: Callable, refused: Callable):
+        self.session, self.refused = session, refused
+        self.add_node, self.drop_node = add_node, drop_node
+        shares = [os.path.join(p, 'share') for p in
+                  os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+        self._roots = tuple(roots) + tuple(shares)
+        self.robots: dict = {}  # entity -> RobotControl
+        self._lock = threading.Lock()
+
+    def readable(self, path) -> bool:
+        return inside_roots(path, self._roots)
+
+    def sample(self, key: str, joints: list, rate: float) -> None:
+        loaded = self.session.loaded
+        if loaded is not None:
+            loaded.world.sample_joints(key, joints, rate)
+
+    def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
+        self.sync(None if snap is None else snap.info)
+
+    def sync(self, info: Optional[ModelInfo]) -> None:
+        wanted = {} if info is None else {e: c for e, c in info.ros2_control.items()
+                                          if c.simulated}
+        with self._lock:
+            for entity in [e for e, r in self.robots.items() if wanted.get(e) != r.control]:
+                self.robots.pop(entity).close()
+            for entity, control in wanted.items():
+                if entity not in self.robots:
+                    self.robots[entity] = RobotControl(self, entity, control)
+
+    def sync_now(self) -> None:
+        """
+        Bring the managers up to the world as it is now (after an edit, before its answer).
+
+        A robot deleted or spawned again must not be answered for by the manager of before:
+        the session's listeners see a new model only some time after the edit's answer.
+        """
+        loaded = self.session.loaded
+        info = loaded.world.model_info if loaded is not None else None
+        if self.robots or (info is not None and info.ros2_control):
+            self.sync(info)
+
+    def on_sample(self, sample) -> None:
+        with self._lock:
+            robot = next((r for r in self.robots.values() if r.key == sample.key), None)
+        if robot is not None:
+            robot.on_sample(sample)
+
+    def close(self) -> None:
+        self.sync(None)

@@ -1,0 +1,219 @@
+"""
+The controllers a robot's YAML names, with the ROS interfaces of ros2_controllers' ones.
+
+Each loaded controller is a node named as the controller in the robot's namespace (so
+``ros2 param get /<controller> joints`` answers), made when it is configured, with the topics
+the real controller has relative to that name:
+
+* ``joint_state_broadcaster``: ``/<ns>/joint_states`` (sensor_msgs/JointState) at its update
+  rate of simulated time: the ``joints`` parameter's (else every ros2_control joint's) URDF
+  names, then ``extra_joints`` (zeros);
+* ``forward_command_controller`` and the JointGroup position, velocity and effort controllers:
+  ``~/commands`` (std_msgs/Float64MultiArray, one value per joint, in the ``joints`` order),
+  within the interfaces' ``min``/``max``;
+* ``diff_drive_controller``: ``~/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with
+  ``use_stamped_vel: false``), the wheels' speeds within ``linear.x`` and ``angular.z``
+  limits, stopped after ``cmd_vel_timeout`` simulated seconds without one; ``~/odom``
+  (nav_msgs/Odometry, ``odom_frame_id`` -> ``base_frame_id``, from the wheels) and, with
+  ``enable_odom_tf``, that transform on ``/tf``, at ``publish_rate``.
+* ``joint_trajectory_controller``: :mod:`.jtc`.
+
+A command that cannot be taken (a wrong length, a value not finite) is refused with its reason
+logged and put on /diagnostics; the world steps on.
+"""
+
+import math
+from typing import Optional
+
+from geometry_msgs.msg import Twist, TwistStamped
+from msg_adapters import convert
+from nav_msgs.msg import Odometry
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from tf2_msgs.msg import TFMessage
+
+from ..core.control import controller_types as types
+from ..core.control import diff_drive
+
+NO_EVENTS = {'event_callbacks': PublisherEventCallbacks(use_default_callbacks=False)}
+NO_SUB_EVENTS = {'event_callbacks': SubscriptionEventCallbacks(use_default_callbacks=False)}
+
+
+class Runtime:
+    """
+    One controller's ROS side; `host` is its robot's manager (:mod:`.controller_manager`).
+
+    :meth:`configure` makes its node and topics, :meth:`activate` / :meth:`deactivate` turn it
+    on and off, :meth:`update` runs at its update rate with the joints' sample.
+    """
+
+    def __init__(self, host, controller):
+        self.host, self.controller = host, controller
+        self.node = None
+        self.active = False
+        self.next_update = -math.inf
+
+    @property
+    def name(self) -> str:
+        return self.controller.name
+
+    @property
+    def params(self) -> dict:
+        return self.controller.params
+
+    def configure(self) -> None:
+        self.destroy()
+        self.node = self.host.make_node(self.name, self.params)
+        self.make()
+
+    def make(self) -> None:
+        """Make the controller's publishers and subscriptions on :attr:`node`."""
+
+    def activate(self, sample) -> None:
+        self.active = True
+        self.next_update = -math.inf
+
+    def deactivate(self) -> None:
+        self.active = False
+
+    def update(self, sample, index: dict) -> None:
+        """Run once per update period with the joints' sample (`index`: URDF name -> i)."""
+
+    def destroy(self) -> None:
+        node = self.node
+        self.release()
+        if node is not None:
+            self.host.drop_node(node)
+
+    def release(self) -> None:
+        """Let go of its node (which the caller destroys)."""
+        self.active = False
+        self.node = None
+
+    def refuse(self, topic: str, why: str, names=()) -> None:
+        self.host.refused(f'{self.node.get_namespace().rstrip("/")}/{self.name}/{topic}',
+                          f'{self.name} command', why, list(names))
+
+
+class JointStateBroadcaster(Runtime):
+    """joint_state_broadcaster: the joints' states on ``joint_states``."""
+
+    def make(self) -> None:
+        self.joints = tuple(self.controller.joints)
+        self.extra = tuple(self.params.get('extra_joints') or ())
+        self.pub = self.node.create_publisher(JointState, self.host.topic('joint_states'), 10,
+                                              **NO_EVENTS)
+
+    def update(self, sample, index: dict) -> None:
+        msg = JointState()
+        msg.header.stamp = convert.stamp(sample.time)
+        known = [j for j in self.joints if j in index]
+        msg.name = known + list(self.extra)
+        pad = [0.0] * len(self.extra)
+        msg.position = [float(sample.position[index[j]]) for j in known] + pad
+        msg.velocity = [float(sample.velocity[index[j]]) for j in known] + pad
+        msg.effort = [float(sample.effort[index[j]]) for j in known] + pad
+        self.pub.publish(msg)
+
+
+class ForwardCommand(Runtime):
+    """forward_command_controller and the JointGroup controllers: ``~/commands``."""
+
+    def make(self) -> None:
+        self.joints = tuple(self.controller.joints)
+        self.interface = types.GROUPS.get(self.controller.kind) or self.params['interface_name']
+        self.node.create_subscription(Float64MultiArray, '~/commands', self._on_command, 10,
+                                      **NO_SUB_EVENTS)
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        if not self.active:
+            return  # an inactive controller writes nothing, as the real one
+        values = list(msg.data)
+        if len(values) != len(self.joints):
+            self.refuse('commands', f'{len(values)} values for {len(self.joints)} joints '
+                        f'{list(self.joints)}', self.joints)
+            return
+        if not all(math.isfinite(v) for v in values):
+            self.refuse('commands', f'a value that is not finite: {values}', self.joints)
+            return
+        self.host.command(self.joints, values, self.interface)
+
+    def deactivate(self) -> None:
+        super().deactivate()
+        self.host.hold(self.joints, self.interface)
+
+
+class DiffDrive(Runtime):
+    """diff_drive_controller: ``~/cmd_vel`` in, ``~/odom`` and the odom TF out."""
+
+    def make(self) -> None:
+        p = self.params
+        self.left = tuple(p['left_wheel_names'])
+        self.right = tuple(p['right_wheel_names'])
+        self.geometry = diff_drive.Geometry.of(p)
+        self.odometry = diff_drive.WheelOdometry(self.geometry)
+        self.timeout = float(p.get('cmd_vel_timeout', 0.5))
+        self.odom_frame = str(p.get('odom_frame_id', 'odom'))
+        self.base_frame = str(p.get('base_frame_id', 'base_link'))
+        rate = p.get('publish_rate', 50.0)
+        self.period = 1.0 / float(rate) if isinstance(rate, (int, float)) and rate > 0 else 0.02
+        self.next_publish = -math.inf
+        self.command: Optional[tuple] = None  # (v, w, simulated time it came)
+        stamped = p.get('use_stamped_vel', True) is not False
+        self.node.create_subscription(TwistStamped if stamped else Twist, '~/cmd_vel',
+                                      self._on_cmd_vel, 10, **NO_SUB_EVENTS)
+        self.odom_pub = self.node.create_publisher(Odometry, '~/odom', 10, **NO_EVENTS)
+        self.tf_pub = (self.node.create_publisher(TFMessage, '/tf', 100, **NO_EVENTS)
+                       if p.get('enable_odom_tf', True) is not False else None)
+
+    def _on_cmd_vel(self, msg) -> None:
+        twist = msg.twist if isinstance(msg, TwistStamped) else msg
+        v, w = twist.linear.x, twist.angular.z
+        if not (math.isfinite(v) and math.isfinite(w)):
+            self.refuse('cmd_vel', f'a twist that is not finite: ({v}, {w})')
+            return
+        if not self.active:
+            return
+        v = diff_drive.limit(v, self.params, 'linear.x')
+        w = diff_drive.limit(w, self.params, 'angular.z')
+        self.command = (v, w, self.host.sim_time())
+        self._drive(v, w)
+
+    def _drive(self, v: float, w: float) -> None:
+        left, right = diff_drive.wheel_speeds(self.geometry, v, w)
+        self.host.command(self.left + self.right,
+                          [left] * len(self.left) + [right] * len(self.right), 'velocity')
+
+    def activate(self, sample) -> None:
+        super().activate(sample)
+        self.odometry.reset()
+        self.command = None
+
+    def deactivate(self) -> None:
+        super().deactivate()
+        self._drive(0.0, 0.0)
+
+    def update(self, sample, index: dict) -> None:
+        t = sample.time
+        if self.command is not None and self.timeout > 0 and t - self.command[2] > self.timeout:
+            self.command = None
+            self._drive(0.0, 0.0)
+        left = sum(sample.position[index[j]] for j in self.left) / len(self.left)
+        right = sum(sample.position[index[j]] for j in self.right) / len(self.right)
+        self.odometry.update(t, left, right)
+        if t < self.next_publish:
+            return
+        self.next_publish = t + self.period - 1e-9
+        o = self.odometry
+        stamp = convert.stamp(t)
+        msg = Odometry()
+        msg.header.stamp, msg.header.frame_id = stamp, self.odom_frame
+        msg.child_frame_id = self.base_frame
+        msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
+        msg.pose.pose.orientation = convert.quat_to_msg(o.quat_wxyz())
+        msg.twist.twist.linear.x, msg.twist.twist.angular.z = o.v, o.w
+        self.odom_pub.publish(msg)
+        if self.tf_pub is not None:
+            self.tf_pub.publish(TFMessage(transforms=[convert.transform(
+                self.odom_frame, self.base_frame, (o.x, o.y, 0.0), o.quat_wxyz(), stamp)]))

@@ -1,0 +1,239 @@
+"""
+Robots made for Gazebo and ros2_control, as their description packages ship them (issue 42).
+
+Each is a URDF with a ``<ros2_control>`` block (gz_ros2_control's hardware) and the Gazebo
+plugin that names its controllers YAML, and that YAML: a cart per command interface (as
+gz_ros2_control_demos' carts), a differential drive, and a 6-joint arm under a
+joint_trajectory_controller. :func:`write` puts a robot's YAML where the node may read it and
+returns its URDF; :func:`spawner` makes controller_manager's ``spawner`` calls, in its order.
+"""
+
+from pathlib import Path
+
+_I = '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+
+
+def _plugin(yaml_path: str, namespace: str = '') -> str:
+    ns = f'<ros><namespace>{namespace}</namespace></ros>' if namespace else ''
+    return (f'<gazebo><plugin filename="gz_ros2_control-system" '
+            f'name="gz_ros2_control::GazeboSimROS2ControlPlugin">'
+            f'<parameters>{yaml_path}</parameters>{ns}</plugin></gazebo>')
+
+
+def cart(interface: str, yaml_path: str, namespace: str = '') -> str:
+    """Return a cart on a 30 m rail (``slider_to_cart``) commanded through one interface."""
+    limits = {'position': (-15, 15), 'velocity': (-10, 10), 'effort': (-100, 100)}[interface]
+    return f"""<robot name="cart">
+  <link name="world"/>
+  <link name="slider"><inertial><mass value="100"/>{_I}</inertial>
+    <visual><geometry><box size="30 0.05 0.05"/></geometry></visual></link>
+  <joint name="world_to_slider" type="fixed"><parent link="world"/><child link="slider"/>
+    <origin xyz="0 0 1"/></joint>
+  <link name="cart"><inertial><mass value="1"/>{_I}</inertial>
+    <collision><geometry><box size="0.5 0.5 0.2"/></geometry></collision></link>
+  <joint name="slider_to_cart" type="prismatic"><parent link="slider"/><child link="cart"/>
+    <axis xyz="1 0 0"/><limit lower="-15" upper="15" effort="1000" velocity="30"/>
+    <dynamics damping="0.0" friction="0.0"/></joint>
+  <ros2_control name="GazeboSimSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>
+    <joint name="slider_to_cart">
+      <command_interface name="{interface}">
+        <param name="min">{limits[0]}</param><param name="max">{limits[1]}</param>
+      </command_interface>
+      <state_interface name="position"/><state_interface name="velocity"/>
+      <state_interface name="effort"/>
+    </joint>
+  </ros2_control>
+  {_plugin(yaml_path, namespace)}
+</robot>"""
+
+
+def cart_yaml(interface: str) -> str:
+    group = {'position': 'position_controllers/JointGroupPositionController',
+             'velocity': 'velocity_controllers/JointGroupVelocityController',
+             'effort': 'effort_controllers/JointGroupEffortController'}[interface]
+    return f"""controller_manager:
+  ros__parameters:
+    update_rate: 100
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    forward_{interface}_controller:
+      type: forward_command_controller/ForwardCommandController
+    group_{interface}_controller:
+      type: {group}
+    joint_trajectory_controller:
+      type: joint_trajectory_controller/JointTrajectoryController
+
+forward_{interface}_controller:
+  ros__parameters:
+    joints: [slider_to_cart]
+    interface_name: {interface}
+
+group_{interface}_controller:
+  ros__parameters:
+    joints: [slider_to_cart]
+
+joint_trajectory_controller:
+  ros__parameters:
+    joints: [slider_to_cart]
+    command_interfaces: [{interface}]
+    state_interfaces: [position, velocity]
+"""
+
+
+ARM_JOINTS = tuple(f'joint{i}' for i in range(1, 7))
+
+
+def arm(yaml_path: str) -> str:
+    """Return a 6-joint arm fixed to the world, position interfaces, 1 kg links 0.3 m apart."""
+    links = ''.join(f"""
+  <link name="link{i}"><inertial><origin xyz="0 0 0.15"/><mass value="1"/>{_I}</inertial>
+    <collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.04" length="0.2"/>
+    </geometry></collision></link>
+  <joint name="joint{i}" type="revolute"><parent link="link{i - 1}"/><child link="link{i}"/>
+    <origin xyz="0 0 {0.1 if i == 1 else 0.3}"/>
+    <axis xyz="{'0 0 1' if i in (1, 4, 6) else '0 1 0'}"/>
+    <limit lower="-3" upper="3" effort="200" velocity="3"/></joint>""" for i in range(1, 7))
+    joints = ''.join(f"""
+    <joint name="joint{i}"><command_interface name="position"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>"""
+                     for i in range(1, 7))
+    return f"""<robot name="arm">
+  <link name="world"/>
+  <link name="link0"><inertial><mass value="5"/>{_I}</inertial></link>
+  <joint name="base" type="fixed"><parent link="world"/><child link="link0"/></joint>{links}
+  <ros2_control name="ArmSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
+  </ros2_control>
+  {_plugin(yaml_path)}
+</robot>"""
+
+
+ARM_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 1000
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+"""
+#: What the arm's launch file gives the spawner with --param-file (the JTC's own file).
+ARM_JTC_YAML = """arm_controller:
+  ros__parameters:
+    type: joint_trajectory_controller/JointTrajectoryController
+    joints: [joint1, joint2, joint3, joint4, joint5, joint6]
+    command_interfaces: [position]
+    state_interfaces: [position, velocity]
+    update_rate: 100
+    constraints:
+      goal_time: 0.5
+      stopped_velocity_tolerance: 0.05
+      joint1: {trajectory: 0.3, goal: 0.02}
+"""
+
+WHEEL = '<cylinder radius="0.1" length="0.05"/>'
+
+
+def diff_drive(yaml_path: str) -> str:
+    """Return a 10 kg base on two 0.1 m wheels 0.4 m apart and a caster ball."""
+    wheels = ''.join(f"""
+  <link name="{side}_wheel"><inertial><mass value="0.5"/>{_I}</inertial>
+    <collision><geometry>{WHEEL}</geometry></collision></link>
+  <joint name="{side}_wheel_joint" type="continuous"><parent link="base_link"/>
+    <child link="{side}_wheel"/><origin xyz="0 {y} 0" rpy="-1.5708 0 0"/><axis xyz="0 0 1"/>
+    <limit effort="20" velocity="20"/></joint>""" for side, y in (('left', 0.2), ('right', -0.2)))
+    joints = ''.join(f"""
+    <joint name="{side}_wheel_joint"><command_interface name="velocity">
+      <param name="min">-20</param><param name="max">20</param></command_interface>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>"""
+                     for side in ('left', 'right'))
+    return f"""<robot name="rover">
+  <link name="base_link"><inertial><origin xyz="-0.1 0 0.05"/><mass value="10"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="-0.1 0 0.05"/><geometry><box size="0.4 0.3 0.1"/></geometry>
+    </collision></link>{wheels}
+  <link name="caster"><inertial><mass value="0.1"/>{_I}</inertial>
+    <collision><geometry><sphere radius="0.05"/></geometry></collision></link>
+  <joint name="caster_joint" type="fixed"><parent link="base_link"/><child link="caster"/>
+    <origin xyz="-0.3 0 -0.05"/></joint>
+  <ros2_control name="RoverSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
+  </ros2_control>
+  {_plugin(yaml_path)}
+</robot>"""
+
+
+DIFF_DRIVE_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 100
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    diff_drive_base_controller:
+      type: diff_drive_controller/DiffDriveController
+
+diff_drive_base_controller:
+  ros__parameters:
+    left_wheel_names: [left_wheel_joint]
+    right_wheel_names: [right_wheel_joint]
+    wheel_separation: 0.4
+    wheel_radius: 0.1
+    publish_rate: 50.0
+    odom_frame_id: odom
+    base_frame_id: base_link
+    cmd_vel_timeout: 0.5
+    enable_odom_tf: true
+    linear:
+      x:
+        max_velocity: 1.0
+    angular:
+      z:
+        max_velocity: 1.0
+"""
+
+
+def write(folder: Path, name: str, text: str) -> str:
+    """Write a YAML into `folder` (one the node reads) and return its absolute path."""
+    path = Path(folder) / name
+    path.write_text(text)
+    return str(path)
+
+
+def spawner(sim, name: str, param_file: str = '', manager: str = '/controller_manager',
+            activate: bool = True) -> tuple:
+    """
+    Make controller_manager's ``spawner <name> [--param-file F]`` calls, in its order.
+
+    list_controllers; with a param file, set ``<name>.params_file`` (and ``<name>.type`` from
+    the file) on the manager; load_controller; configure_controller; switch_controller
+    (activate, STRICT). Returns (the first answer that was not ok, or None; the answers).
+    """
+    import yaml
+    from controller_manager_msgs.srv import (ConfigureController, ListControllers,
+                                             LoadController, SwitchController)
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    answers = []
+    listed = sim.call(f'{manager}/list_controllers', ListControllers, ListControllers.Request())
+    if not any(c.name == name for c in listed.controller):
+        if param_file:
+            params = [Parameter(name=f'{name}.params_file', value=ParameterValue(
+                type=ParameterType.PARAMETER_STRING_ARRAY, string_array_value=[param_file]))]
+            doc = yaml.safe_load(Path(param_file).read_text())
+            entry = doc.get(name) if isinstance(doc, dict) else None
+            kind = (entry or {}).get('ros__parameters', {}).get('type')
+            if kind:
+                params.append(Parameter(name=f'{name}.type', value=ParameterValue(
+                    type=ParameterType.PARAMETER_STRING, string_value=kind)))
+            sim.call(f'{manager}/set_parameters', SetParameters,
+                     SetParameters.Request(parameters=params))
+        answers.append(sim.call(f'{manager}/load_controller', LoadController,
+                                LoadController.Request(name=name)))
+        if not answers[-1].ok:
+            return answers[-1], answers
+    answers.append(sim.call(f'{manager}/configure_controller', ConfigureController,
+                            ConfigureController.Request(name=name)))
+    if not answers[-1].ok or not activate:
+        return (None if answers[-1].ok else answers[-1]), answers
+    req = SwitchController.Request(activate_controllers=[name],
+                                   strictness=SwitchController.Request.STRICT)
+    req.timeout.sec = 5
+    answers.append(sim.call(f'{manager}/switch_controller', SwitchController, req))
+    return (None if answers[-1].ok else answers[-1]), answers

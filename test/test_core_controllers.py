@@ -1,0 +1,130 @@
+"""
+A robot's ros2_control declaration and its controller manager's rules, without ROS (issue 42).
+
+What a URDF's ``<ros2_control>`` block and Gazebo plugin say, a controllers YAML as ROS reads
+it, and the manager's lifecycle and switch rules as controller_manager applies them.
+"""
+
+import math
+from xml.etree import ElementTree as ET
+
+import controllers_corpus as corpus
+import pytest
+from sim_node.core.control import diff_drive, manager as core
+from sim_node.core.models import controller_yaml, ros2_control, urdf
+
+
+def _manager(yaml_text: str, tmp_path, joints=('slider_to_cart',), interfaces=('position',)):
+    doc = controller_yaml.load(corpus.write(tmp_path, 'c.yaml', yaml_text))
+    params = controller_yaml.node_parameters([doc], 'controller_manager')
+    commands = {f'{j}/{i}': (None, None) for j in joints for i in interfaces}
+    states = tuple(f'{j}/{i}' for j in joints for i in ('position', 'velocity'))
+    return core.Manager(commands, states, params,
+                        lambda name: controller_yaml.node_parameters([doc], name))
+
+
+def test_a_urdfs_ros2_control_block_and_gazebo_plugin_are_read_with_its_names():
+    root = ET.fromstring(corpus.cart('velocity', '/pkg/config/cart.yaml', namespace='/lab'))
+    control = urdf.prepare(root).ros2_control
+    assert control.simulated and control.parameters == ('/pkg/config/cart.yaml',)
+    assert (control.namespace, control.manager) == ('lab', 'controller_manager')
+    (joint,) = control.joints().values()
+    assert (joint.name, joint.command, joint.state) == (
+        'slider_to_cart', {'velocity': (-10.0, 10.0)}, ('position', 'velocity', 'effort'))
+    assert ros2_control.read([]) is None
+
+
+def test_a_controllers_yaml_is_read_as_ros_reads_it(tmp_path):
+    doc = controller_yaml.load(corpus.write(tmp_path, 'a.yaml', """/**:
+  ros__parameters:
+    use_sim_time: true
+/lab/arm_controller:
+  ros__parameters:
+    joints: [a, b]
+    constraints:
+      goal_time: 0.5
+arm_controller:
+  ros__parameters:
+    joints: [c]
+"""))
+    got = controller_yaml.node_parameters([doc], 'arm_controller', 'lab')
+    assert got == {'use_sim_time': True, 'joints': ['a', 'b'], 'constraints.goal_time': 0.5}
+    assert controller_yaml.node_parameters([doc], 'arm_controller')['joints'] == ['c']
+    for text, why in (('a: [b', 'not YAML'), ('- 1\n- 2', 'not a mapping')):
+        with pytest.raises(ValueError, match=why):
+            controller_yaml.load(corpus.write(tmp_path, 'bad.yaml', text))
+    with pytest.raises(ValueError, match='outside the folders'):
+        controller_yaml.load(str(tmp_path / 'a.yaml'), lambda p: False)
+
+
+def test_the_lifecycle_goes_as_the_real_managers_does(tmp_path):
+    m = _manager(corpus.cart_yaml('position'), tmp_path)
+    assert m.update_rate == 100
+    assert m.load('forward_position_controller')[0]
+    ok, why = m.load('forward_position_controller')
+    assert not ok and 'already loaded' in why
+    ok, why = m.load('nameless')
+    assert not ok and "'type'" in why
+    ok, why = m.switch(['forward_position_controller'], [], core.STRICT)[:2]
+    assert not ok and 'configure it first' in why
+    assert m.configure('forward_position_controller')[0]
+    assert m.switch(['forward_position_controller'], [], core.STRICT)[0]
+    assert not m.configure('forward_position_controller')[0]  # active
+    assert not m.unload('forward_position_controller')[0]
+    assert not m.cleanup('forward_position_controller')[0]
+    assert m.switch([], ['forward_position_controller'], core.STRICT)[0]
+    assert m.cleanup('forward_position_controller')[0]
+    assert m.controllers['forward_position_controller'].state == core.UNCONFIGURED
+    assert m.unload('forward_position_controller')[0]
+    assert not m.unload('forward_position_controller')[0]
+
+
+def test_a_switch_is_all_or_nothing_unless_best_effort(tmp_path):
+    m = _manager(corpus.cart_yaml('position'), tmp_path)
+    for name in ('forward_position_controller', 'group_position_controller'):
+        assert m.load(name)[0] and m.configure(name)[0]
+    both = ['forward_position_controller', 'group_position_controller']
+    ok, why, on, off = m.switch(both, [], core.STRICT)
+    assert (ok, on) == (False, []) and 'slider_to_cart/position' in why
+    assert {c.state for c in m.controllers.values()} == {core.INACTIVE}
+    ok, why, on, off = m.switch(both + ['ghost'], [], core.BEST_EFFORT)
+    assert ok and on == ['forward_position_controller'] and 'ghost' in why
+    ok, _, on, off = m.switch(['group_position_controller'], [], core.FORCE_AUTO)
+    assert ok and (on, off) == (['group_position_controller'], ['forward_position_controller'])
+    assert m.claimed() == {'slider_to_cart/position': 'group_position_controller'}
+    assert not m.switch(['group_position_controller'], [], core.STRICT)[0]  # already active
+    assert not m.switch([], ['forward_position_controller'], core.STRICT)[0]  # not active
+    assert not m.switch(['x'], [], 7)[0]
+
+
+def test_what_a_controller_claims_must_be_declared_and_its_joints_known(tmp_path):
+    m = _manager(corpus.cart_yaml('velocity'), tmp_path, interfaces=('velocity',))
+    text = corpus.cart_yaml('position')  # position controllers on a velocity-only cart
+    m2 = _manager(text, tmp_path, interfaces=('velocity',))
+    assert m2.load('forward_position_controller')[0]
+    assert m2.configure('forward_position_controller')[0]
+    ok, why = m2.switch(['forward_position_controller'], [], core.STRICT)[:2]
+    assert not ok and 'slider_to_cart/position' in why and 'does not declare' in why
+    bad = corpus.cart_yaml('velocity').replace('joints: [slider_to_cart]\n    command',
+                                               'joints: [elbow]\n    command')
+    m3 = _manager(bad, tmp_path, interfaces=('velocity',))
+    assert m3.load('joint_trajectory_controller')[0]
+    ok, why = m3.configure('joint_trajectory_controller')
+    assert not ok and "['elbow']" in why
+    assert m.load('group_velocity_controller')[0] and m.configure('group_velocity_controller')[0]
+
+
+def test_diff_drive_kinematics_and_odometry_agree_with_the_geometry():
+    g = diff_drive.Geometry.of({'wheel_separation': 0.4, 'wheel_radius': 0.1})
+    assert diff_drive.wheel_speeds(g, 0.3, 0.0) == pytest.approx((3.0, 3.0))
+    assert diff_drive.wheel_speeds(g, 0.0, 1.0) == pytest.approx((-2.0, 2.0))
+    odo = diff_drive.WheelOdometry(g)
+    # a quarter circle of radius 1 m at 0.5 rad/s: left and right wheels on radii 0.8 and 1.2
+    for k in range(0, 3142):
+        t = k * 0.001
+        odo.update(t, 0.8 * 0.5 * t / 0.1, 1.2 * 0.5 * t / 0.1)
+    assert (odo.x, odo.y, odo.yaw) == pytest.approx((math.sin(1.571), 1 - math.cos(1.571),
+                                                     1.571), abs=2e-3)
+    assert (odo.v, odo.w) == pytest.approx((0.5, 0.5))
+    assert diff_drive.limit(3.0, {'linear.x.max_velocity': 1.0}, 'linear.x') == 1.0
+    assert diff_drive.limit(-3.0, {'linear.x.max_velocity': 1.0}, 'linear.x') == -1.0

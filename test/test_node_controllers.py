@@ -1,0 +1,362 @@
+"""
+A robot's own controllers over the wire (issue 42), brought up as its launch file brings them.
+
+Each robot of ``controllers_corpus`` is spawned from its URDF, then its controllers are
+loaded, configured and activated by the calls controller_manager's ``spawner`` makes, in its
+order; then driven through the standard controllers' topics and actions, and checked against
+what the real ones do.
+"""
+
+import math
+import time
+
+from conftest import serve_node, wait_for, Watcher
+import controllers_corpus as corpus
+import pytest
+
+FOLDER = {}
+
+
+@pytest.fixture(scope='module')
+def node(tmp_path_factory):
+    folder = tmp_path_factory.mktemp('controllers')
+    FOLDER['path'] = folder
+    yield from serve_node(f'resource_paths:=["{folder}"]')
+
+
+@pytest.fixture(scope='module')
+def watch(node, rclpy_context):
+    w = Watcher()
+    yield w
+    w.close()
+
+
+def heard(watch, msg_type, topic: str, n: int = 2, timeout: float = 20.0) -> list:
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    got = []
+    sub = watch.node.create_subscription(
+        msg_type, topic, got.append, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        wait_for(lambda: len(got) >= n, timeout=timeout)
+    finally:
+        watch.node.destroy_subscription(sub)
+    return got
+
+
+def publish(watch, msg_type, topic: str, msg, times: int = 3) -> None:
+    pub = watch.node.create_publisher(msg_type, topic, 10)
+    try:
+        for _ in range(times):
+            pub.publish(msg)
+            time.sleep(0.1)
+    finally:
+        watch.node.destroy_publisher(pub)
+
+
+def listed(sim, manager: str = '/controller_manager') -> dict:
+    from controller_manager_msgs.srv import ListControllers
+    got = sim.call(f'{manager}/list_controllers', ListControllers, ListControllers.Request())
+    return {c.name: c for c in got.controller}
+
+
+def states(watch, joint: str, topic: str = '/joint_states', n: int = 2) -> list:
+    """Return the last `n` JointStates on `topic` that carry `joint` (not the node's own)."""
+    from sensor_msgs.msg import JointState
+    got = []
+    sub = watch.node.create_subscription(
+        JointState, topic, lambda m: got.append(m) if joint in m.name else None, 100)
+    try:
+        wait_for(lambda: len(got) >= n, timeout=20)
+    finally:
+        watch.node.destroy_subscription(sub)
+    return got[-n:]
+
+
+def position(watch, joint: str, topic: str = '/joint_states') -> float:
+    msg = states(watch, joint, topic)[-1]
+    return msg.position[list(msg.name).index(joint)]
+
+
+def spawn_cart(sim, interface: str, name: str = 'cart', namespace: str = '',
+               y: float = 3.0) -> None:
+    path = corpus.write(FOLDER['path'], f'cart_{interface}.yaml', corpus.cart_yaml(interface))
+    sim.spawn(name, resource_string=corpus.cart(interface, path), namespace=namespace,
+              position=(0.0, y, 0.0))
+
+
+def test_a_cart_comes_up_with_its_launch_files_steps_and_goes_where_commanded(sim, watch):
+    from std_msgs.msg import Float64MultiArray
+    spawn_cart(sim, 'position')
+    for controller in ('joint_state_broadcaster', 'forward_position_controller'):
+        failed, _ = corpus.spawner(sim, controller)
+        assert failed is None, failed
+    got = listed(sim)
+    assert {n: (c.state, c.type) for n, c in got.items()} == {
+        'joint_state_broadcaster': ('active', 'joint_state_broadcaster/JointStateBroadcaster'),
+        'forward_position_controller': (
+            'active', 'forward_command_controller/ForwardCommandController')}
+    assert list(got['forward_position_controller'].claimed_interfaces) == [
+        'slider_to_cart/position']
+    # /joint_states under the URDF's name, and no second name for it
+    assert position(watch, 'slider_to_cart') == pytest.approx(0.0, abs=0.01)
+    from sensor_msgs.msg import JointState
+    names = {n for m in heard(watch, JointState, '/joint_states', n=10) for n in m.name}
+    assert 'cart/slider_to_cart' not in names
+    publish(watch, Float64MultiArray, '/forward_position_controller/commands',
+            Float64MultiArray(data=[2.0]))
+    wait_for(lambda: abs(position(watch, 'slider_to_cart') - 2.0) < 0.02, timeout=20)
+    publish(watch, Float64MultiArray, '/forward_position_controller/commands',
+            Float64MultiArray(data=[40.0]))  # beyond the interface's max of 15
+    wait_for(lambda: abs(position(watch, 'slider_to_cart') - 15.0) < 0.05, timeout=20)
+
+
+@pytest.mark.parametrize('interface', ['velocity', 'effort'])
+def test_carts_under_velocity_and_effort_controllers_move_as_commanded(sim, watch, interface):
+    from std_msgs.msg import Float64MultiArray
+    spawn_cart(sim, interface)
+    for controller in ('joint_state_broadcaster', f'group_{interface}_controller'):
+        failed, _ = corpus.spawner(sim, controller)
+        assert failed is None, failed
+    publish(watch, Float64MultiArray, f'/group_{interface}_controller/commands',
+            Float64MultiArray(data=[0.5 if interface == 'velocity' else 2.0]))
+    time.sleep(1.0)
+    msgs = states(watch, 'slider_to_cart', n=20)
+    (i,) = [k for k, n in enumerate(msgs[-1].name) if n == 'slider_to_cart']
+    first, last = msgs[0], msgs[-1]
+    dt = (last.header.stamp.sec + last.header.stamp.nanosec * 1e-9
+          - first.header.stamp.sec - first.header.stamp.nanosec * 1e-9)
+    if interface == 'velocity':
+        assert last.velocity[i] == pytest.approx(0.5, abs=0.02)
+        assert (last.position[i] - first.position[i]) / dt == pytest.approx(0.5, abs=0.05)
+    else:  # 2 N on 1 kg, frictionless: 2 m/s^2
+        accel = (last.velocity[i] - first.velocity[i]) / dt
+        assert accel == pytest.approx(2.0, rel=0.1)
+
+
+def test_a_joint_state_broadcaster_publishes_at_its_update_rate_in_simulated_time(sim, watch):
+    spawn_cart(sim, 'position')
+    failed, _ = corpus.spawner(sim, 'joint_state_broadcaster')
+    assert failed is None
+    msgs = states(watch, 'slider_to_cart', n=80)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in msgs]
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(100.0, rel=0.02)
+
+
+def test_the_managers_answers_for_wrong_orders_and_names_are_the_real_ones(sim, watch):
+    from controller_manager_msgs.srv import (CleanupController, ListControllerTypes,
+                                             ListHardwareInterfaces, LoadController,
+                                             SwitchController, UnloadController)
+    spawn_cart(sim, 'position')
+    cm = '/controller_manager'
+    # a type the YAML does not give, a controller never loaded
+    assert not sim.call(f'{cm}/load_controller', LoadController,
+                        LoadController.Request(name='no_such_controller')).ok
+    req = SwitchController.Request(activate_controllers=['no_such_controller'],
+                                   strictness=SwitchController.Request.STRICT)
+    assert not sim.call(f'{cm}/switch_controller', SwitchController, req).ok
+    # loaded but not configured: cannot be activated
+    assert sim.call(f'{cm}/load_controller', LoadController,
+                    LoadController.Request(name='forward_position_controller')).ok
+    req = SwitchController.Request(activate_controllers=['forward_position_controller'],
+                                   strictness=SwitchController.Request.STRICT)
+    answer = sim.call(f'{cm}/switch_controller', SwitchController, req)
+    assert not answer.ok and 'configure' in answer.message
+    assert listed(sim)['forward_position_controller'].state == 'unconfigured'
+    # two controllers on one interface: the second is refused, as the real manager does
+    for name in ('forward_position_controller', 'group_position_controller'):
+        failed, _ = corpus.spawner(sim, name, activate=False)
+        assert failed is None
+    req = SwitchController.Request(
+        activate_controllers=['forward_position_controller', 'group_position_controller'],
+        strictness=SwitchController.Request.STRICT)
+    answer = sim.call(f'{cm}/switch_controller', SwitchController, req)
+    assert not answer.ok and 'slider_to_cart/position' in answer.message
+    assert {c.state for c in listed(sim).values()} == {'inactive'}  # nothing half-done
+    req.strictness = SwitchController.Request.BEST_EFFORT
+    assert sim.call(f'{cm}/switch_controller', SwitchController, req).ok
+    states = {n: c.state for n, c in listed(sim).items()}
+    assert states == {'forward_position_controller': 'active',
+                      'group_position_controller': 'inactive'}
+    claimed = sim.call(f'{cm}/list_hardware_interfaces', ListHardwareInterfaces,
+                       ListHardwareInterfaces.Request())
+    assert [(i.name, i.is_claimed) for i in claimed.command_interfaces] == [
+        ('slider_to_cart/position', True)]
+    assert {i.name for i in claimed.state_interfaces} == {
+        'slider_to_cart/position', 'slider_to_cart/velocity', 'slider_to_cart/effort'}
+    # FORCE_AUTO takes the interface over
+    req = SwitchController.Request(activate_controllers=['group_position_controller'],
+                                   strictness=SwitchController.Request.FORCE_AUTO)
+    assert sim.call(f'{cm}/switch_controller', SwitchController, req).ok
+    assert listed(sim)['forward_position_controller'].state == 'inactive'
+    # an active controller is neither unloaded nor cleaned up
+    for srv in (UnloadController, CleanupController):
+        service = 'unload_controller' if srv is UnloadController else 'cleanup_controller'
+        assert not sim.call(f'{cm}/{service}', srv,
+                            srv.Request(name='group_position_controller')).ok
+    assert sim.call(f'{cm}/cleanup_controller', CleanupController,
+                    CleanupController.Request(name='forward_position_controller')).ok
+    assert sim.call(f'{cm}/unload_controller', UnloadController,
+                    UnloadController.Request(name='forward_position_controller')).ok
+    assert 'forward_position_controller' not in listed(sim)
+    types = sim.call(f'{cm}/list_controller_types', ListControllerTypes,
+                     ListControllerTypes.Request()).types
+    assert 'joint_trajectory_controller/JointTrajectoryController' in types
+
+
+def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim, watch):
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionClient
+    from trajectory_msgs.msg import JointTrajectoryPoint
+    folder = FOLDER['path']
+    sim.spawn('arm', resource_string=corpus.arm(corpus.write(folder, 'arm.yaml',
+                                                             corpus.ARM_YAML)),
+              position=(2.0, 2.0, 0.0))
+    jtc_file = corpus.write(folder, 'arm_jtc.yaml', corpus.ARM_JTC_YAML)
+    assert corpus.spawner(sim, 'joint_state_broadcaster')[0] is None
+    time.sleep(1.0)  # limp: gravity bends it
+    failed, _ = corpus.spawner(sim, 'arm_controller', param_file=jtc_file)
+    assert failed is None, failed
+    assert listed(sim)['arm_controller'].type == \
+        'joint_trajectory_controller/JointTrajectoryController'
+    held = states(watch, 'joint1')[-1]
+    time.sleep(1.0)
+    later = states(watch, 'joint1')[-1]
+    assert list(later.name) == list(corpus.ARM_JOINTS)
+    # held where it was when activated (limp, it sagged)
+    assert max(abs(a - b) for a, b in zip(held.position, later.position)) < 0.02
+    client = ActionClient(watch.node, FollowJointTrajectory,
+                          '/arm_controller/follow_joint_trajectory')
+    assert client.wait_for_server(timeout_sec=10)
+    target = [0.3, -0.2, 0.2, 0.1, 0.1, 0.1]
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory.joint_names = list(corpus.ARM_JOINTS)
+    goal.trajectory.points = [JointTrajectoryPoint(positions=target)]
+    goal.trajectory.points[0].time_from_start.sec = 1
+    handle = _send(client, goal)
+    assert handle.accepted
+    result = _result(handle)
+    assert result.error_code == 0, result.error_string
+    got = states(watch, 'joint1')[-1]
+    assert max(abs(a - b) for a, b in zip(got.position, target)) < 0.03
+    # a partial goal is refused (allow_partial_joints_goal is false)
+    goal.trajectory.joint_names = ['joint1']
+    goal.trajectory.points = [JointTrajectoryPoint(positions=[0.0])]
+    goal.trajectory.points[0].time_from_start.sec = 1
+    assert not _send(client, goal).accepted
+    client.destroy()
+
+
+def _send(client, goal):
+    future = client.send_goal_async(goal)
+    wait_for(future.done, timeout=20)
+    return future.result()
+
+
+def _result(handle):
+    future = handle.get_result_async()
+    wait_for(future.done, timeout=30)
+    return future.result().result
+
+
+def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watch):
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    path = corpus.write(FOLDER['path'], 'rover.yaml', corpus.DIFF_DRIVE_YAML)
+    sim.spawn('rover', resource_string=corpus.diff_drive(path), position=(2.0, -2.0, 0.15))
+    for controller in ('joint_state_broadcaster', 'diff_drive_base_controller'):
+        assert corpus.spawner(sim, controller)[0] is None
+    cmd = TwistStamped()
+    cmd.twist.linear.x = 0.3
+    pub = watch.node.create_publisher(TwistStamped, '/diff_drive_base_controller/cmd_vel', 10)
+    try:
+        odoms = []
+        sub = watch.node.create_subscription(Odometry, '/diff_drive_base_controller/odom',
+                                             odoms.append, 10)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 4.0:
+            pub.publish(cmd)
+            time.sleep(0.05)
+        watch.node.destroy_subscription(sub)
+    finally:
+        watch.node.destroy_publisher(pub)
+    last = odoms[-1]
+    assert (last.header.frame_id, last.child_frame_id) == ('odom', 'base_link')
+    assert last.twist.twist.linear.x == pytest.approx(0.3, abs=0.02)
+    late = [o for o in odoms if o.pose.pose.position.x > 0.3]
+    a, b = late[0], late[-1]
+    dt = (b.header.stamp.sec + b.header.stamp.nanosec * 1e-9
+          - a.header.stamp.sec - a.header.stamp.nanosec * 1e-9)
+    assert (b.pose.pose.position.x - a.pose.pose.position.x) / dt == pytest.approx(0.3, abs=0.02)
+    assert abs(b.pose.pose.position.y) < 0.05
+    wait_for(lambda: 'base_link' in watch.tf and watch.tf['base_link'][1] == 'odom')
+    # the base's true motion agrees with its odometry
+    moved = sim.entity_state('rover')['position']
+    assert math.hypot(moved[0] - 2.0, moved[1] + 2.0) == pytest.approx(
+        math.hypot(b.pose.pose.position.x, b.pose.pose.position.y), abs=0.1)
+
+
+def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
+        sim, watch, tmp_path):
+    from controller_manager_msgs.srv import LoadController
+    from std_msgs.msg import Float64MultiArray
+    folder = FOLDER['path']
+    broken = corpus.write(folder, 'broken.yaml', 'controller_manager: [ros__parameters: {')
+    sim.spawn('broken', resource_string=corpus.cart('position', broken), position=(0, 3, 0))
+    answer = sim.call('/controller_manager/load_controller', LoadController,
+                      LoadController.Request(name='joint_state_broadcaster'))
+    assert not answer.ok
+    sim.reset()
+    odd = corpus.cart_yaml('position').replace(
+        'forward_command_controller/ForwardCommandController', 'no_such_pkg/NoSuchController'
+    ).replace('joints: [slider_to_cart]\n    command_interfaces',
+              'joints: [slider_to_cart, elbow]\n    command_interfaces').replace(
+        'interface_name: position', 'interface_name: velocity')
+    path = corpus.write(folder, 'odd.yaml', odd)
+    sim.spawn('cart', resource_string=corpus.cart('position', path), position=(0, 3, 0))
+    failed, _ = corpus.spawner(sim, 'forward_position_controller')  # an unknown type
+    assert failed is not None and not failed.ok
+    failed, _ = corpus.spawner(sim, 'joint_trajectory_controller')  # a joint it lacks
+    assert failed is not None
+    odd_group = corpus.write(folder, 'odd_group.yaml', """odd_group:
+  ros__parameters:
+    type: forward_command_controller/ForwardCommandController
+    joints: [slider_to_cart]
+    interface_name: velocity
+""")
+    failed, _ = corpus.spawner(sim, 'odd_group', param_file=odd_group)  # not declared
+    assert failed is not None and 'slider_to_cart/velocity' in failed.message
+    outside = corpus.write(tmp_path, 'elsewhere.yaml', """group_position_controller:
+  ros__parameters:
+    type: position_controllers/JointGroupPositionController
+    joints: [slider_to_cart]
+""")  # a folder the node was not given
+    failed, _ = corpus.spawner(sim, 'group_position_controller', param_file=outside)
+    assert failed is not None and not failed.ok
+    assert 'group_position_controller' not in listed(sim)
+    # commands of a wrong length or with NaN are refused; the world steps on
+    sim.reset()
+    spawn_cart(sim, 'position')
+    assert corpus.spawner(sim, 'joint_state_broadcaster')[0] is None
+    assert corpus.spawner(sim, 'group_position_controller')[0] is None
+    for data in ([1.0, 2.0], [float('nan')]):
+        publish(watch, Float64MultiArray, '/group_position_controller/commands',
+                Float64MultiArray(data=data))
+    before = states(watch, 'slider_to_cart')[-1]
+    assert before.position[0] == pytest.approx(0.0, abs=0.02)
+    later = states(watch, 'slider_to_cart')[-1]
+    assert (later.header.stamp.sec, later.header.stamp.nanosec) > (
+        before.header.stamp.sec, before.header.stamp.nanosec)
+
+
+def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):
+    from simulation_interfaces.msg import Result
+    spawn_cart(sim, 'position')
+    with pytest.raises(Exception) as err:
+        spawn_cart(sim, 'position', name='cart2', y=-3.0)
+    assert 'namespace' in str(err.value)
+    spawn_cart(sim, 'position', name='cart2', namespace='second', y=-3.0)
+    assert corpus.spawner(sim, 'joint_state_broadcaster',
+                          manager='/second/controller_manager')[0] is None
+    assert position(watch, 'slider_to_cart', '/second/joint_states') == pytest.approx(
+        0.0, abs=0.01)
+    del Result
