@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-sensors snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-sensors bench-controllers snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -81,6 +81,10 @@ bench-meshes: setup
 # Declared sensors of a mobile manipulator: their rates kept, their cost in steps/s, ~1 min
 bench-sensors: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/sensors.py
+
+# A robot's controllers at 1 kHz: steps/s over the same robot held without them, ~1 min
+bench-controllers: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/controllers.py
 
 bench-viewer: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/viewer.py

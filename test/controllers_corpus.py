@@ -104,7 +104,16 @@ def arm(yaml_path: str) -> str:
   <joint name="base" type="fixed"><parent link="world"/><child link="link0"/></joint>{links}
   <ros2_control name="ArmSystem" type="system">
     <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
+    <sensor name="tcp_imu">{''.join(f'<state_interface name="{k}.{a}"/>' for k in (
+        'orientation', 'angular_velocity', 'linear_acceleration') for a in 'xyzw'
+        if a != 'w' or k == 'orientation')}</sensor>
+    <sensor name="tcp_fts">{''.join(f'<state_interface name="{k}.{a}"/>'
+                                    for k in ('force', 'torque') for a in 'xyz')}</sensor>
   </ros2_control>
+  <gazebo reference="link6"><sensor name="tcp_imu" type="imu"><update_rate>100</update_rate>
+  </sensor></gazebo>
+  <gazebo reference="joint6"><sensor name="tcp_fts" type="force_torque">
+    <update_rate>100</update_rate></sensor></gazebo>
   {_plugin(yaml_path)}
 </robot>"""
 
@@ -114,6 +123,22 @@ ARM_YAML = """controller_manager:
     update_rate: 1000
     joint_state_broadcaster:
       type: joint_state_broadcaster/JointStateBroadcaster
+    imu_sensor_broadcaster:
+      type: imu_sensor_broadcaster/IMUSensorBroadcaster
+    force_torque_sensor_broadcaster:
+      type: force_torque_sensor_broadcaster/ForceTorqueSensorBroadcaster
+
+imu_sensor_broadcaster:
+  ros__parameters:
+    sensor_name: tcp_imu
+    frame_id: link6
+    update_rate: 100
+
+force_torque_sensor_broadcaster:
+  ros__parameters:
+    sensor_name: tcp_fts
+    frame_id: link6
+    update_rate: 100
 """
 #: What the arm's launch file gives the spawner with --param-file (the JTC's own file).
 ARM_JTC_YAML = """arm_controller:
@@ -237,3 +262,157 @@ def spawner(sim, name: str, param_file: str = '', manager: str = '/controller_ma
     req.timeout.sec = 5
     answers.append(sim.call(f'{manager}/switch_controller', SwitchController, req))
     return (None if answers[-1].ok else answers[-1]), answers
+
+
+def gripper(yaml_path: str) -> str:
+    """
+    Return a two-finger gripper fixed to the world, its right finger mimicking its left.
+
+    The fingers close along y from 0.06 m out; only the left one is in the <ros2_control>
+    block (position). Their inner faces meet a 0.04 m block at the centre at 0.035 m closed.
+    """
+    fingers = ''.join(f"""
+  <link name="{side}_finger"><inertial><origin xyz="0 0 -0.08"/><mass value="0.05"/>{_I}
+    </inertial><collision><origin xyz="0 0 -0.08"/><geometry><box size="0.03 0.01 0.04"/>
+    </geometry></collision></link>
+  <joint name="{side}_finger_joint" type="prismatic"><parent link="palm"/>
+    <child link="{side}_finger"/><origin xyz="0 {y} 0"/><axis xyz="0 {-1 if y > 0 else 1} 0"/>
+    <limit lower="0" upper="0.055" effort="50" velocity="0.5"/>{mimic}</joint>"""
+                      for side, y, mimic in (
+                          ('left', 0.06, ''),
+                          ('right', -0.06, '<mimic joint="left_finger_joint" multiplier="1"/>')))
+    return f"""<robot name="gripper">
+  <link name="world"/>
+  <link name="palm"><inertial><mass value="0.5"/>{_I}</inertial>
+    <collision><origin xyz="0 0 0.02"/><geometry><box size="0.04 0.16 0.02"/></geometry>
+    </collision></link>
+  <joint name="mount" type="fixed"><parent link="world"/><child link="palm"/>
+    <origin xyz="0 0 0.1"/></joint>{fingers}
+  <ros2_control name="GripperSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>
+    <joint name="left_finger_joint"><command_interface name="position"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>
+  </ros2_control>
+  {_plugin(yaml_path)}
+</robot>"""
+
+
+GRIPPER_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 100
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    gripper_controller:
+      type: position_controllers/GripperActionController
+    parallel_gripper_controller:
+      type: parallel_gripper_action_controller/GripperActionController
+
+gripper_controller:
+  ros__parameters:
+    joint: left_finger_joint
+    goal_tolerance: 0.002
+    allow_stalling: true
+    stall_velocity_threshold: 0.001
+    stall_timeout: 0.3
+
+parallel_gripper_controller:
+  ros__parameters:
+    joint: left_finger_joint
+    goal_tolerance: 0.002
+"""
+BLOCK = ('<mujoco><worldbody><body name="block"><freejoint/>'
+         '<geom type="box" size="0.02 0.02 0.02" mass="0.1"/></body></worldbody></mujoco>')
+
+
+def topic_based() -> str:
+    """
+    Return a cart with a spinning wheel whose joints a controller manager elsewhere drives.
+
+    Its hardware is topic_based_ros2_control's: the cart's slider by position, the wheel by
+    velocity, over /cart_joint_commands and /cart_joint_states.
+    """
+    return f"""<robot name="cart">
+  <link name="world"/>
+  <link name="slider"><inertial><mass value="100"/>{_I}</inertial></link>
+  <joint name="world_to_slider" type="fixed"><parent link="world"/><child link="slider"/>
+    <origin xyz="0 0 1"/></joint>
+  <link name="cart"><inertial><mass value="1"/>{_I}</inertial></link>
+  <joint name="slider_to_cart" type="prismatic"><parent link="slider"/><child link="cart"/>
+    <axis xyz="1 0 0"/><limit lower="-5" upper="5" effort="1000" velocity="30"/></joint>
+  <link name="wheel"><inertial><mass value="0.2"/>{_I}</inertial></link>
+  <joint name="spinner" type="continuous"><parent link="cart"/><child link="wheel"/>
+    <axis xyz="0 1 0"/><limit effort="10" velocity="20"/></joint>
+  <ros2_control name="TopicSystem" type="system">
+    <hardware><plugin>topic_based_ros2_control/TopicBasedSystem</plugin>
+      <param name="joint_commands_topic">/cart_joint_commands</param>
+      <param name="joint_states_topic">/cart_joint_states</param></hardware>
+    <joint name="slider_to_cart"><command_interface name="position"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>
+    <joint name="spinner"><command_interface name="velocity"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>
+  </ros2_control>
+</robot>"""
+
+
+def car(yaml_path: str) -> str:
+    """
+    Return a car: rear wheels driven (velocity), front wheels steered (position), Ackermann.
+
+    Wheelbase 0.5 m, track 0.4 m, wheels 0.08 m in radius; the front wheels roll freely.
+    """
+    def wheel(name: str, parent: str, xyz: str, driven: bool) -> str:
+        return f"""
+  <link name="{name}"><inertial><mass value="0.3"/>{_I}</inertial>
+    <collision><geometry><cylinder radius="0.08" length="0.04"/></geometry></collision></link>
+  <joint name="{name}_joint" type="continuous"><parent link="{parent}"/><child link="{name}"/>
+    <origin xyz="{xyz}" rpy="-1.5708 0 0"/><axis xyz="0 0 1"/>
+    <limit effort="{20 if driven else 0}" velocity="50"/></joint>"""
+    steers = ''.join(f"""
+  <link name="{side}_steer"><inertial><mass value="0.1"/>{_I}</inertial></link>
+  <joint name="{side}_steering_joint" type="revolute"><parent link="base_link"/>
+    <child link="{side}_steer"/><origin xyz="0.25 {y} 0"/><axis xyz="0 0 1"/>
+    <limit lower="-0.6" upper="0.6" effort="50" velocity="5"/></joint>{wheel(
+        f'{side}_front_wheel', f'{side}_steer', '0 0 0', False)}"""
+                     for side, y in (('left', 0.2), ('right', -0.2)))
+    rears = ''.join(wheel(f'{side}_rear_wheel', 'base_link', f'-0.25 {y} 0', True)
+                    for side, y in (('left', 0.2), ('right', -0.2)))
+    joints = ''.join(f"""
+    <joint name="{side}_rear_wheel_joint"><command_interface name="velocity"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>"""
+                     for side in ('left', 'right')) + ''.join(f"""
+    <joint name="{side}_steering_joint"><command_interface name="position"/>
+      <state_interface name="position"/></joint>""" for side in ('left', 'right'))
+    return f"""<robot name="car">
+  <link name="base_link"><inertial><mass value="10"/>
+    <inertia ixx="0.1" iyy="0.3" izz="0.3" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.6 0.3 0.05"/></geometry>
+    </collision></link>{rears}{steers}
+  <ros2_control name="CarSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
+  </ros2_control>
+  {_plugin(yaml_path)}
+</robot>"""
+
+
+CAR_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 100
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    ackermann_steering_controller:
+      type: ackermann_steering_controller/AckermannSteeringController
+
+ackermann_steering_controller:
+  ros__parameters:
+    reference_timeout: 2.0
+    front_steering: true
+    rear_wheels_names: [left_rear_wheel_joint, right_rear_wheel_joint]
+    front_wheels_names: [left_steering_joint, right_steering_joint]
+    wheelbase: 0.5
+    front_wheel_track: 0.4
+    rear_wheel_track: 0.4
+    front_wheels_radius: 0.08
+    rear_wheels_radius: 0.08
+    odom_frame_id: odom
+    base_frame_id: base_link
+"""

@@ -128,3 +128,19 @@ def test_diff_drive_kinematics_and_odometry_agree_with_the_geometry():
     assert (odo.v, odo.w) == pytest.approx((0.5, 0.5))
     assert diff_drive.limit(3.0, {'linear.x.max_velocity': 1.0}, 'linear.x') == 1.0
     assert diff_drive.limit(-3.0, {'linear.x.max_velocity': 1.0}, 'linear.x') == -1.0
+
+
+def test_only_simulated_or_topic_based_hardware_takes_a_robots_joints_over(tmp_path):
+    """A URDF for a real robot's hardware spawns as any robot: its joints stay the node's."""
+    from sim_node.core.models import sources
+    from sim_node.core.world import World
+    path = corpus.write(tmp_path, 'c.yaml', corpus.cart_yaml('position'))
+    world = World.from_file(str(corpus.Path(__file__).resolve().parent.parent / 'scenes'
+                                / 'empty.xml'))
+    world.spawn('sim_cart', sources.from_model_text(corpus.cart('position', path)))
+    real = corpus.cart('position', path).replace('gz_ros2_control/GazeboSimSystem',
+                                                 'uf_robot_hardware/UFRobotSystemHardware')
+    world.spawn('real_cart', sources.from_model_text(real), position=[0, 3, 0])
+    world.spawn('topic_cart', sources.from_model_text(corpus.topic_based()),
+                position=[0, -3, 0])
+    assert sorted(world.model_info.ros2_control) == ['sim_cart', 'topic_cart']

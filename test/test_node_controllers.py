@@ -238,6 +238,18 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     assert result.error_code == 0, result.error_string
     got = states(watch, 'joint1')[-1]
     assert max(abs(a - b) for a, b in zip(got.position, target)) < 0.03
+    # its sensors' broadcasters: the IMU feels gravity, the wrist holds its 1 kg link
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import Imu
+    for name in ('imu_sensor_broadcaster', 'force_torque_sensor_broadcaster'):
+        assert corpus.spawner(sim, name)[0] is None
+    imu = heard(watch, Imu, '/imu_sensor_broadcaster/imu')[-1]
+    acc = imu.linear_acceleration
+    assert imu.header.frame_id == 'link6'
+    assert math.hypot(acc.x, acc.y, acc.z) == pytest.approx(9.81, rel=0.02)
+    ft = heard(watch, WrenchStamped, '/force_torque_sensor_broadcaster/wrench')[-1]
+    f = ft.wrench.force
+    assert math.hypot(f.x, f.y, f.z) == pytest.approx(9.81, rel=0.03)
     # a partial goal is refused (allow_partial_joints_goal is false)
     goal.trajectory.joint_names = ['joint1']
     goal.trajectory.points = [JointTrajectoryPoint(positions=[0.0])]
@@ -360,3 +372,92 @@ def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):
     assert position(watch, 'slider_to_cart', '/second/joint_states') == pytest.approx(
         0.0, abs=0.01)
     del Result
+
+
+def test_a_mimic_gripper_closes_on_a_block_and_stalls_and_closes_on_nothing(sim, watch):
+    from control_msgs.action import GripperCommand, ParallelGripperCommand
+    from rclpy.action import ActionClient
+    path = corpus.write(FOLDER['path'], 'gripper.yaml', corpus.GRIPPER_YAML)
+    sim.spawn('gripper', resource_string=corpus.gripper(path), position=(-2.0, 2.0, 0.0))
+    sim.spawn('block', resource_string=corpus.BLOCK, position=(-2.0, 2.0, 0.02))
+    for name in ('joint_state_broadcaster', 'gripper_controller'):
+        assert corpus.spawner(sim, name)[0] is None
+    client = ActionClient(watch.node, GripperCommand, '/gripper_controller/gripper_cmd')
+    assert client.wait_for_server(timeout_sec=10)
+    goal = GripperCommand.Goal()
+    goal.command.position = 0.05
+    result = _result(_send(client, goal))
+    # both fingers on the block: the right one, mimicking, holds it from the other side
+    assert result.stalled and not result.reached_goal
+    assert result.position == pytest.approx(0.035, abs=0.003)
+    client.destroy()
+    sim.delete('block')
+    from controller_manager_msgs.srv import SwitchController
+    req = SwitchController.Request(activate_controllers=['parallel_gripper_controller'],
+                                   deactivate_controllers=['gripper_controller'],
+                                   strictness=SwitchController.Request.STRICT)
+    assert corpus.spawner(sim, 'parallel_gripper_controller', activate=False)[0] is None
+    assert sim.call('/controller_manager/switch_controller', SwitchController, req).ok
+    client = ActionClient(watch.node, ParallelGripperCommand,
+                          '/parallel_gripper_controller/gripper_cmd')
+    assert client.wait_for_server(timeout_sec=10)
+    goal = ParallelGripperCommand.Goal()
+    goal.command.name, goal.command.position = ['left_finger_joint'], [0.05]
+    result = _result(_send(client, goal))
+    assert result.reached_goal and result.state.position[0] == pytest.approx(0.05, abs=0.003)
+    client.destroy()
+
+
+def test_a_topic_based_robot_takes_the_plugins_commands_and_gives_its_states(sim, watch):
+    """As topic_based_ros2_control sends: per interface, the values of the joints that have it."""
+    from sensor_msgs.msg import JointState
+    sim.spawn('cart', resource_string=corpus.topic_based(), position=(0.0, 3.0, 0.0))
+    nan = float('nan')
+    for data in ({'position': [1.0, 2.0]}, {'position': [0.5], 'velocity': [1.0, 1.0]}):
+        publish(watch, JointState, '/cart_joint_commands',  # refused: arrays that do not fit
+                JointState(name=['slider_to_cart', 'spinner'], **data))
+    states_before = states(watch, 'spinner', '/cart_joint_states')[-1]
+    assert states_before.position[0] == pytest.approx(0.0, abs=0.01)
+    publish(watch, JointState, '/cart_joint_commands',
+            JointState(name=['slider_to_cart', 'spinner'], position=[1.0], velocity=[2.0]))
+    publish(watch, JointState, '/cart_joint_commands',  # NaN: a command not written yet
+            JointState(name=['slider_to_cart', 'spinner'], position=[nan], velocity=[2.0]))
+    wait_for(lambda: abs(states(watch, 'spinner', '/cart_joint_states')[-1].position[0]
+                         - 1.0) < 0.02, timeout=20)
+    last = states(watch, 'spinner', '/cart_joint_states')[-1]
+    assert list(last.name) == ['slider_to_cart', 'spinner']
+    assert last.velocity[1] == pytest.approx(2.0, abs=0.05)
+    got = states(watch, 'spinner', '/cart_joint_states', n=30)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got]
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(100.0, rel=0.02)
+
+
+def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch):
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    path = corpus.write(FOLDER['path'], 'car.yaml', corpus.CAR_YAML)
+    sim.spawn('car', resource_string=corpus.car(path), position=(-3.0, -3.0, 0.1))
+    for controller in ('joint_state_broadcaster', 'ackermann_steering_controller'):
+        assert corpus.spawner(sim, controller)[0] is None
+    cmd = TwistStamped()
+    cmd.twist.linear.x, cmd.twist.angular.z = 0.4, 0.2  # a circle of 2 m radius
+    pub = watch.node.create_publisher(TwistStamped, '/ackermann_steering_controller/reference',
+                                      10)
+    odoms = []
+    sub = watch.node.create_subscription(
+        Odometry, '/ackermann_steering_controller/odometry', odoms.append, 100)
+    try:
+        start = sim.entity_state('car')['position']
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 4.0:
+            pub.publish(cmd)
+            time.sleep(0.05)
+    finally:
+        watch.node.destroy_subscription(sub)
+        watch.node.destroy_publisher(pub)
+    last = odoms[-1]
+    assert (last.header.frame_id, last.child_frame_id) == ('odom', 'base_link')
+    assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.04)
+    assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.03)
+    moved = sim.entity_state('car')['position']
+    assert math.hypot(moved[0] - start[0], moved[1] - start[1]) > 0.5  # it really went

@@ -158,7 +158,8 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         geom_scoped=contacts.scoped(m, names, root_of, spawned),
         geom_body=m.geom_bodyid.copy(),
         ros2_control={n: rec.ros2_control for n, rec in spawned.items()
-                      if rec.ros2_control is not None})
+                      if rec.ros2_control is not None
+                      and (rec.ros2_control.simulated or rec.ros2_control.topic_based)})
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

@@ -305,7 +305,8 @@ class ModelInfo:
     #: (ngeom,) the body each geom is on.
     geom_body: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     #: Entity -> its URDF's ros2_control declaration (``.models.ros2_control.Ros2Control``,
-    #: under its namespace): the robots whose joints their own controllers publish and drive.
+    #: under its namespace) where it names simulated or topic-based hardware: the robots whose
+    #: joints their own controllers publish and drive (a real robot's hardware: not here).
     ros2_control: dict = field(default_factory=dict)
 
 

@@ -165,12 +165,13 @@ class World:
         with self._live.lock:
             self._live.contact_request = request
 
-    def sample_joints(self, key: str, joints: Sequence[str], rate_hz: float = 0.0) -> None:
-        """Sample these joints `rate_hz` times per simulated second (0: stop): JointSample."""
+    def sample_joints(self, key: str, joints: Sequence[str], rate_hz: float = 0.0,
+                      sensors: bool = False) -> None:
+        """Sample joints `rate_hz` times per simulated second (0: stop): JointSample."""
         with self._live.lock:
             live = self._live
             live.joint_requests = sampling.joint_requests(live.joint_requests, key, joints,
-                                                          rate_hz)
+                                                          rate_hz, sensors)
 
     @property
     def timestep(self) -> float:

@@ -33,8 +33,11 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from . import controllers
+from . import broadcasters, controllers
+from .gripper import GripperAction
 from .jtc import TrajectoryController
+from .steering import Steering
+from .topic_hardware import TopicHardware
 from ..core.control import controller_types, manager as core
 from ..core.errors import SimError
 from ..core.models import controller_yaml
@@ -42,8 +45,8 @@ from ..core.models.paths import inside_roots
 from ..core.records import ModelInfo, Snapshot
 from ..session import Loaded, Session
 
-_LIFECYCLE = {core.UNCONFIGURED: State.PRIMARY_STATE_UNCONFIGURED,
-              core.INACTIVE: State.PRIMARY_STATE_INACTIVE, core.ACTIVE: State.PRIMARY_STATE_ACTIVE}
+#: The most joint samples of one robot its controllers take per publishing tick.
+MAX_BURST = 20
 
 
 class _Parameters:
@@ -66,6 +69,7 @@ class RobotControl:
         self.host, self.entity, self.control = host, entity, control
         self.namespace = f'/{control.namespace}' if control.namespace else ''
         self.hardware = control.joints()
+        self.index = {j: i for i, j in enumerate(self.hardware)}  # joint -> its place in samples
         self.yaml_error = ''
         self.docs = []
         for path in control.parameters:
@@ -89,6 +93,8 @@ class RobotControl:
         self.manager = core.Manager(commands, states, _Parameters(self.node), self._params)
         self.runtimes: dict = {}
         self.latest = None  # the last joint sample
+        self.info = None  # the model info of now (told by ControllerManagers.sync)
+        self.sensors = any(c.sensors for c in control.components)
         self.key = f'{entity}:{self.namespace}/{control.manager}'
         group = MutuallyExclusiveCallbackGroup()
         for srv, name, call in (
@@ -103,7 +109,8 @@ class RobotControl:
                 (ListHardwareComponents, 'list_hardware_components', self._components)):
             self.node.create_service(srv, f'~/{name}', call, callback_group=group)
         host.add_node(self.node)
-        host.sample(self.key, [self.internal(j) for j in self.hardware], self.manager.update_rate)
+        host.sample(self.key, [self.internal(j) for j in self.hardware],
+                    self.manager.update_rate, self.sensors)
 
     def internal(self, joint: str) -> str:
         return f'{self.entity}/{joint}'
@@ -223,7 +230,7 @@ class RobotControl:
     def on_sample(self, sample) -> None:
         """Run the active controllers due at a joint sample's simulated time."""
         self.latest = sample
-        index = {j: i for i, j in enumerate(self.hardware)}
+        index = self.index
         for rt in list(self.runtimes.values()):
             if rt.active and sample.time >= rt.next_update:
                 rt.next_update = sample.time + 1.0 / rt.controller.update_rate - 1e-9
@@ -292,6 +299,15 @@ def runtime_for(host, controller) -> controllers.Runtime:
         return TrajectoryController(host, controller)
     if kind == controller_types.DIFF_DRIVE:
         return controllers.DiffDrive(host, controller)
+    if kind in controller_types.GRIPPERS:
+        return GripperAction(host, controller)
+    if kind in (controller_types.ACKERMANN, controller_types.BICYCLE,
+                controller_types.TRICYCLE):
+        return Steering(host, controller)
+    if kind == controller_types.IMU:
+        return broadcasters.ImuBroadcaster(host, controller)
+    if kind == controller_types.FORCE_TORQUE:
+        return broadcasters.ForceTorqueBroadcaster(host, controller)
     raise SimError(f'no runtime for {kind}')
 
 
@@ -303,36 +319,45 @@ class ControllerManagers:
         destroy it once no callback of it can run).
     """
 
-    def __init__(self, session: Session, roots: tuple, add_node: Callable,
+    def __init__(self, node: Node, session: Session, roots: tuple, add_node: Callable,
                  drop_node: Callable, refused: Callable):
-        self.session, self.refused = session, refused
+        self.node, self.session, self.refused = node, session, refused
         self.add_node, self.drop_node = add_node, drop_node
         shares = [os.path.join(p, 'share') for p in
                   os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
         self._roots = tuple(roots) + tuple(shares)
         self.robots: dict = {}  # entity -> RobotControl
+        self.topic_robots: dict = {}  # entity -> TopicHardware
         self._lock = threading.Lock()
 
     def readable(self, path) -> bool:
         return inside_roots(path, self._roots)
 
-    def sample(self, key: str, joints: list, rate: float) -> None:
+    def sample(self, key: str, joints: list, rate: float, sensors: bool = False) -> None:
         loaded = self.session.loaded
         if loaded is not None:
-            loaded.world.sample_joints(key, joints, rate)
+            loaded.world.sample_joints(key, joints, rate, sensors)
 
     def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
         self.sync(None if snap is None else snap.info)
 
     def sync(self, info: Optional[ModelInfo]) -> None:
-        wanted = {} if info is None else {e: c for e, c in info.ros2_control.items()
-                                          if c.simulated}
+        declared = {} if info is None else info.ros2_control
+        wanted = {e: c for e, c in declared.items() if c.simulated}
+        topics = {e: c for e, c in declared.items() if c.topic_based and not c.simulated}
         with self._lock:
             for entity in [e for e, r in self.robots.items() if wanted.get(e) != r.control]:
                 self.robots.pop(entity).close()
+            for entity in [e for e, r in self.topic_robots.items()
+                           if topics.get(e) != r.control]:
+                self.topic_robots.pop(entity).close()
             for entity, control in wanted.items():
                 if entity not in self.robots:
                     self.robots[entity] = RobotControl(self, entity, control)
+                self.robots[entity].info = info
+            for entity, control in topics.items():
+                if entity not in self.topic_robots:
+                    self.topic_robots[entity] = TopicHardware(self, self.node, entity, control)
 
     def sync_now(self) -> None:
         """
@@ -343,14 +368,30 @@ class ControllerManagers:
         """
         loaded = self.session.loaded
         info = loaded.world.model_info if loaded is not None else None
-        if self.robots or (info is not None and info.ros2_control):
+        if self.robots or self.topic_robots or (info is not None and info.ros2_control):
             self.sync(info)
 
-    def on_sample(self, sample) -> None:
+    def on_samples(self, samples: list) -> None:
+        """
+        Run each robot's controllers on the joint samples the loop took since the last time.
+
+        At most :data:`MAX_BURST` of one robot's newest: faster than real time, the loop takes
+        more than controllers can publish, and the oldest are left (update rates are kept in
+        simulated time up to MAX_BURST times the publisher's rate per wall second).
+        """
+        if not samples:
+            return
         with self._lock:
-            robot = next((r for r in self.robots.values() if r.key == sample.key), None)
-        if robot is not None:
-            robot.on_sample(sample)
+            robots = {r.key: r for r in list(self.robots.values())
+                      + list(self.topic_robots.values())}
+        by_key: dict = {}
+        for sample in samples:
+            by_key.setdefault(sample.key, []).append(sample)
+        for key, taken in by_key.items():
+            robot = robots.get(key)
+            if robot is not None:
+                for sample in taken[-MAX_BURST:]:
+                    robot.on_sample(sample)
 
     def close(self) -> None:
         self.sync(None)

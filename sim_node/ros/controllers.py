@@ -87,7 +87,10 @@ class Runtime:
             self.host.drop_node(node)
 
     def release(self) -> None:
-        """Let go of its node (which the caller destroys)."""
+        """Let go of its node (which the caller destroys) and its action server if any."""
+        server = getattr(self, 'server', None)
+        if server is not None and self.node is not None:
+            server.destroy()
         self.active = False
         self.node = None
 
@@ -144,7 +147,34 @@ class ForwardCommand(Runtime):
         self.host.hold(self.joints, self.interface)
 
 
-class DiffDrive(Runtime):
+class BaseController(Runtime):
+    """
+    What the base controllers share: a twist held until it is stale, odometry from zero.
+
+    A subclass has ``odometry``, ``command`` ((v, w, simulated time) or None), ``timeout``
+    (simulated s; 0: never) and ``_drive(v, w)``.
+    """
+
+    def activate(self, sample) -> None:
+        super().activate(sample)
+        self.odometry.reset()
+        self.command = None
+
+    def deactivate(self) -> None:
+        super().deactivate()
+        self._drive(0.0, 0.0)
+
+    def stop_if_stale(self, t: float) -> None:
+        """Stop the base once its last command is older than its timeout."""
+        if self.command is not None and self.timeout > 0 and t - self.command[2] > self.timeout:
+            self.command = None
+            self._drive(0.0, 0.0)
+
+    def _drive(self, v: float, w: float) -> None:
+        raise NotImplementedError
+
+
+class DiffDrive(BaseController):
     """diff_drive_controller: ``~/cmd_vel`` in, ``~/odom`` and the odom TF out."""
 
     def make(self) -> None:
@@ -185,35 +215,34 @@ class DiffDrive(Runtime):
         self.host.command(self.left + self.right,
                           [left] * len(self.left) + [right] * len(self.right), 'velocity')
 
-    def activate(self, sample) -> None:
-        super().activate(sample)
-        self.odometry.reset()
-        self.command = None
-
-    def deactivate(self) -> None:
-        super().deactivate()
-        self._drive(0.0, 0.0)
-
     def update(self, sample, index: dict) -> None:
         t = sample.time
-        if self.command is not None and self.timeout > 0 and t - self.command[2] > self.timeout:
-            self.command = None
-            self._drive(0.0, 0.0)
+        self.stop_if_stale(t)
         left = sum(sample.position[index[j]] for j in self.left) / len(self.left)
         right = sum(sample.position[index[j]] for j in self.right) / len(self.right)
         self.odometry.update(t, left, right)
         if t < self.next_publish:
             return
         self.next_publish = t + self.period - 1e-9
-        o = self.odometry
-        stamp = convert.stamp(t)
-        msg = Odometry()
-        msg.header.stamp, msg.header.frame_id = stamp, self.odom_frame
-        msg.child_frame_id = self.base_frame
-        msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
-        msg.pose.pose.orientation = convert.quat_to_msg(o.quat_wxyz())
-        msg.twist.twist.linear.x, msg.twist.twist.angular.z = o.v, o.w
-        self.odom_pub.publish(msg)
-        if self.tf_pub is not None:
-            self.tf_pub.publish(TFMessage(transforms=[convert.transform(
-                self.odom_frame, self.base_frame, (o.x, o.y, 0.0), o.quat_wxyz(), stamp)]))
+        publish_odometry(self, t)
+
+
+def publish_odometry(ctl, t: float) -> None:
+    """
+    Publish a base controller's odometry (``ctl.odometry``: x, y, yaw, v, w) at time `t`.
+
+    On ``ctl.odom_pub`` from ``ctl.odom_frame`` to ``ctl.base_frame``, and that transform on
+    ``ctl.tf_pub`` when it has one.
+    """
+    o = ctl.odometry
+    stamp = convert.stamp(t)
+    msg = Odometry()
+    msg.header.stamp, msg.header.frame_id = stamp, ctl.odom_frame
+    msg.child_frame_id = ctl.base_frame
+    msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
+    msg.pose.pose.orientation = convert.quat_to_msg(o.quat_wxyz())
+    msg.twist.twist.linear.x, msg.twist.twist.angular.z = o.v, o.w
+    ctl.odom_pub.publish(msg)
+    if ctl.tf_pub is not None:
+        ctl.tf_pub.publish(TFMessage(transforms=[convert.transform(
+            ctl.odom_frame, ctl.base_frame, (o.x, o.y, 0.0), o.quat_wxyz(), stamp)]))

@@ -56,11 +56,6 @@ class TrajectoryController(Runtime):
         self.state_pub = self.node.create_publisher(
             JointTrajectoryControllerState, '~/controller_state', 10, **NO_EVENTS)
 
-    def release(self) -> None:
-        if self.node is not None:
-            self.server.destroy()
-        super().release()
-
     def activate(self, sample) -> None:
         super().activate(sample)
         self.handle = None

@@ -109,9 +109,10 @@ class SimNode(Node):
         self.bases = BaseControllers(self, ReentrantCallbackGroup(), self.session, self.frames,
                                      self.param, self.publisher.set_tf_elsewhere,
                                      self.status.refused)
-        self.controllers = ControllerManagers(self.session, self.readable.roots, self._add_node,
-                                              self._drop_node, self.status.refused)
-        self.perception.joint_samples = self.controllers.on_sample
+        self.controllers = ControllerManagers(self, self.session, self.readable.roots,
+                                              self._add_node, self._drop_node,
+                                              self.status.refused)
+        self.perception.joint_samples = self.controllers.on_samples
         self.descriptions = RobotDescriptions(
             self, self.session,
             Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())

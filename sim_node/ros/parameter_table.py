@@ -37,7 +37,7 @@ RO = {'read_only': True}
 
 PARAMETERS = (
     Spec('scene', 'default', 'MJCF/URDF scene: a file path or an installed scene name '
-         '(default, friction_restitution, push_stack, mobile, ...)', **RO),
+         '(default, empty, friction_restitution, push_stack, mobile, ...)', **RO),
     Spec('real_time_factor', _W.real_time_factor,
          'simulated seconds per wall second; 0 = as fast as possible', limits=(0.0, 1000.0)),
     Spec('paused', _W.paused, 'pause (true) or play (false); also follows pauses made by the '

@@ -91,7 +91,7 @@ class Perception:
                  frame_prefix: str, contact_entities: Callable[[], tuple] = tuple):
         self._node = node
         self.contacts = ContactPublishers(node, frame_prefix + world_frame, contact_entities)
-        self.joint_samples: Callable = lambda sample: None  # told the loop's JointSamples
+        self.joint_samples: Callable = lambda samples: None  # told the loop's JointSamples
         self.config = config
         self._world_frame = frame_prefix + world_frame
         self._prefix = frame_prefix
@@ -177,12 +177,11 @@ class Perception:
         sim = self._loaded
         if sim is None:
             return
-        for sample in sim.world.take_sensor_samples():
-            if isinstance(sample, JointSample):  # a controller manager's
-                self.joint_samples(sample)
-                continue
-            if isinstance(sample, ContactReport):
-                if sample.generation == info.generation:
+        taken = sim.world.take_sensor_samples()
+        self.joint_samples([x for x in taken if isinstance(x, JointSample)])  # controllers'
+        for sample in taken:
+            if isinstance(sample, (ContactReport, JointSample)):
+                if isinstance(sample, ContactReport) and sample.generation == info.generation:
                     self.contacts.publish(sample, info)
                 continue
             site, t, q, gyro, acc = sample

@@ -137,9 +137,36 @@ class TrajectoryServers:
                 server, pub, _ = self._servers.pop(entity)
                 server.destroy()
                 self._node.destroy_publisher(pub)
+            new = [e for e in bases if e not in self._servers]
             for entity, base in bases.items():
                 if entity not in self._servers:
                     self._servers[entity] = (*self._make(entity, base), base)
+        self._hold(info, new)
+
+    def _hold(self, info: Optional[ModelInfo], entities: list) -> None:
+        """
+        Hold a newly spawned arm's joints where they are, as an activated JTC does.
+
+        A client that plans from its joint states finds it there.
+
+        Arms only (spawned, their root fixed: no free joint); a robot whose own controllers
+        drive it (``info.ros2_control``) is held by its joint_trajectory_controller instead.
+        """
+        sim = self._session.loaded
+        if sim is None or info is None or not entities:
+            return
+        records = {e.name: e for e in info.entities}
+        for entity in entities:
+            rec = records.get(entity)
+            if rec is None or not rec.spawned or rec.has_free_joint \
+                    or entity in info.ros2_control:
+                continue
+            names = [n for n, e in zip(info.joint_names, info.joint_entity) if e == entity]
+            try:
+                states = sim.world.get_joint_states()
+                sim.world.command(names, [states[n][0] for n in names], 'position')
+            except (SimError, KeyError):
+                continue  # gone meanwhile
 
     def close(self) -> None:
         with self._lock:

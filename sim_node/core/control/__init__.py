@@ -10,6 +10,7 @@ rolling casters), :mod:`.odometry` (a base's pose from its wheels or the ground 
 :mod:`.motion` (the world's control part: trajectories started and cancelled, bases found and
 driven, pushes and gains, each under the world lock), :mod:`.manager` (a robot's controllers
 as ros2_control's controller manager keeps them) with :mod:`.controller_types` (what each
-controller type needs and claims), :mod:`.diff_drive` (diff_drive_controller's kinematics and
+controller type needs and claims), :mod:`.diff_drive` and
+:mod:`.steering` (diff_drive_controller's and the steering controllers' kinematics and
 odometry).
 """

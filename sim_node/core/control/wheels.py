@@ -43,7 +43,7 @@ def wheel_joints(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
 
 
 def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
-                        euler: bool = False) -> list:
+                        euler: bool = False, only: Optional[set] = None) -> list:
     """
     Give each wheel of a spawned model that has no actuator a velocity actuator of its own.
 
@@ -55,9 +55,15 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     the Euler integrator (actuator gains explicit) the gain is capped at the wheel's own
     inertia over the time step, where an explicit velocity loop stays stable.
 
+    :param only: the wheels that may be driven (a ros2_control robot's: its velocity
+        interfaces, whose own actuators this replaces); the others roll freely. None: all.
     :returns: the names of the actuators added (``<joint>_drive``).
     """
     wheels = wheel_joints(spec, plugin)
+    if only is not None:
+        wheels = [j for j in wheels if j.name in only]
+        for act in [a for a in spec.actuators if a.target in only]:
+            spec.delete(act)
     driven = {a.target for a in spec.actuators}
     wheels = [j for j in wheels if j.name not in driven]
     if not wheels:

@@ -125,8 +125,14 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
         log.info('spawning %r: dropped its skybox; the world has its own sky', name)
     name_unnamed(child)
     plugin = bases.drive_plugin(getattr(source.urdf_notes, 'extensions', ()))
+    control = getattr(source.urdf_notes, 'ros2_control', None)
+    # A ros2_control robot's wheels: those its velocity interfaces drive (held as a base's
+    # wheels are, the gain set by the robot's mass); the others roll freely, as in Gazebo.
+    only = None if control is None or not control.simulated else {
+        j.name for j in control.joints().values() if 'velocity' in j.command}
     added = wheels.add_wheel_actuators(
-        child, plugin, euler=spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER)
+        child, plugin, euler=spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER,
+        only=only)
     if added:
         log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
                  name, ', '.join(added))

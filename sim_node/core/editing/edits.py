@@ -373,12 +373,13 @@ def _check_topics(name: str, sensors: tuple, spawned) -> None:
 
 def _check_managers(name: str, control, spawned) -> None:
     """Refuse a ros2_control robot whose controller manager another's namespace holds."""
+    if not control.simulated:
+        return
     where = control.namespace.strip('/')
     for other, rec in spawned.items():
         theirs = rec.ros2_control
         if theirs is not None and theirs.namespace.strip('/') == where \
-                and (theirs.simulated or theirs.topic_based) \
-                and (control.simulated or control.topic_based):
+                and theirs.simulated and control.simulated:
             raise NamespaceInvalidError(ERR_MANAGER_TAKEN.format(
                 name=name, other=other, ns=f'/{where}' if where else 'the root namespace'))
 

@@ -25,8 +25,9 @@ from xml.etree import ElementTree as ET
 #: Hardware plugins whose joints this simulator drives itself (a controller manager here).
 SIMULATED = ('gz_ros2_control/GazeboSimSystem', 'ign_ros2_control/IgnitionSystem',
              'gazebo_ros2_control/GazeboSystem', 'mock_components/GenericSystem')
-#: The hardware plugin whose joints a controller manager elsewhere drives by topics.
-TOPIC_BASED = 'topic_based_ros2_control/TopicBasedSystem'
+#: Hardware plugins whose joints a controller manager elsewhere drives by topics.
+TOPIC_BASED = ('topic_based_ros2_control/TopicBasedSystem',
+               'joint_state_topic_hardware_interface/JointStateTopicSystem')
 #: Gazebo control plugins (their file names, without ``lib`` and ``.so``).
 CONTROL_PLUGINS = ('gz_ros2_control-system', 'ign_ros2_control-system', 'gazebo_ros2_control')
 INTERFACES = ('position', 'velocity', 'effort', 'acceleration')
@@ -87,7 +88,7 @@ class Ros2Control:
     @property
     def topic_based(self) -> Optional[HardwareComponent]:
         """Its TopicBasedSystem component, whose joints come and go by topics, if any."""
-        return next((c for c in self.components if c.plugin == TOPIC_BASED), None)
+        return next((c for c in self.components if c.plugin in TOPIC_BASED), None)
 
     def joints(self) -> dict:
         """Return joint name -> :class:`HardwareJoint` over every component."""

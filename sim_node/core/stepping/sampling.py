@@ -63,13 +63,16 @@ class JointSample(NamedTuple):
     velocity: np.ndarray
     effort: np.ndarray
     generation: int = 0
+    sensordata: Optional[np.ndarray] = None  # MuJoCo's sensor values then, if asked for
 
 
 class _Joints:
-    __slots__ = ('name', 'period', 'qpos', 'dof', 'next')
+    __slots__ = ('name', 'period', 'qpos', 'dof', 'sensors', 'next')
 
-    def __init__(self, name: str, period: float, qpos: np.ndarray, dof: np.ndarray):
+    def __init__(self, name: str, period: float, qpos: np.ndarray, dof: np.ndarray,
+                 sensors: bool):
         self.name, self.period, self.qpos, self.dof = name, period, qpos, dof
+        self.sensors = sensors
         self.next = math.nan
 
 
@@ -100,8 +103,8 @@ class Sampler:
         sensor groups they are, its ``contacts`` and ``geom_scoped``).
     :param request: the entities whose contacts were asked for (their reports are named as
         the entity), and the rate of those and of contact sensors that declare none.
-    :param joints: (key, joint names, rate Hz) of each set of joints sampled as a
-        :class:`JointSample` (a controller manager's joints at its update rate).
+    :param joints: (key, joint names, rate Hz, with sensor values) of each set of joints
+        sampled as a :class:`JointSample` (a controller manager's, at its update rate).
     """
 
     def __init__(self, index, samples: deque, request: ContactRequest = ContactRequest(),
@@ -122,11 +125,11 @@ class Sampler:
                       info.body_root[info.geom_body] == roots[name], None)
             for name in request.entities if name in roots and name not in info.contacts]
         self._joints = []
-        for key, names, rate in joints:
+        for key, names, rate, sensors in joints:
             idx = [index.joint_index[n] for n in names if n in index.joint_index]
             if idx and len(idx) == len(names):
                 self._joints.append(_Joints(key, 1.0 / rate, index.joint_qposadr[idx],
-                                            index.joint_dofadr[idx]))
+                                            index.joint_dofadr[idx], sensors))
         self._all = self._entries + self._contacts + self._joints
         self._samples = samples
         self._last = -math.inf
@@ -148,23 +151,31 @@ class Sampler:
         return due
 
     def collect(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """Take the samples due at the data's time (after a step ended there)."""
+        """
+        Take the samples due at the data's time (after a step ended there).
+
+        A schedule not started yet (or started over by a reset: time went back) is due now.
+        """
         t = float(d.time)
+        if t < self._last:
+            for e in self._all:
+                e.next = math.nan
         self._last = t
         for j in self._joints:
-            if math.isnan(j.next) or t < j.next - DUE_TOLERANCE * j.period:
+            if t < j.next - DUE_TOLERANCE * j.period:  # (NaN: due now)
                 continue
-            self._samples.append(JointSample(j.name, t, d.qpos[j.qpos], d.qvel[j.dof],
-                                             d.qfrc_actuator[j.dof], self.generation))
+            self._samples.append(JointSample(
+                j.name, t, d.qpos[j.qpos], d.qvel[j.dof], d.qfrc_actuator[j.dof],
+                self.generation, d.sensordata.copy() if j.sensors else None))
             j.next = (math.floor(t / j.period + DUE_TOLERANCE) + 1) * j.period
         for c in self._contacts:
-            if math.isnan(c.next) or t < c.next - DUE_TOLERANCE * c.period:
+            if t < c.next - DUE_TOLERANCE * c.period:  # (NaN: due now)
                 continue
             self._samples.append(contacts.ContactReport(
                 c.name, t, contacts.read(m, d, c.mine, c.others), self.generation))
             c.next = (math.floor(t / c.period + DUE_TOLERANCE) + 1) * c.period
         for e in self._entries:
-            if math.isnan(e.next) or t < e.next - DUE_TOLERANCE * e.period:
+            if t < e.next - DUE_TOLERANCE * e.period:  # (NaN: due now)
                 continue
             data = d.sensordata
             quat = data[e.quat].copy() if e.quat is not None else None
@@ -196,9 +207,12 @@ def request(entities, rate_hz: float = 50.0) -> ContactRequest:
     return ContactRequest(tuple(dict.fromkeys(str(e) for e in entities)), float(rate_hz))
 
 
-def joint_requests(requests: tuple, key: str, joints, rate_hz: float) -> tuple:
+def joint_requests(requests: tuple, key: str, joints, rate_hz: float,
+                   sensors: bool = False) -> tuple:
     """
     Return `requests` with `key`'s joints sampled at `rate_hz` (0: not at all any more).
+
+    With `sensors`, each sample carries MuJoCo's sensor values too.
 
     Each sample is a :class:`JointSample` named `key`, taken with
     :meth:`~sim_node.core.world.World.take_sensor_samples`; joints the model lacks (an entity
@@ -211,7 +225,8 @@ def joint_requests(requests: tuple, key: str, joints, rate_hz: float) -> tuple:
         raise InvalidArgumentError(
             f'joint sampling rate {rate_hz!r} Hz is not in [0, {MAX_JOINT_RATE_HZ:g}]')
     kept = tuple(r for r in requests if r[0] != key)
-    return kept + ((key, tuple(joints), float(rate_hz)),) if rate_hz > 0 else kept
+    return kept + ((key, tuple(joints), float(rate_hz), bool(sensors)),) if rate_hz > 0 \
+        else kept
 
 
 def new_queue() -> deque:
