@@ -229,15 +229,32 @@ def spawner(sim, name: str, param_file: str = '', manager: str = '/controller_ma
     list_controllers; with a param file, set ``<name>.params_file`` (and ``<name>.type`` from
     the file) on the manager; load_controller; configure_controller; switch_controller
     (activate, STRICT). Returns (the first answer that was not ok, or None; the answers).
+    A call whose answer never came is made again, as the spawner does (its reply can be lost
+    to a manager of the same name that was there a moment before), unless what it asked for
+    happened.
     """
     import yaml
-    from controller_manager_msgs.srv import (ConfigureController, ListControllers,
-                                             LoadController, SwitchController)
+    from controller_manager_msgs.srv import (ConfigureController, LoadController,
+                                             SwitchController)
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
     answers = []
-    listed = sim.call(f'{manager}/list_controllers', ListControllers, ListControllers.Request())
-    if not any(c.name == name for c in listed.controller):
+
+    def state():
+        return {c.name: c.state for c in listed(sim, manager)}.get(name)
+
+    def call(service, srv, req, done):
+        for _ in range(3):
+            try:
+                answers.append(sim.call(f'{manager}/{service}', srv, req))
+                return answers[-1]
+            except TimeoutError:
+                if done():
+                    answers.append(srv.Response(ok=True))
+                    return answers[-1]
+        raise TimeoutError(f'{manager}/{service} never answered')
+
+    if state() is None:
         if param_file:
             params = [Parameter(name=f'{name}.params_file', value=ParameterValue(
                 type=ParameterType.PARAMETER_STRING_ARRAY, string_array_value=[param_file]))]
@@ -247,21 +264,33 @@ def spawner(sim, name: str, param_file: str = '', manager: str = '/controller_ma
             if kind:
                 params.append(Parameter(name=f'{name}.type', value=ParameterValue(
                     type=ParameterType.PARAMETER_STRING, string_value=kind)))
-            sim.call(f'{manager}/set_parameters', SetParameters,
-                     SetParameters.Request(parameters=params))
-        answers.append(sim.call(f'{manager}/load_controller', LoadController,
-                                LoadController.Request(name=name)))
-        if not answers[-1].ok:
+            for attempt in range(3):  # setting a parameter twice does no harm
+                try:
+                    sim.call(f'{manager}/set_parameters', SetParameters,
+                             SetParameters.Request(parameters=params))
+                    break
+                except TimeoutError:
+                    if attempt == 2:
+                        raise
+        if not call('load_controller', LoadController, LoadController.Request(name=name),
+                    lambda: state() is not None).ok:
             return answers[-1], answers
-    answers.append(sim.call(f'{manager}/configure_controller', ConfigureController,
-                            ConfigureController.Request(name=name)))
-    if not answers[-1].ok or not activate:
+    if not call('configure_controller', ConfigureController,
+                ConfigureController.Request(name=name),
+                lambda: state() == 'inactive').ok or not activate:
         return (None if answers[-1].ok else answers[-1]), answers
     req = SwitchController.Request(activate_controllers=[name],
                                    strictness=SwitchController.Request.STRICT)
     req.timeout.sec = 5
-    answers.append(sim.call(f'{manager}/switch_controller', SwitchController, req))
+    call('switch_controller', SwitchController, req, lambda: state() == 'active')
     return (None if answers[-1].ok else answers[-1]), answers
+
+
+def listed(sim, manager: str = '/controller_manager') -> list:
+    """Return the controllers a manager lists."""
+    from controller_manager_msgs.srv import ListControllers
+    return sim.call(f'{manager}/list_controllers', ListControllers,
+                    ListControllers.Request()).controller
 
 
 def gripper(yaml_path: str) -> str:

@@ -56,6 +56,10 @@ READ_ONLY_SERVICES = frozenset((
     'get_entities', 'get_entity_state', 'get_entities_states', 'get_entity_info',
     'get_entity_bounds', 'get_simulation_state', 'get_spawnables', 'get_simulator_features',
     'get_available_worlds', 'get_current_world'))
+#: A controller manager's services that only read (by the end of their names).
+READ_ONLY_SUFFIXES = ('/list_controllers', '/list_controller_types',
+                      '/list_hardware_interfaces', '/list_hardware_components',
+                      '/get_parameters', '/list_parameters', '/describe_parameters')
 READ_RETRY_SEC = 3.0
 
 #: The longest single wait of the client's executor (s): a deadline is checked at least as often.
@@ -130,7 +134,8 @@ class SimClient:
         future = client.call_async(request)
         while True:
             left = deadline - time.monotonic()
-            wait = min(left, READ_RETRY_SEC) if service in READ_ONLY_SERVICES else left
+            reads = service in READ_ONLY_SERVICES or service.endswith(READ_ONLY_SUFFIXES)
+            wait = min(left, READ_RETRY_SEC) if reads else left
             self._spin_until(future.done, max(0.1, wait))
             if future.done() or time.monotonic() >= deadline:
                 break

@@ -109,6 +109,8 @@ class JointStateBroadcaster(Runtime):
                                               **NO_EVENTS)
 
     def update(self, sample, index: dict) -> None:
+        if self.pub.get_subscription_count() == 0:
+            return  # nobody listens: nothing to build
         msg = JointState()
         msg.header.stamp = convert.stamp(sample.time)
         known = [j for j in self.joints if j in index]

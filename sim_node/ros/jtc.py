@@ -153,6 +153,8 @@ class TrajectoryController(Runtime):
     # ------------------------------------------------------------------ state
 
     def update(self, sample, index: dict) -> None:
+        if self.state_pub.get_subscription_count() == 0:
+            return  # nobody listens: nothing to build (the real one's publisher skips too)
         q = [float(sample.position[index[j]]) for j in self.joints]
         v = [float(sample.velocity[index[j]]) for j in self.joints]
         e = [float(sample.effort[index[j]]) for j in self.joints]

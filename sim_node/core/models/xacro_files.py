@@ -11,6 +11,7 @@ Python finds it.
 
 import importlib.util
 import json
+import os
 from pathlib import Path
 import signal
 import subprocess
@@ -60,6 +61,16 @@ def parse_args(items: Sequence[str]) -> dict:
     return out
 
 
+def _installed_shares() -> dict:
+    """Return package -> share folder of every package in the ament index (for $(find))."""
+    try:
+        from ament_index_python.packages import get_packages_with_prefixes
+        return {name: os.path.join(prefix, 'share', name)
+                for name, prefix in get_packages_with_prefixes().items()}
+    except Exception:  # noqa: B902 (no ament index here: $(find) reads the roots only)
+        return {}
+
+
 def expand(roots: Sequence[str], path: Optional[str] = None, text: str = '',
            args: Optional[Mapping[str, str]] = None) -> str:
     """
@@ -79,6 +90,7 @@ def expand(roots: Sequence[str], path: Optional[str] = None, text: str = '',
           if importlib.util.find_spec(m) is not None)]})
     job = json.dumps({'file': str(path) if path else '', 'text': text, 'args': dict(args or {}),
                       'roots': list(roots), 'paths': paths, 'memory_bytes': MEMORY_BYTES,
+                      'shares': _installed_shares(),
                       'cpu_seconds': CPU_SECONDS})
     env = {'PATH': '/usr/bin:/bin', 'LANG': 'C.UTF-8', 'HOME': '/nonexistent'}
     proc = subprocess.Popen([sys.executable, '-I', '-S', str(_WORKER), job], env=env,

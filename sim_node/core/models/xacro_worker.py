@@ -85,11 +85,17 @@ def main() -> None:
     roots = [os.path.realpath(r) for r in job['roots']]
     code_roots = [os.path.realpath(p) for p in job['paths'] + [sys.prefix, sys.base_prefix]]
 
+    shares = job.get('shares') or {}
+
     def find(pkg: str) -> str:
         for root in roots:
             folder = os.path.join(root, pkg)
             if os.path.isdir(folder):
                 return folder
+        if pkg in shares:  # an installed package (the parent read the ament index)
+            folder = os.path.realpath(shares[pkg])
+            roots.append(folder)
+            return folder
         try:
             from ament_index_python.packages import get_package_share_directory
             folder = os.path.realpath(get_package_share_directory(pkg))

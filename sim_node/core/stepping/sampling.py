@@ -15,6 +15,7 @@ whose contacts were asked for, :class:`ContactRequest`) are sampled the same way
 
 from collections import deque
 import math
+import time
 from typing import NamedTuple, Optional
 import zlib
 
@@ -30,6 +31,12 @@ SAMPLES_KEPT = 10_000
 MAX_CONTACT_RATE_HZ = 1000.0
 #: The most joint samples per simulated second (a controller manager's update rate).
 MAX_JOINT_RATE_HZ = 10_000.0
+#: Joint samples of one request come at most this many per wall second, in bursts of at most
+#: JOINT_BURST (a token bucket): a 1 kHz controller manager's pace in real time. Faster than
+#: real time the loop has more due than anyone can use, and each costs the loop; a sample left
+#: out leaves a longer gap in simulated time before the next.
+MAX_JOINT_WALL_HZ = 1000.0
+JOINT_BURST = 50
 #: Simulated time within this fraction of a period of a due time counts as due.
 DUE_TOLERANCE = 1e-6
 
@@ -67,13 +74,14 @@ class JointSample(NamedTuple):
 
 
 class _Joints:
-    __slots__ = ('name', 'period', 'qpos', 'dof', 'sensors', 'next')
+    __slots__ = ('name', 'period', 'qpos', 'dof', 'sensors', 'next', 'tokens', 'wall')
 
     def __init__(self, name: str, period: float, qpos: np.ndarray, dof: np.ndarray,
                  sensors: bool):
         self.name, self.period, self.qpos, self.dof = name, period, qpos, dof
         self.sensors = sensors
         self.next = math.nan
+        self.tokens, self.wall = float(JOINT_BURST), time.perf_counter()  # a token bucket
 
 
 class _Contacts:
@@ -164,10 +172,16 @@ class Sampler:
         for j in self._joints:
             if t < j.next - DUE_TOLERANCE * j.period:  # (NaN: due now)
                 continue
+            now = time.perf_counter()
+            j.tokens = min(JOINT_BURST, j.tokens + (now - j.wall) * MAX_JOINT_WALL_HZ)
+            j.wall = now
+            j.next = (math.floor(t / j.period + DUE_TOLERANCE) + 1) * j.period
+            if j.tokens < 1.0:  # faster than real time: left out
+                continue
+            j.tokens -= 1.0
             self._samples.append(JointSample(
                 j.name, t, d.qpos[j.qpos], d.qvel[j.dof], d.qfrc_actuator[j.dof],
                 self.generation, d.sensordata.copy() if j.sensors else None))
-            j.next = (math.floor(t / j.period + DUE_TOLERANCE) + 1) * j.period
         for c in self._contacts:
             if t < c.next - DUE_TOLERANCE * c.period:  # (NaN: due now)
                 continue
