@@ -73,6 +73,10 @@ group_{interface}_controller:
   ros__parameters:
     joints: [slider_to_cart]
 
+joint_state_broadcaster:
+  ros__parameters:
+    extra_joints: [rail_brake]
+
 joint_trajectory_controller:
   ros__parameters:
     joints: [slider_to_cart]
@@ -430,6 +434,8 @@ CAR_YAML = """controller_manager:
       type: joint_state_broadcaster/JointStateBroadcaster
     ackermann_steering_controller:
       type: ackermann_steering_controller/AckermannSteeringController
+    bicycle_steering_controller:
+      type: bicycle_steering_controller/BicycleSteeringController
 
 ackermann_steering_controller:
   ros__parameters:
@@ -444,4 +450,68 @@ ackermann_steering_controller:
     rear_wheels_radius: 0.08
     odom_frame_id: odom
     base_frame_id: base_link
+
+bicycle_steering_controller:
+  ros__parameters:
+    reference_timeout: 2.0
+    rear_wheels_names: [left_rear_wheel_joint, right_rear_wheel_joint]
+    front_wheels_names: [left_steering_joint, right_steering_joint]
+    wheelbase: 0.5
+    front_wheel_radius: 0.08
+    rear_wheel_radius: 0.08
+"""
+
+
+def trike(yaml_path: str) -> str:
+    """
+    Return a tricycle: one front wheel that steers and drives, two rear wheels rolling freely.
+
+    Wheelbase 0.5 m, wheels 0.08 m in radius.
+    """
+    rears = ''.join(f"""
+  <link name="{side}_rear_wheel"><inertial><mass value="0.3"/>{_I}</inertial>
+    <collision><geometry><cylinder radius="0.08" length="0.04"/></geometry></collision></link>
+  <joint name="{side}_rear_wheel_joint" type="continuous"><parent link="base_link"/>
+    <child link="{side}_rear_wheel"/><origin xyz="-0.25 {y} 0" rpy="-1.5708 0 0"/>
+    <axis xyz="0 0 1"/></joint>""" for side, y in (('left', 0.2), ('right', -0.2)))
+    return f"""<robot name="trike">
+  <link name="base_link"><inertial><mass value="8"/>
+    <inertia ixx="0.1" iyy="0.2" izz="0.2" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.6 0.3 0.05"/></geometry>
+    </collision></link>{rears}
+  <link name="fork"><inertial><mass value="0.1"/>{_I}</inertial></link>
+  <joint name="steering_joint" type="revolute"><parent link="base_link"/><child link="fork"/>
+    <origin xyz="0.25 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-0.8" upper="0.8" effort="50" velocity="5"/></joint>
+  <link name="front_wheel"><inertial><mass value="0.3"/>{_I}</inertial>
+    <collision><geometry><cylinder radius="0.08" length="0.04"/></geometry></collision></link>
+  <joint name="front_wheel_joint" type="continuous"><parent link="fork"/>
+    <child link="front_wheel"/><origin rpy="-1.5708 0 0"/><axis xyz="0 0 1"/>
+    <limit effort="20" velocity="50"/></joint>
+  <ros2_control name="TrikeSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>
+    <joint name="front_wheel_joint"><command_interface name="velocity"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>
+    <joint name="steering_joint"><command_interface name="position"/>
+      <state_interface name="position"/></joint>
+  </ros2_control>
+  {_plugin(yaml_path)}
+</robot>"""
+
+
+TRIKE_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 100
+    tricycle_controller:
+      type: tricycle_controller/TricycleController
+
+tricycle_controller:
+  ros__parameters:
+    traction_joint_name: front_wheel_joint
+    steering_joint_name: steering_joint
+    wheel_radius: 0.08
+    wheelbase: 0.5
+    odom_frame_id: odom
+    base_frame_id: base_link
+    cmd_vel_timeout: 500
 """

@@ -144,3 +144,13 @@ def test_only_simulated_or_topic_based_hardware_takes_a_robots_joints_over(tmp_p
     world.spawn('topic_cart', sources.from_model_text(corpus.topic_based()),
                 position=[0, -3, 0])
     assert sorted(world.model_info.ros2_control) == ['sim_cart', 'topic_cart']
+
+
+def test_a_trajectory_controller_names_the_interpolation_it_cannot_run(tmp_path):
+    text = corpus.cart_yaml('position').replace(
+        'state_interfaces: [position, velocity]',
+        'state_interfaces: [position, velocity]\n    interpolation_method: none')
+    m = _manager(text, tmp_path)
+    assert m.load('joint_trajectory_controller')[0]
+    ok, why = m.configure('joint_trajectory_controller')
+    assert not ok and "'none'" in why and 'splines' in why

@@ -102,6 +102,9 @@ def test_a_cart_comes_up_with_its_launch_files_steps_and_goes_where_commanded(si
     from sensor_msgs.msg import JointState
     names = {n for m in heard(watch, JointState, '/joint_states', n=10) for n in m.name}
     assert 'cart/slider_to_cart' not in names
+    last = states(watch, 'slider_to_cart')[-1]
+    assert list(last.name) == ['slider_to_cart', 'rail_brake']  # then its extra_joints
+    assert last.position[1] == 0.0
     publish(watch, Float64MultiArray, '/forward_position_controller/commands',
             Float64MultiArray(data=[2.0]))
     wait_for(lambda: abs(position(watch, 'slider_to_cart') - 2.0) < 0.02, timeout=20)
@@ -207,12 +210,7 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     from control_msgs.action import FollowJointTrajectory
     from rclpy.action import ActionClient
     from trajectory_msgs.msg import JointTrajectoryPoint
-    folder = FOLDER['path']
-    sim.spawn('arm', resource_string=corpus.arm(corpus.write(folder, 'arm.yaml',
-                                                             corpus.ARM_YAML)),
-              position=(2.0, 2.0, 0.0))
-    jtc_file = corpus.write(folder, 'arm_jtc.yaml', corpus.ARM_JTC_YAML)
-    assert corpus.spawner(sim, 'joint_state_broadcaster')[0] is None
+    jtc_file = spawn_arm(sim)
     time.sleep(1.0)  # limp: gravity bends it
     failed, _ = corpus.spawner(sim, 'arm_controller', param_file=jtc_file)
     assert failed is None, failed
@@ -258,6 +256,17 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     client.destroy()
 
 
+def spawn_arm(sim) -> str:
+    """Spawn the corpus arm with its joint_state_broadcaster up; return its JTC's file."""
+    folder = FOLDER['path']
+    sim.spawn('arm', resource_string=corpus.arm(corpus.write(folder, 'arm.yaml',
+                                                             corpus.ARM_YAML)),
+              position=(2.0, 2.0, 0.0))
+    jtc_file = corpus.write(folder, 'arm_jtc.yaml', corpus.ARM_JTC_YAML)
+    assert corpus.spawner(sim, 'joint_state_broadcaster')[0] is None
+    return jtc_file
+
+
 def _send(client, goal):
     future = client.send_goal_async(goal)
     wait_for(future.done, timeout=20)
@@ -301,10 +310,14 @@ def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watc
     assert (b.pose.pose.position.x - a.pose.pose.position.x) / dt == pytest.approx(0.3, abs=0.02)
     assert abs(b.pose.pose.position.y) < 0.05
     wait_for(lambda: 'base_link' in watch.tf and watch.tf['base_link'][1] == 'odom')
-    # the base's true motion agrees with its odometry
+    # no command for cmd_vel_timeout (0.5 s): it stops
+    time.sleep(1.5)
+    still = heard(watch, Odometry, '/diff_drive_base_controller/odom')[-1]
+    assert abs(still.twist.twist.linear.x) < 0.02
+    # the base's true motion agrees with its odometry (both stopped now)
     moved = sim.entity_state('rover')['position']
     assert math.hypot(moved[0] - 2.0, moved[1] + 2.0) == pytest.approx(
-        math.hypot(b.pose.pose.position.x, b.pose.pose.position.y), abs=0.1)
+        math.hypot(still.pose.pose.position.x, still.pose.pose.position.y), abs=0.1)
 
 
 def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
@@ -361,7 +374,6 @@ def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
 
 
 def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):
-    from simulation_interfaces.msg import Result
     spawn_cart(sim, 'position')
     with pytest.raises(Exception) as err:
         spawn_cart(sim, 'position', name='cart2', y=-3.0)
@@ -371,7 +383,6 @@ def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):
                           manager='/second/controller_manager')[0] is None
     assert position(watch, 'slider_to_cart', '/second/joint_states') == pytest.approx(
         0.0, abs=0.01)
-    del Result
 
 
 def test_a_mimic_gripper_closes_on_a_block_and_stalls_and_closes_on_nothing(sim, watch):
@@ -461,3 +472,108 @@ def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch)
     assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.03)
     moved = sim.entity_state('car')['position']
     assert math.hypot(moved[0] - start[0], moved[1] - start[1]) > 0.5  # it really went
+
+
+def test_a_spawned_arm_without_controllers_is_held_where_it_spawns(sim, watch):
+    """
+    Hold a one-link arm whose link hangs out sideways level from its spawn.
+
+    Limp, gravity would swing it down at once; the node's own trajectory server holds it.
+    """
+    inertia = '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+    urdf = f"""<robot name="boom"><link name="world"/>
+  <link name="post"><inertial><mass value="1"/>{inertia}</inertial></link>
+  <joint name="mount" type="fixed"><parent link="world"/><child link="post"/>
+    <origin xyz="0 0 1"/></joint>
+  <link name="beam"><inertial><origin xyz="0.3 0 0"/><mass value="1"/>{inertia}</inertial>
+  </link>
+  <joint name="hinge" type="revolute"><parent link="post"/><child link="beam"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="100" velocity="5"/></joint>
+</robot>"""
+    sim.spawn('boom', resource_string=urdf, position=(3.0, -3.0, 0.0))
+    time.sleep(2.0)
+    msg = states(watch, 'boom/hinge')[-1]
+    assert msg.position[list(msg.name).index('boom/hinge')] == pytest.approx(0.0, abs=0.05)
+
+
+def test_a_trajectory_controller_preempts_checks_its_constraints_and_reports_its_state(
+        sim, watch):
+    """Preemption aborts the running goal; the YAML's path tolerance aborts a goal too fast."""
+    from control_msgs.action import FollowJointTrajectory
+    from control_msgs.msg import JointTrajectoryControllerState
+    from rclpy.action import ActionClient
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    jtc_file = spawn_arm(sim)
+    assert corpus.spawner(sim, 'arm_controller', param_file=jtc_file)[0] is None
+    # controller_state, at the controller's 100 Hz of simulated time
+    got = heard(watch, JointTrajectoryControllerState, '/arm_controller/controller_state', n=30)
+    assert list(got[-1].joint_names) == list(corpus.ARM_JOINTS)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got]
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(100.0, rel=0.05)
+    client = ActionClient(watch.node, FollowJointTrajectory,
+                          '/arm_controller/follow_joint_trajectory')
+    assert client.wait_for_server(timeout_sec=10)
+
+    def goal(target, seconds):
+        g = FollowJointTrajectory.Goal()
+        g.trajectory.joint_names = list(corpus.ARM_JOINTS)
+        point = JointTrajectoryPoint(positions=list(target))
+        point.time_from_start.sec, point.time_from_start.nanosec = int(seconds), int(
+            (seconds % 1) * 1e9)
+        g.trajectory.points = [point]
+        return g
+    first = _send(client, goal([0.5, 0, 0, 0, 0, 0], 4.0))
+    time.sleep(0.5)
+    second = _send(client, goal([0.2, 0, 0, 0, 0, 0], 1.0))
+    assert first.accepted and second.accepted
+    assert _result(second).error_code == 0
+    first_result = first.get_result_async()
+    wait_for(first_result.done, timeout=10)
+    assert first_result.result().status == 6  # ABORTED: preempted by the second
+    # joint1's path tolerance of 0.3 rad (its YAML's constraints): 2 rad in 50 ms cannot be
+    # followed
+    fast = _result(_send(client, goal([2.2, 0, 0, 0, 0, 0], 0.05)))
+    assert fast.error_code == -4, fast.error_string  # PATH_TOLERANCE_VIOLATED
+    client.destroy()
+    # a trajectory on the topic, without a goal
+    traj = JointTrajectory(joint_names=list(corpus.ARM_JOINTS))
+    traj.points = [JointTrajectoryPoint(positions=[-0.3, 0, 0, 0, 0, 0])]
+    traj.points[0].time_from_start.sec = 1
+    publish(watch, JointTrajectory, '/arm_controller/joint_trajectory', traj, times=1)
+    wait_for(lambda: abs(states(watch, 'joint1')[-1].position[0] + 0.3) < 0.03, timeout=20)
+
+
+def test_a_bicycle_controller_and_a_tricycle_go_at_the_twist_asked(sim, watch):
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    path = corpus.write(FOLDER['path'], 'car.yaml', corpus.CAR_YAML)
+    sim.spawn('car', resource_string=corpus.car(path), position=(-3.0, -3.0, 0.1))
+    assert corpus.spawner(sim, 'bicycle_steering_controller')[0] is None
+    trike = corpus.write(FOLDER['path'], 'trike.yaml', corpus.TRIKE_YAML)
+    sim.spawn('trike', resource_string=corpus.trike(trike), position=(3.0, 3.0, 0.1),
+              namespace='trike')
+    assert corpus.spawner(sim, 'tricycle_controller',
+                          manager='/trike/controller_manager')[0] is None
+    cmd = TwistStamped()
+    cmd.twist.linear.x, cmd.twist.angular.z = 0.4, 0.2
+    pubs = [watch.node.create_publisher(TwistStamped, topic, 10) for topic in (
+        '/bicycle_steering_controller/reference', '/trike/tricycle_controller/cmd_vel')]
+    odoms = {'car': [], 'trike': []}
+    subs = [watch.node.create_subscription(Odometry, topic, odoms[key].append, 100)
+            for key, topic in (('car', '/bicycle_steering_controller/odometry'),
+                               ('trike', '/trike/tricycle_controller/odom'))]
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 4.0:
+            for pub in pubs:
+                pub.publish(cmd)
+            time.sleep(0.05)
+    finally:
+        for sub in subs:
+            watch.node.destroy_subscription(sub)
+        for pub in pubs:
+            watch.node.destroy_publisher(pub)
+    for key in ('car', 'trike'):
+        last = odoms[key][-1]
+        assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.05), key
+        assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.04), key

@@ -121,7 +121,7 @@ class SimNode(Node):
         self.sim_services = Services(self, self.session, self.frames, self.readable, p,
                                      self.world_config, self.status.sync_paused_parameter,
                                      self.end_process)
-        self.sim_services.after_edit = self.controllers.sync_now
+        self.sim_services.after_edit = self._after_edit
         self.create_timer(HOUSEKEEPING_SEC, self.status.housekeeping,
                           callback_group=self._events)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -212,6 +212,12 @@ class SimNode(Node):
         time.sleep(delay_sec)
         self.shutdown()
         os.kill(os.getpid(), signal.SIGINT)
+
+    def _after_edit(self) -> None:
+        """Before an edit's answer: controller managers and held arms as the world is now."""
+        self.controllers.sync_now()
+        loaded = self.session.loaded
+        self.trajectories.sync(loaded.world.model_info if loaded is not None else None)
 
     def _add_node(self, node) -> None:
         """Spin another node of this process (a robot's controller manager, a controller)."""

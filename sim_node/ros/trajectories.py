@@ -149,17 +149,22 @@ class TrajectoryServers:
 
         A client that plans from its joint states finds it there.
 
-        Arms only (spawned, their root fixed: no free joint); a robot whose own controllers
-        drive it (``info.ros2_control``) is held by its joint_trajectory_controller instead.
+        Arms only (spawned, their root fixed: no free joint, not a mobile base on planar
+        joints); a robot whose own controllers drive it (``info.ros2_control``) is held by its
+        joint_trajectory_controller instead.
         """
         sim = self._session.loaded
         if sim is None or info is None or not entities:
             return
         records = {e.name: e for e in info.entities}
+        try:
+            bases = sim.world.bases()  # a base on planar joints: its joints are its motion
+        except SimError:
+            return
         for entity in entities:
             rec = records.get(entity)
             if rec is None or not rec.spawned or rec.has_free_joint \
-                    or entity in info.ros2_control:
+                    or entity in info.ros2_control or entity in bases:
                 continue
             names = [n for n, e in zip(info.joint_names, info.joint_entity) if e == entity]
             try:

@@ -79,6 +79,10 @@ def configure(kind: str, params: dict, manager) -> Spec:
                 raise ValueError(f"'{name}' has {odd}: not one of {list(JOINT_INTERFACES)}")
         if 'position' not in state:
             raise ValueError("'state_interfaces' must hold 'position'")
+        method = params.get('interpolation_method', 'splines')
+        if method != 'splines':
+            raise ValueError(f"'interpolation_method' {method!r} is not provided here: "
+                             "'splines' (positions, velocities and accelerations as given)")
         return Spec(tuple(f'{j}/{i}' for j in joints for i in command), joints)
     if kind in (IMU, FORCE_TORQUE):
         sensor = params.get('sensor_name')

@@ -244,12 +244,22 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
         for f in sorted(folder.rglob('*')):
             if f.suffix.lower() in SPAWNABLE_SUFFIXES and f.is_file() and f not in seen:
                 seen.add(f)
+                if f.parent == scenes_dir and _bodiless_world(f):
+                    continue  # an empty world (scenes/empty.xml): nothing to spawn
                 if f.parent == scenes_dir / 'objects':
                     uri = f'package://{PACKAGE}/scenes/objects/{f.name}'
                 else:
                     uri = f.resolve().as_uri()
                 out.append((uri, f'{f.suffix[1:].upper()} file {f.name}'))
     return out
+
+
+def _bodiless_world(path: Path) -> bool:
+    """Whether an installed world file has no body (only ground and lights): not a model."""
+    try:
+        return '<body' not in path.read_text(errors='replace')
+    except OSError:
+        return False
 
 
 def check_folder(folder: str, resource_paths: Sequence[str]) -> Path:
