@@ -294,3 +294,22 @@ def test_absurd_camera_and_imu_values_are_left_out_each_named_and_the_robot_spaw
     for value in ("'huge'", "('100000', '100000')", "'1e6'", "'no_such_frame'", "'bad name!'",
                   "'shaky'", "'-5'", "('0', 'nan')", "'murky'", "'YUV_9000'", "('3', '-1')"):
         assert value in said, value
+
+
+def test_always_on_false_is_read_for_each_kind():
+    """Gazebo's always_on: false: the node sends such a sensor's messages only to listeners."""
+    shy = f"""<robot name="shy"><link name="base_link"><inertial><mass value="1"/>{_INERTIA}
+      </inertial></link>
+      <gazebo reference="base_link">
+        <sensor type="ray" name="eye"><always_on>false</always_on></sensor>
+        <sensor type="imu" name="ear"><always_on>0</always_on></sensor>
+        <sensor type="camera" name="cam"><always_on>false</always_on></sensor>
+        <sensor type="contact" name="skin"><always_on>false</always_on></sensor>
+      </gazebo></robot>"""
+    w = World.from_file(str(DEFAULT_SCENE))
+    w.spawn('shy', sources.from_model_text(shy), position=[0.0, -3.0, 0.5])
+    info = w.model_info
+    assert not info.lasers['shy/eye_lidar'].always_on
+    assert not info.imus['shy/ear_imu'].always_on
+    assert not info.cameras_declared['shy/cam'].always_on
+    assert not info.contacts['shy/skin'].always_on
