@@ -269,10 +269,7 @@ class RobotControl:
 
     def command(self, joints, values, interface: str) -> None:
         """Command URDF-named joints through an interface, within its min and max."""
-        out = []
-        for j, v in zip(joints, values):
-            lo, hi = self.hardware[j].command.get(interface, (None, None))
-            out.append(min(max(v, lo if lo is not None else v), hi if hi is not None else v))
+        out = [self.hardware[j].within(interface, v) for j, v in zip(joints, values)]
         try:
             self.world().command([self.internal(j) for j in joints], out, interface)
         except SimError as exc:

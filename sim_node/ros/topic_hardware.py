@@ -83,9 +83,7 @@ class TopicHardware:
                      if math.isfinite(v)]
             if not pairs:
                 continue
-            limits = [joints[n].command.get(interface, (None, None)) for n, _ in pairs]
-            values = [min(max(v, lo if lo is not None else v), hi if hi is not None else v)
-                      for (_, v), (lo, hi) in zip(pairs, limits)]
+            values = [joints[n].within(interface, v) for n, v in pairs]
             try:
                 self.host.session.require().world.command(
                     [f'{self.entity}/{n}' for n, _ in pairs], values, interface)

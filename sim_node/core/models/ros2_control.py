@@ -48,6 +48,12 @@ class HardwareJoint:
     state: tuple = ()
     initial: dict = field(default_factory=dict)
 
+    def within(self, interface: str, value: float) -> float:
+        """Return `value` within the interface's ``min`` and ``max`` (where declared)."""
+        lo, hi = self.command.get(interface, (None, None))
+        value = value if lo is None else max(value, lo)
+        return value if hi is None else min(value, hi)
+
 
 @dataclass(frozen=True)
 class HardwareComponent:
