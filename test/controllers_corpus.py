@@ -48,6 +48,13 @@ def cart(interface: str, yaml_path: str, namespace: str = '') -> str:
 </robot>"""
 
 
+#: A buffer stop for the cart's rail: spawned at (1, y, 1) it keeps the cart at x <= 0.65 m.
+#: (A link of the cart's own URDF would not do: as in Gazebo, a robot's links do not collide
+#: with each other.)
+BUFFER = ('<mujoco><worldbody><body name="buffer"><geom type="box" size="0.1 0.25 0.25"/>'
+          '</body></worldbody></mujoco>')
+
+
 def cart_yaml(interface: str) -> str:
     group = {'position': 'position_controllers/JointGroupPositionController',
              'velocity': 'velocity_controllers/JointGroupVelocityController',

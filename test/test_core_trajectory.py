@@ -307,6 +307,33 @@ def test_a_held_position_command_on_a_motor_joint_stays_within_its_limit(world):
     assert w.get_joint_states()['arm/j1'][0] > 0.3  # y-axis hinge: the arm hangs down
 
 
+def test_open_loop_starts_from_the_last_command_and_closed_loop_from_the_joints(world):
+    """
+    A weak arm sags far below its command. With open_loop (joint_trajectory_controller's
+    open_loop_control) a new trajectory starts from the held command, and a preempting one
+    from the running one's target; without it, from where the joints are.
+    """
+    w = world
+    w.spawn('arm', sources.from_model_text(motor_arm(2.0)), (2.0, 2.0, 1.0))
+    w.command(PD_JOINTS, [0.0, 0.0], 'position')
+    w.step(500)
+    assert w.get_joint_states()['arm/j1'][0] > 0.3  # sagged: 2 N m cannot hold it level
+    first = w.follow_trajectory('arm', PD_JOINTS, [2.0], [[0.4, 0.0]], open_loop=True)
+    w.step(1)
+    assert first.status.desired[0][0] == pytest.approx(0.0, abs=0.01)  # the held command
+    w.step(499)
+    target = float(first.status.desired[0][0])
+    assert target == pytest.approx(0.2, abs=0.01)
+    second = w.follow_trajectory('arm', PD_JOINTS, [2.0], [[-0.4, 0.0]], open_loop=True)
+    w.step(1)
+    assert second.status.desired[0][0] == pytest.approx(target, abs=0.01)
+    measured = w.get_joint_states()['arm/j1'][0]
+    assert measured - target > 0.2  # the arm is far from its target
+    third = w.follow_trajectory('arm', PD_JOINTS, [2.0], [[0.0, 0.0]])
+    w.step(1)
+    assert third.status.desired[0][0] == pytest.approx(measured, abs=0.01)
+
+
 def test_without_steps_nothing_moves_and_the_trajectory_waits(world):
     """Paused (no steps), simulated time stands still, and so does the trajectory."""
     w = world

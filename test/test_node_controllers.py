@@ -577,3 +577,42 @@ def test_a_bicycle_controller_and_a_tricycle_go_at_the_twist_asked(sim, watch):
         last = odoms[key][-1]
         assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.05), key
         assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.04), key
+
+
+def test_open_loop_control_starts_a_new_trajectory_from_the_last_command(sim, watch):
+    """
+    A cart held against a buffer stop sits short of its command. With the YAML's
+    ``open_loop_control: true`` the next trajectory starts from the command (1.0 m), as the
+    real controller does, not from where the cart is (0.65 m).
+    """
+    from control_msgs.msg import JointTrajectoryControllerState
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    text = corpus.cart_yaml('position') + '    open_loop_control: true\n'
+    path = corpus.write(FOLDER['path'], 'cart_open_loop.yaml', text)
+    sim.spawn('cart', resource_string=corpus.cart('position', path), position=(0.0, 3.0, 0.0))
+    sim.spawn('buffer', resource_string=corpus.BUFFER, position=(1.0, 3.0, 1.0))
+    for name in ('joint_state_broadcaster', 'joint_trajectory_controller'):
+        assert corpus.spawner(sim, name)[0] is None
+
+    def trajectory(x: float, seconds: int) -> JointTrajectory:
+        traj = JointTrajectory(joint_names=['slider_to_cart'])
+        traj.points = [JointTrajectoryPoint(positions=[x])]
+        traj.points[0].time_from_start.sec = seconds
+        return traj
+    topic = '/joint_trajectory_controller/joint_trajectory'
+    publish(watch, JointTrajectory, topic, trajectory(1.0, 1), times=1)
+    wait_for(lambda: position(watch, 'slider_to_cart') > 0.6, timeout=20)
+    time.sleep(1.0)  # the trajectory has ended: the cart is held at 1.0 against the buffer
+    assert position(watch, 'slider_to_cart') < 0.7
+    got = []
+    sub = watch.node.create_subscription(
+        JointTrajectoryControllerState, '/joint_trajectory_controller/controller_state',
+        got.append, 100)
+    try:
+        time.sleep(0.3)
+        publish(watch, JointTrajectory, topic, trajectory(-1.0, 4), times=1)
+        wait_for(lambda: any(m.reference.velocities[0] < -0.1 for m in list(got)), timeout=20)
+    finally:
+        watch.node.destroy_subscription(sub)
+    first = next(m for m in got if m.reference.velocities[0] < -0.1)
+    assert first.reference.positions[0] > 0.85, first.reference.positions

@@ -314,8 +314,8 @@ class World:
                           accelerations: Sequence[Sequence[float]] = (),
                           start_time: float = 0.0, path_tolerance: Optional[dict] = None,
                           goal_tolerance: Optional[dict] = None,
-                          goal_time_tolerance: float = 0.0,
-                          allow_end_velocity: bool = False) -> 'TrajectoryHandle':
+                          goal_time_tolerance: float = 0.0, allow_end_velocity: bool = False,
+                          open_loop: bool = False) -> 'TrajectoryHandle':
         """
         Drive an entity's joints along a trajectory in simulated time (a new one preempts).
 
@@ -330,12 +330,14 @@ class World:
             met (0: no limit).
         :param allow_end_velocity: accept a last point with a velocity (refused otherwise,
             as joint_trajectory_controller does by default).
+        :param open_loop: start from what was last commanded to the joints, not from where
+            they are (joint_trajectory_controller's ``open_loop_control``).
         :raises TrajectoryError: with FollowJointTrajectory's error code; a point outside a
             joint's range is refused too.
         """
         run = self._motion.follow(entity, joint_names, times, positions, velocities,
                                   accelerations, start_time, path_tolerance, goal_tolerance,
-                                  goal_time_tolerance, allow_end_velocity)
+                                  goal_time_tolerance, allow_end_velocity, open_loop)
         return TrajectoryHandle(self, entity, run)
 
     def check_trajectory(self, entity: str, joint_names: Sequence[str],
@@ -343,11 +345,7 @@ class World:
                          velocities: Sequence[Sequence[float]] = (),
                          accelerations: Sequence[Sequence[float]] = (),
                          start_time: float = 0.0, allow_end_velocity: bool = False) -> None:
-        """
-        Raise what :meth:`follow_trajectory` would refuse the goal for; start nothing.
-
-        :raises TrajectoryError: with FollowJointTrajectory's error code.
-        """
+        """Raise the TrajectoryError :meth:`follow_trajectory` would; start nothing."""
         self._motion.check(entity, joint_names, times, positions, velocities, accelerations,
                            start_time, allow_end_velocity)
 

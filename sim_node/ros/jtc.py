@@ -8,7 +8,8 @@ simulated time. Its YAML's ``joints``, ``command_interfaces`` and ``state_interf
 ``constraints`` (``goal_time``, ``stopped_velocity_tolerance``, ``<joint>.trajectory`` and
 ``<joint>.goal``: the default path and goal tolerances a goal's own replace), and
 ``allow_partial_joints_goal`` (else a goal must name every joint) and
-``allow_nonzero_velocity_at_trajectory_end`` are read. On activation it holds the joints
+``allow_nonzero_velocity_at_trajectory_end`` and ``open_loop_control`` (a new goal starts
+from what was last commanded, not from the joints' state) are read. On activation it holds the joints
 where they are; a new goal preempts the running one (aborted); deactivation aborts it and
 holds. Goals run as the node's own trajectories do (:mod:`sim_node.core.control.trajectory`:
 interpolated by the fields given, in simulated time).
@@ -39,6 +40,7 @@ class TrajectoryController(Runtime):
         self.joints = tuple(self.controller.joints)
         self.partial = p.get('allow_partial_joints_goal', False) is True
         self.end_velocity = p.get('allow_nonzero_velocity_at_trajectory_end', False) is True
+        self.open_loop = p.get('open_loop_control', False) is True
         goal_time = p.get('constraints.goal_time', 0.0)
         self.goal_time = float(goal_time) if isinstance(goal_time, (int, float)) else 0.0
         stopped = p.get('constraints.stopped_velocity_tolerance', 0.01)
@@ -104,7 +106,7 @@ class TrajectoryController(Runtime):
         self.handle = world.follow_trajectory(
             self.host.entity, inner, *points, start_time=start, path_tolerance=path,
             goal_tolerance=end, goal_time_tolerance=gtt if gtt > 0 else self.goal_time,
-            allow_end_velocity=self.end_velocity)
+            allow_end_velocity=self.end_velocity, open_loop=self.open_loop)
         return self.handle
 
     def _check(self, goal) -> GoalResponse:

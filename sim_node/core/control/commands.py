@@ -291,6 +291,36 @@ class Control:
     def run_of(self, entity: str) -> Optional['_Run']:
         return self._runs.get(entity)
 
+    def commanded(self, entity: str, names: Sequence[str], index: ModelIndex,
+                  data: mujoco.MjData) -> tuple:
+        """
+        Return the positions and velocities last commanded to joints, (n,) each.
+
+        For each joint: a position staged for the next step, else the running trajectory's
+        target now, else a held position, else its position servo's target; a joint given no
+        position is where it is now (joint_trajectory_controller's ``open_loop_control``
+        starts a new trajectory from these).
+        """
+        idx = index.joints(names)
+        q = data.qpos[index.joint_qposadr[idx]].astype(float)
+        v = np.zeros(len(idx))
+        run = self._runs.get(entity)
+        desired = run.tracker.status.desired if run is not None else None
+        ran = list(run.tracker.trajectory.joints) if desired else []
+        with self._stage_lock:
+            staged = dict(self._staged)
+        for k, (name, i) in enumerate(zip(names, idx)):
+            servo = index.joint_actuators[i].get(POSITION)
+            if staged.get(name, ('',))[0] == POSITION:
+                q[k] = staged[name][1]
+            elif name in ran:
+                q[k], v[k] = desired[0][ran.index(name)], desired[1][ran.index(name)]
+            elif self._held.get(name, ('',))[0] == POSITION:
+                q[k] = self._held[name][1]
+            elif servo is not None:
+                q[k] = data.ctrl[servo]
+        return q, v
+
     def _end_run(self, run: '_Run', code: int, message: str, data: mujoco.MjData,
                  hold: bool, canceled: bool = False, rebind: bool = True) -> None:
         """

@@ -27,14 +27,17 @@ class Motion:
     def follow(self, entity: str, joint_names: Sequence[str], times, positions,
                velocities=(), accelerations=(), start_time: float = 0.0,
                path_tolerance: Optional[dict] = None, goal_tolerance: Optional[dict] = None,
-               goal_time_tolerance: float = 0.0, allow_end_velocity: bool = False):
+               goal_time_tolerance: float = 0.0, allow_end_velocity: bool = False,
+               open_loop: bool = False):
         """Start a trajectory (a new one preempts); return its run (see World)."""
         live = self.live
         with live.lock:
+            start = ((lambda: live.control.commanded(entity, list(joint_names), live.index,
+                                                     live.data)) if open_loop else None)
             traj = trajectory.plan(live.index, live.model, live.data, entity, joint_names,
                                    times, positions, velocities, accelerations, start_time,
                                    path_tolerance, goal_tolerance, goal_time_tolerance,
-                                   allow_end_velocity)
+                                   allow_end_velocity, start)
             live.control.start_run(entity, trajectory.Tracker(traj), live.index, live.model,
                                    live.data)
             live.cached = None

@@ -14,7 +14,7 @@ tolerance is not checked. ROS-free: the node turns FollowJointTrajectory goals i
 
 from dataclasses import dataclass, field
 import math
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -216,13 +216,15 @@ def plan(index, model, data, entity: str, joint_names: Sequence[str], times: Seq
          positions: Sequence[Sequence], velocities: Sequence[Sequence],
          accelerations: Sequence[Sequence], start_time: float,
          path_tolerance: Optional[dict], goal_tolerance: Optional[dict],
-         goal_time_tolerance: float, allow_end_velocity: bool = False) -> 'Trajectory':
+         goal_time_tolerance: float, allow_end_velocity: bool = False,
+         start_state: Optional[Callable[[], tuple]] = None) -> 'Trajectory':
     """
     Check a goal against a world's joints and plan it.
 
     :param index: the model's :class:`~sim_node.core.index.ModelIndex`.
 
-    Starts from the joints' state now; see :meth:`World.follow_trajectory
+    Starts from the joints' state now, or from what `start_state()` returns once the goal is
+    checked ((positions, velocities) in `joint_names` order: what was last commanded); see :meth:`World.follow_trajectory
     <sim_node.core.world.World.follow_trajectory>` for the arguments. Call with the world lock.
     A point that puts a limited joint outside its range is refused (INVALID_GOAL), unless the
     joint is outside it already and the point is no further out; so is a last point with a
@@ -241,14 +243,16 @@ def plan(index, model, data, entity: str, joint_names: Sequence[str], times: Seq
     names = tuple(joint_names)
     start_q = data.qpos[index.joint_qposadr[idx]].copy()
     _check_ranges(model, index.joint_ids[idx], names, q, start_q)
+    start_v = data.qvel[index.joint_dofadr[idx]].copy()
+    if start_state is not None:
+        start_q, start_v = (np.array(x, dtype=float) for x in start_state())
     if v is not None and not allow_end_velocity and np.any(v[-1] != 0):
         j = int(np.nonzero(v[-1])[0][0])
         raise TrajectoryError(INVALID_GOAL, ERR_END_VELOCITY.format(name=names[j], v=v[-1, j]))
     return Trajectory(
         joints=names, start=start, times=t, positions=q, velocities=v, accelerations=a,
         start_positions=start_q,
-        start_velocities=(data.qvel[index.joint_dofadr[idx]].copy() if v is not None
-                          else np.zeros(len(names))),
+        start_velocities=start_v if v is not None else np.zeros(len(names)),
         path_tolerance=_tolerance(names, path_tolerance),
         goal_tolerance=_tolerance(names, goal_tolerance),
         goal_time_tolerance=max(0.0, float(goal_time_tolerance)))
