@@ -309,9 +309,11 @@ def test_a_held_position_command_on_a_motor_joint_stays_within_its_limit(world):
 
 def test_open_loop_starts_from_the_last_command_and_closed_loop_from_the_joints(world):
     """
-    A weak arm sags far below its command. With open_loop (joint_trajectory_controller's
-    open_loop_control) a new trajectory starts from the held command, and a preempting one
-    from the running one's target; without it, from where the joints are.
+    A weak arm sags far below its command: open_loop decides where a new trajectory starts.
+
+    With open_loop (joint_trajectory_controller's open_loop_control) a new trajectory starts
+    from the held command, and a preempting one from the running one's target; without it,
+    from where the joints are.
     """
     w = world
     w.spawn('arm', sources.from_model_text(motor_arm(2.0)), (2.0, 2.0, 1.0))

@@ -581,9 +581,10 @@ def test_a_bicycle_controller_and_a_tricycle_go_at_the_twist_asked(sim, watch):
 
 def test_open_loop_control_starts_a_new_trajectory_from_the_last_command(sim, watch):
     """
-    A cart held against a buffer stop sits short of its command. With the YAML's
-    ``open_loop_control: true`` the next trajectory starts from the command (1.0 m), as the
-    real controller does, not from where the cart is (0.65 m).
+    A cart held against a buffer stop sits short of its command; a goal starts from the command.
+
+    With the YAML's ``open_loop_control: true`` the next trajectory starts from the command
+    (1.0 m), as the real controller does, not from where the cart is (0.65 m).
     """
     from control_msgs.msg import JointTrajectoryControllerState
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint

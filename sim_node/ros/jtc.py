@@ -9,10 +9,11 @@ simulated time. Its YAML's ``joints``, ``command_interfaces`` and ``state_interf
 ``<joint>.goal``: the default path and goal tolerances a goal's own replace), and
 ``allow_partial_joints_goal`` (else a goal must name every joint) and
 ``allow_nonzero_velocity_at_trajectory_end`` and ``open_loop_control`` (a new goal starts
-from what was last commanded, not from the joints' state) are read. On activation it holds the joints
-where they are; a new goal preempts the running one (aborted); deactivation aborts it and
-holds. Goals run as the node's own trajectories do (:mod:`sim_node.core.control.trajectory`:
-interpolated by the fields given, in simulated time).
+from what was last commanded, not from the joints' state) are read. On activation it holds
+the joints where they are; a new goal preempts the running one (aborted); deactivation
+aborts it and holds. Goals run as the node's own trajectories do
+(:mod:`sim_node.core.control.trajectory`: interpolated by the fields given, in simulated
+time).
 """
 
 from control_msgs.action import FollowJointTrajectory

@@ -224,8 +224,9 @@ def plan(index, model, data, entity: str, joint_names: Sequence[str], times: Seq
     :param index: the model's :class:`~sim_node.core.index.ModelIndex`.
 
     Starts from the joints' state now, or from what `start_state()` returns once the goal is
-    checked ((positions, velocities) in `joint_names` order: what was last commanded); see :meth:`World.follow_trajectory
-    <sim_node.core.world.World.follow_trajectory>` for the arguments. Call with the world lock.
+    checked ((positions, velocities) in `joint_names` order: what was last commanded). See
+    :meth:`World.follow_trajectory <sim_node.core.world.World.follow_trajectory>` for the
+    arguments. Call with the world lock.
     A point that puts a limited joint outside its range is refused (INVALID_GOAL), unless the
     joint is outside it already and the point is no further out; so is a last point with a
     velocity, unless `allow_end_velocity` (joint_trajectory_controller's
