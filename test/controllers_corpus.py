@@ -219,6 +219,7 @@ diff_drive_base_controller:
     linear:
       x:
         max_velocity: 1.0
+        max_acceleration: 0.5
     angular:
       z:
         max_velocity: 1.0
@@ -455,7 +456,7 @@ ackermann_steering_controller:
     rear_wheel_track: 0.4
     front_wheels_radius: 0.08
     rear_wheels_radius: 0.08
-    odom_frame_id: odom
+    odom_frame_id: car_odom
     base_frame_id: base_link
 
 bicycle_steering_controller:
@@ -521,4 +522,8 @@ tricycle_controller:
     odom_frame_id: odom
     base_frame_id: base_link
     cmd_vel_timeout: 500
+    traction:
+      max_velocity: 4.0
+    steering:
+      max_position: 0.15
 """

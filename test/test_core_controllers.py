@@ -126,8 +126,6 @@ def test_diff_drive_kinematics_and_odometry_agree_with_the_geometry():
     assert (odo.x, odo.y, odo.yaw) == pytest.approx((math.sin(1.571), 1 - math.cos(1.571),
                                                      1.571), abs=2e-3)
     assert (odo.v, odo.w) == pytest.approx((0.5, 0.5))
-    assert diff_drive.limit(3.0, {'linear.x.max_velocity': 1.0}, 'linear.x') == 1.0
-    assert diff_drive.limit(-3.0, {'linear.x.max_velocity': 1.0}, 'linear.x') == -1.0
 
 
 def test_only_simulated_or_topic_based_hardware_takes_a_robots_joints_over(tmp_path):
@@ -154,3 +152,33 @@ def test_a_trajectory_controller_names_the_interpolation_it_cannot_run(tmp_path)
     assert m.load('joint_trajectory_controller')[0]
     ok, why = m.configure('joint_trajectory_controller')
     assert not ok and "'none'" in why and 'splines' in why
+
+
+def test_base_limits_ramp_clamp_and_keep_signs_as_the_controllers_limiters():
+    """Per 10 ms update: velocity, acceleration and jerk as diff_drive's; sizes as tricycle's."""
+    from sim_node.core.control import limits
+    dt = 0.01
+    lin = limits.signed({'linear.x.max_velocity': 1.0, 'linear.x.max_acceleration': 0.5},
+                        'linear.x')
+    v, v0 = 0.0, 0.0
+    for _ in range(100):  # asked 3 m/s for 1 s: 0.5 m/s^2 gives 0.5 m/s
+        v0, v = v, lin.limit(3.0, v, v0, dt)
+    assert v == pytest.approx(0.5)
+    for _ in range(300):  # then held at 1 m/s, and back the other way at most 0.5 m/s^2
+        v0, v = v, lin.limit(3.0, v, v0, dt)
+    assert v == pytest.approx(1.0)
+    assert lin.limit(-3.0, 1.0, 1.0, dt) == pytest.approx(1.0 - 0.5 * dt)
+    jerk = limits.signed({'angular.z.max_jerk': 2.0}, 'angular.z')  # no velocity limit
+    # from rest, the second difference grows at most 2 * 2 dt^2 per update
+    assert jerk.limit(5.0, 0.0, 0.0, dt) == pytest.approx(2.0 * 2 * dt * dt)
+    assert not limits.signed({}, 'linear.x').limits
+    traction = limits.traction({'traction.max_velocity': 4.0, 'traction.min_velocity': 1.0})
+    assert traction.limit(-9.0, 0.0, 0.0, dt) == -4.0  # sizes: the sign is kept
+    assert traction.limit(0.2, 0.0, 0.0, dt) == 1.0  # at least its minimum
+    steer = limits.steering({'steering.max_position': 0.15, 'steering.max_velocity': 1.0})
+    assert steer.limit(-0.5, -0.149, 0.0, dt) == pytest.approx(-0.15)
+    assert steer.limit(0.5, 0.0, 0.0, dt) == pytest.approx(1.0 * dt)  # 1 rad/s from 0
+    with pytest.raises(ValueError, match='cannot be negative'):
+        limits.traction({'traction.max_velocity': -1.0})
+    with pytest.raises(ValueError, match='above'):
+        limits.signed({'linear.x.max_velocity': 1.0, 'linear.x.min_velocity': 2.0}, 'linear.x')

@@ -303,6 +303,12 @@ def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watc
     last = odoms[-1]
     assert (last.header.frame_id, last.child_frame_id) == ('odom', 'base_link')
     assert last.twist.twist.linear.x == pytest.approx(0.3, abs=0.02)
+    # linear.x.max_acceleration 0.5 m/s^2: from 0.02 to 0.28 m/s takes 0.52 s
+    stamp = [o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 for o in odoms]
+    speed = [o.twist.twist.linear.x for o in odoms]
+    ramp = (next(t for t, v in zip(stamp, speed) if v >= 0.28)
+            - next(t for t, v in zip(stamp, speed) if v > 0.02))
+    assert ramp == pytest.approx(0.52, abs=0.1)
     late = [o for o in odoms if o.pose.pose.position.x > 0.3]
     a, b = late[0], late[-1]
     dt = (b.header.stamp.sec + b.header.stamp.nanosec * 1e-9
@@ -321,7 +327,7 @@ def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watc
 
 
 def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
-        sim, watch, tmp_path):
+        node, sim, watch, tmp_path):
     from controller_manager_msgs.srv import LoadController
     from std_msgs.msg import Float64MultiArray
     folder = FOLDER['path']
@@ -371,6 +377,16 @@ def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
     later = states(watch, 'slider_to_cart')[-1]
     assert (later.header.stamp.sec, later.header.stamp.nanosec) > (
         before.header.stamp.sec, before.header.stamp.nanosec)
+    # a limit the tricycle cannot take: configure refuses it, the log names it
+    sim.reset()
+    bad = corpus.TRIKE_YAML.replace('max_velocity: 4.0', 'max_velocity: -4.0')
+    sim.spawn('trike', resource_string=corpus.trike(corpus.write(folder, 'bad.yaml', bad)),
+              position=(3.0, 3.0, 0.1))
+    failed, _ = corpus.spawner(sim, 'tricycle_controller')
+    assert failed is not None and not failed.ok
+    assert listed(sim)['tricycle_controller'].state == 'unconfigured'
+    wait_for(lambda: 'traction.min_velocity and max_velocity (0, -4) cannot be negative'
+             in node.output())
 
 
 def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):
@@ -446,6 +462,7 @@ def test_a_topic_based_robot_takes_the_plugins_commands_and_gives_its_states(sim
 def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch):
     from geometry_msgs.msg import TwistStamped
     from nav_msgs.msg import Odometry
+    from tf2_msgs.msg import TFMessage
     path = corpus.write(FOLDER['path'], 'car.yaml', corpus.CAR_YAML)
     sim.spawn('car', resource_string=corpus.car(path), position=(-3.0, -3.0, 0.1))
     for controller in ('joint_state_broadcaster', 'ackermann_steering_controller'):
@@ -467,9 +484,12 @@ def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch)
         watch.node.destroy_subscription(sub)
         watch.node.destroy_publisher(pub)
     last = odoms[-1]
-    assert (last.header.frame_id, last.child_frame_id) == ('odom', 'base_link')
+    assert (last.header.frame_id, last.child_frame_id) == ('car_odom', 'base_link')  # YAML's
     assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.04)
     assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.03)
+    tf = heard(watch, TFMessage, '/ackermann_steering_controller/tf_odometry')[-1]
+    assert [(t.header.frame_id, t.child_frame_id) for t in tf.transforms] == [
+        ('car_odom', 'base_link')]
     moved = sim.entity_state('car')['position']
     assert math.hypot(moved[0] - start[0], moved[1] - start[1]) > 0.5  # it really went
 
@@ -543,7 +563,13 @@ def test_a_trajectory_controller_preempts_checks_its_constraints_and_reports_its
     wait_for(lambda: abs(states(watch, 'joint1')[-1].position[0] + 0.3) < 0.03, timeout=20)
 
 
-def test_a_bicycle_controller_and_a_tricycle_go_at_the_twist_asked(sim, watch):
+def test_a_bicycle_goes_at_the_twist_asked_and_a_tricycle_within_its_limits(sim, watch):
+    """
+    Both are asked 0.4 m/s and 0.2 rad/s; the tricycle's YAML limits its wheel and angle.
+
+    Its wheel (radius 0.08 m) may turn at 4 rad/s, 0.32 m/s along its heading, and steer at
+    most 0.15 rad: v = 0.32 cos 0.15 and w = 0.32 sin 0.15 / 0.5 (its wheelbase).
+    """
     from geometry_msgs.msg import TwistStamped
     from nav_msgs.msg import Odometry
     path = corpus.write(FOLDER['path'], 'car.yaml', corpus.CAR_YAML)
@@ -573,10 +599,12 @@ def test_a_bicycle_controller_and_a_tricycle_go_at_the_twist_asked(sim, watch):
             watch.node.destroy_subscription(sub)
         for pub in pubs:
             watch.node.destroy_publisher(pub)
-    for key in ('car', 'trike'):
-        last = odoms[key][-1]
-        assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.05), key
-        assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.04), key
+    last = odoms['car'][-1]
+    assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.05)
+    assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.04)
+    last = odoms['trike'][-1]
+    assert last.twist.twist.linear.x == pytest.approx(0.32 * math.cos(0.15), abs=0.02)
+    assert last.twist.twist.angular.z == pytest.approx(0.32 * math.sin(0.15) / 0.5, abs=0.015)
 
 
 def test_open_loop_control_starts_a_new_trajectory_from_the_last_command(sim, watch):

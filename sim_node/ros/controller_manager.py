@@ -172,6 +172,7 @@ class RobotControl:
             try:
                 self.runtimes[request.name].configure()
             except (SimError, ValueError, KeyError, TypeError) as exc:
+                self.runtimes[request.name].destroy()  # its node and topics go with it
                 self.manager.controllers[request.name].state = core.UNCONFIGURED
                 ok, message = False, f"controller '{request.name}' cannot be configured: {exc}"
         return self._answer(response, ok, message, 'configure_controller')

@@ -12,10 +12,12 @@ the real controller has relative to that name:
   ``~/commands`` (std_msgs/Float64MultiArray, one value per joint, in the ``joints`` order),
   within the interfaces' ``min``/``max``;
 * ``diff_drive_controller``: ``~/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with
-  ``use_stamped_vel: false``), the wheels' speeds within ``linear.x`` and ``angular.z``
-  limits, stopped after ``cmd_vel_timeout`` simulated seconds without one; ``~/odom``
+  ``use_stamped_vel: false``), stopped after ``cmd_vel_timeout`` simulated seconds without
+  one; ``~/odom``
   (nav_msgs/Odometry, ``odom_frame_id`` -> ``base_frame_id``, from the wheels) and, with
-  ``enable_odom_tf``, that transform on ``/tf``, at ``publish_rate``.
+  ``enable_odom_tf``, that transform on ``/tf``, at ``publish_rate``; the twist is limited
+  once per update by the ``linear.x`` and ``angular.z`` velocity, acceleration and jerk
+  limits (:mod:`sim_node.core.control.limits`).
 * ``joint_trajectory_controller``: :mod:`.jtc`.
 
 A command that cannot be taken (a wrong length, a value not finite) is refused with its reason
@@ -34,7 +36,7 @@ from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
 from ..core.control import controller_types as types
-from ..core.control import diff_drive
+from ..core.control import diff_drive, limits
 
 NO_EVENTS = {'event_callbacks': PublisherEventCallbacks(use_default_callbacks=False)}
 NO_SUB_EVENTS = {'event_callbacks': SubscriptionEventCallbacks(use_default_callbacks=False)}
@@ -151,26 +153,68 @@ class ForwardCommand(Runtime):
 
 class BaseController(Runtime):
     """
-    What the base controllers share: a twist held until it is stale, odometry from zero.
+    What the base controllers share: a twist held until it is stale, sent once per update.
 
-    A subclass has ``odometry``, ``command`` ((v, w, simulated time) or None), ``timeout``
-    (simulated s; 0: never) and ``_drive(v, w)``.
+    The last twist taken on :attr:`topic` is held until it is older than ``timeout``
+    (simulated s; 0: never), then the base stops; each update turns it into wheel commands
+    (:meth:`steer`, through the subclass's limits and kinematics) and tracks the odometry
+    (:meth:`track`). A subclass has ``odometry`` and ``timeout`` and makes its topics in
+    :meth:`make`; :meth:`subscribe` takes the twist.
     """
+
+    topic = 'cmd_vel'
+
+    def subscribe(self, stamped: bool, topic: str) -> None:
+        self.topic = topic
+        self.node.create_subscription(TwistStamped if stamped else Twist, f'~/{topic}',
+                                      self._on_twist, 10, **NO_SUB_EVENTS)
 
     def activate(self, sample) -> None:
         super().activate(sample)
         self.odometry.reset()
-        self.command = None
+        self.command: Optional[tuple] = None  # (v, w, simulated time it came)
+        self.sent: dict = {}  # interface -> the values last sent through it
+        self.last_update: Optional[float] = None
 
     def deactivate(self) -> None:
         super().deactivate()
+        self.sent = {}
         self._drive(0.0, 0.0)
 
-    def stop_if_stale(self, t: float) -> None:
-        """Stop the base once its last command is older than its timeout."""
+    def _on_twist(self, msg) -> None:
+        twist = msg.twist if isinstance(msg, TwistStamped) else msg
+        v, w = twist.linear.x, twist.angular.z
+        if not (math.isfinite(v) and math.isfinite(w)):
+            self.refuse(self.topic, f'a twist that is not finite: ({v}, {w})')
+            return
+        if self.active:
+            self.command = (v, w, self.host.sim_time())
+
+    def update(self, sample, index: dict) -> None:
+        t = sample.time
+        period = 1.0 / self.controller.update_rate
+        dt = t - self.last_update if self.last_update is not None else period
+        self.last_update = t
         if self.command is not None and self.timeout > 0 and t - self.command[2] > self.timeout:
-            self.command = None
-            self._drive(0.0, 0.0)
+            self.command = None  # stale: the base stops
+        v, w = self.command[:2] if self.command is not None else (0.0, 0.0)
+        self.steer(v, w, dt, sample, index)
+        self.track(t, sample, index)
+
+    def send(self, joints: tuple, values: list, interface: str) -> None:
+        """Command `joints` through `interface` unless these values were sent last."""
+        key = (joints, interface)
+        if self.sent.get(key) != values:
+            self.sent[key] = values
+            self.host.command(joints, values, interface)
+
+    def steer(self, v: float, w: float, dt: float, sample, index: dict) -> None:
+        """Send the wheel commands for the twist (v, w), `dt` after the last update."""
+        self._drive(v, w)
+
+    def track(self, t: float, sample, index: dict) -> None:
+        """Take the wheels' sample into the odometry and publish it when due."""
+        raise NotImplementedError
 
     def _drive(self, v: float, w: float) -> None:
         raise NotImplementedError
@@ -185,41 +229,35 @@ class DiffDrive(BaseController):
         self.right = tuple(p['right_wheel_names'])
         self.geometry = diff_drive.Geometry.of(p)
         self.odometry = diff_drive.WheelOdometry(self.geometry)
+        self.limiters = (limits.signed(p, 'linear.x'), limits.signed(p, 'angular.z'))
         self.timeout = float(p.get('cmd_vel_timeout', 0.5))
         self.odom_frame = str(p.get('odom_frame_id', 'odom'))
         self.base_frame = str(p.get('base_frame_id', 'base_link'))
         rate = p.get('publish_rate', 50.0)
         self.period = 1.0 / float(rate) if isinstance(rate, (int, float)) and rate > 0 else 0.02
         self.next_publish = -math.inf
-        self.command: Optional[tuple] = None  # (v, w, simulated time it came)
-        stamped = p.get('use_stamped_vel', True) is not False
-        self.node.create_subscription(TwistStamped if stamped else Twist, '~/cmd_vel',
-                                      self._on_cmd_vel, 10, **NO_SUB_EVENTS)
+        self.subscribe(p.get('use_stamped_vel', True) is not False, 'cmd_vel')
         self.odom_pub = self.node.create_publisher(Odometry, '~/odom', 10, **NO_EVENTS)
         self.tf_pub = (self.node.create_publisher(TFMessage, '/tf', 100, **NO_EVENTS)
                        if p.get('enable_odom_tf', True) is not False else None)
 
-    def _on_cmd_vel(self, msg) -> None:
-        twist = msg.twist if isinstance(msg, TwistStamped) else msg
-        v, w = twist.linear.x, twist.angular.z
-        if not (math.isfinite(v) and math.isfinite(w)):
-            self.refuse('cmd_vel', f'a twist that is not finite: ({v}, {w})')
-            return
-        if not self.active:
-            return
-        v = diff_drive.limit(v, self.params, 'linear.x')
-        w = diff_drive.limit(w, self.params, 'angular.z')
-        self.command = (v, w, self.host.sim_time())
+    def activate(self, sample) -> None:
+        super().activate(sample)
+        self.history = [(0.0, 0.0), (0.0, 0.0)]  # (v, w) sent last, and the time before
+
+    def steer(self, v: float, w: float, dt: float, sample, index: dict) -> None:
+        (v0, w0), (v1, w1) = self.history
+        v = self.limiters[0].limit(v, v0, v1, dt)
+        w = self.limiters[1].limit(w, w0, w1, dt)
+        self.history = [(v, w), (v0, w0)]
         self._drive(v, w)
 
     def _drive(self, v: float, w: float) -> None:
         left, right = diff_drive.wheel_speeds(self.geometry, v, w)
-        self.host.command(self.left + self.right,
-                          [left] * len(self.left) + [right] * len(self.right), 'velocity')
+        self.send(self.left + self.right, [left] * len(self.left) + [right] * len(self.right),
+                  'velocity')
 
-    def update(self, sample, index: dict) -> None:
-        t = sample.time
-        self.stop_if_stale(t)
+    def track(self, t: float, sample, index: dict) -> None:
         left = sum(sample.position[index[j]] for j in self.left) / len(self.left)
         right = sum(sample.position[index[j]] for j in self.right) / len(self.right)
         self.odometry.update(t, left, right)

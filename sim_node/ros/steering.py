@@ -8,24 +8,26 @@ Car-like bases as ros2_controllers drive them: the steering controllers and the 
   ``rear_wheels_names`` drive and ``front_wheels_names`` steer (``front_steering: false``: the
   other way round); ``wheelbase``, ``front_wheel_track`` and the wheel radii; stopped after
   ``reference_timeout`` simulated seconds without a reference.
-* ``tricycle_controller``: ``~/cmd_vel`` (TwistStamped), ``~/odom`` and the odom TF on /tf;
+* ``tricycle_controller``: ``~/cmd_vel`` (TwistStamped), ``~/odom`` and, with
+  ``enable_odom_tf`` (off by default, as its own), the odom TF on /tf;
   ``traction_joint_name`` (the steered wheel that drives), ``steering_joint_name``,
-  ``wheel_radius``, ``wheelbase``; ``cmd_vel_timeout`` in milliseconds, as its own.
+  ``wheel_radius``, ``wheelbase``; ``cmd_vel_timeout`` in milliseconds, as its own; the
+  ``traction.*`` and ``steering.*`` limits (:mod:`sim_node.core.control.limits`) once per
+  update, and the wheel slowed while it is far from its angle (cos of the error; 0.01 beyond
+  90 degrees), as the real one.
 
 Steering joints take position commands, traction joints velocity commands, through the
 interfaces the controller claims; odometry comes from the wheels, in simulated time.
 """
 
 import math
-from typing import Optional
 
-from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from tf2_msgs.msg import TFMessage
 
-from .controllers import BaseController, NO_EVENTS, NO_SUB_EVENTS, publish_odometry
+from .controllers import BaseController, NO_EVENTS, publish_odometry
 from ..core.control import controller_types as types
-from ..core.control import steering
+from ..core.control import limits, steering
 
 
 class Steering(BaseController):
@@ -33,61 +35,67 @@ class Steering(BaseController):
 
     def make(self) -> None:
         p, kind = self.params, self.controller.kind
+        tricycle = kind == types.TRICYCLE
         self.traction, self.steering = types.steering_joints(kind, p)
         self.length = float(p['wheelbase'])
         radius = {types.ACKERMANN: 'rear_wheels_radius', types.BICYCLE: 'rear_wheel_radius',
                   types.TRICYCLE: 'wheel_radius'}[kind]
         self.radius = float(p[radius])
-        self.track = float(p.get('rear_wheel_track') or p.get('front_wheel_track') or 0.0)
-        self.odometry = steering.SteeringOdometry(self.length, self.radius,
-                                                  kind == types.TRICYCLE)
-        tricycle = kind == types.TRICYCLE
+        self.track_width = float(p.get('rear_wheel_track') or p.get('front_wheel_track') or 0.0)
+        self.odometry = steering.SteeringOdometry(self.length, self.radius, tricycle)
+        self.limiters = (limits.traction(p), limits.steering(p)) if tricycle else None
         timeout = p.get('cmd_vel_timeout', 500) if tricycle else p.get('reference_timeout', 1.0)
         self.timeout = float(timeout) / (1000.0 if tricycle else 1.0)
         self.odom_frame = str(p.get('odom_frame_id', 'odom'))
         self.base_frame = str(p.get('base_frame_id', 'base_link'))
-        self.command: Optional[tuple] = None
         stamped = p.get('use_stamped_vel', True) is not False
-        topic = '~/reference' if stamped else '~/reference_unstamped'
-        topic = '~/cmd_vel' if tricycle else topic
-        self.node.create_subscription(TwistStamped if stamped or tricycle else Twist, topic,
-                                      self._on_twist, 10, **NO_SUB_EVENTS)
+        self.subscribe(stamped or tricycle, 'cmd_vel' if tricycle else (
+            'reference' if stamped else 'reference_unstamped'))
         self.odom_pub = self.node.create_publisher(
             Odometry, '~/odom' if tricycle else '~/odometry', 10, **NO_EVENTS)
         self.tf_pub = None
-        if p.get('enable_odom_tf', True) is not False:
+        if p.get('enable_odom_tf', not tricycle) is True:  # the tricycle's default is false
             self.tf_pub = self.node.create_publisher(
                 TFMessage, '/tf' if tricycle else '~/tf_odometry', 100, **NO_EVENTS)
-        self.topic = topic.lstrip('~/')
 
-    def _on_twist(self, msg) -> None:
-        twist = msg.twist if isinstance(msg, TwistStamped) else msg
-        v, w = twist.linear.x, twist.angular.z
-        if not (math.isfinite(v) and math.isfinite(w)):
-            self.refuse(self.topic, f'a twist that is not finite: ({v}, {w})')
-            return
-        if self.active:
-            self.command = (v, w, self.host.sim_time())
-            self._drive(v, w)
+    def activate(self, sample) -> None:
+        super().activate(sample)
+        self.history = [(0.0, 0.0), (0.0, 0.0)]  # (speed, angle) sent last, and before
 
-    def _drive(self, v: float, w: float) -> None:
+    def _outputs(self, v: float, w: float) -> steering.Steered:
         kind = self.controller.kind
         if kind == types.ACKERMANN:
-            out = steering.ackermann(self.length, self.track, self.radius, v, w)
-        elif kind == types.BICYCLE:
-            out = steering.bicycle(self.length, self.radius, v, w)
-        else:
-            out = steering.tricycle(self.length, self.radius, v, w)
-        angles = list(out.steering) * len(self.steering) if len(out.steering) == 1 \
-            else list(out.steering)[:len(self.steering)]
-        speeds = list(out.traction) * len(self.traction) if len(out.traction) == 1 \
-            else list(out.traction)[:len(self.traction)]
-        self.host.command(self.steering, angles, 'position')
-        self.host.command(self.traction, speeds, 'velocity')
+            return steering.ackermann(self.length, self.track_width, self.radius, v, w)
+        if kind == types.BICYCLE:
+            return steering.bicycle(self.length, self.radius, v, w)
+        return steering.tricycle(self.length, self.radius, v, w)
 
-    def update(self, sample, index: dict) -> None:
-        t = sample.time
-        self.stop_if_stale(t)
+    def steer(self, v: float, w: float, dt: float, sample, index: dict) -> None:
+        if self.limiters is None:
+            self._drive(v, w)
+            return
+        out = self._outputs(v, w)  # the tricycle: one steered wheel that drives
+        angle, speed = out.steering[0], out.traction[0]
+        # As tricycle_controller: the wheel slows while it is far from its angle.
+        off = abs(angle - float(sample.position[index[self.steering[0]]]))
+        speed *= 1.0 if off < math.pi / 6 else 0.01 if off > math.pi / 2 else math.cos(off)
+        (s0, a0), (s1, a1) = self.history
+        speed = self.limiters[0].limit(speed, s0, s1, dt)
+        angle = self.limiters[1].limit(angle, a0, a1, dt)
+        self.history = [(speed, angle), (s0, a0)]
+        self._send([angle], [speed])
+
+    def _drive(self, v: float, w: float) -> None:
+        out = self._outputs(v, w)
+        self._send(list(out.steering), list(out.traction))
+
+    def _send(self, angles: list, speeds: list) -> None:
+        angles = angles * len(self.steering) if len(angles) == 1 else angles[:len(self.steering)]
+        speeds = speeds * len(self.traction) if len(speeds) == 1 else speeds[:len(self.traction)]
+        self.send(self.steering, angles, 'position')
+        self.send(self.traction, speeds, 'velocity')
+
+    def track(self, t: float, sample, index: dict) -> None:
         wheel = sum(sample.position[index[j]] for j in self.traction) / len(self.traction)
         angle = sum(sample.position[index[j]] for j in self.steering) / len(self.steering)
         self.odometry.update(t, wheel, angle)

@@ -12,5 +12,5 @@ driven, pushes and gains, each under the world lock), :mod:`.manager` (a robot's
 as ros2_control's controller manager keeps them) with :mod:`.controller_types` (what each
 controller type needs and claims), :mod:`.diff_drive` and
 :mod:`.steering` (diff_drive_controller's and the steering controllers' kinematics and
-odometry).
+odometry), :mod:`.limits` (their speed and angle limits per update period).
 """

@@ -36,18 +36,6 @@ def wheel_speeds(geometry: Geometry, v: float, w: float) -> tuple:
     return (v - w * half) / geometry.left_radius, (v + w * half) / geometry.right_radius
 
 
-def limit(value: float, params: dict, axis: str) -> float:
-    """Clamp `value` to the YAML's ``<axis>.max_velocity`` / ``min_velocity`` where given."""
-    hi = params.get(f'{axis}.max_velocity')
-    lo = params.get(f'{axis}.min_velocity')
-    if isinstance(hi, (int, float)) and math.isfinite(hi):
-        value = min(value, float(hi))
-        lo = -float(hi) if not isinstance(lo, (int, float)) or not math.isfinite(lo) else lo
-    if isinstance(lo, (int, float)) and math.isfinite(lo):
-        value = max(value, float(lo))
-    return value
-
-
 class WheelOdometry:
     """The base's pose (x, y, yaw) and twist (v, w) from its wheels, in simulated time."""
 
