@@ -206,6 +206,36 @@ def test_the_managers_answers_for_wrong_orders_and_names_are_the_real_ones(sim, 
     assert 'joint_trajectory_controller/JointTrajectoryController' in types
 
 
+def test_hardware_components_are_listed_and_auto_switches_as_strict(sim, watch):
+    """
+    list_hardware_components names the URDF's <ros2_control> system and what is claimed.
+
+    AUTO, with no chained controllers to order, refuses a conflicting switch whole, as STRICT.
+    """
+    from controller_manager_msgs.srv import ListHardwareComponents, SwitchController
+    spawn_cart(sim, 'position')
+    cm = '/controller_manager'
+    assert corpus.spawner(sim, 'forward_position_controller')[0] is None
+    assert corpus.spawner(sim, 'group_position_controller', activate=False)[0] is None
+    got = sim.call(f'{cm}/list_hardware_components', ListHardwareComponents,
+                   ListHardwareComponents.Request()).component
+    assert [(c.name, c.type, c.plugin_name, c.state.label) for c in got] == [
+        ('GazeboSimSystem', 'system', 'gz_ros2_control/GazeboSimSystem', 'active')]
+    assert [(i.name, i.is_claimed) for i in got[0].command_interfaces] == [
+        ('slider_to_cart/position', True)]
+    assert [i.name for i in got[0].state_interfaces] == [
+        'slider_to_cart/position', 'slider_to_cart/velocity', 'slider_to_cart/effort']
+    req = SwitchController.Request(activate_controllers=['group_position_controller'],
+                                   strictness=SwitchController.Request.AUTO)
+    answer = sim.call(f'{cm}/switch_controller', SwitchController, req)
+    assert not answer.ok and 'slider_to_cart/position' in answer.message
+    assert {n: c.state for n, c in listed(sim).items()} == {
+        'forward_position_controller': 'active', 'group_position_controller': 'inactive'}
+    req.deactivate_controllers = ['forward_position_controller']  # with the holder let go
+    assert sim.call(f'{cm}/switch_controller', SwitchController, req).ok
+    assert listed(sim)['group_position_controller'].state == 'active'
+
+
 def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim, watch):
     from control_msgs.action import FollowJointTrajectory
     from rclpy.action import ActionClient
