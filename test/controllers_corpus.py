@@ -96,7 +96,12 @@ ARM_JOINTS = tuple(f'joint{i}' for i in range(1, 7))
 
 
 def arm(yaml_path: str) -> str:
-    """Return a 6-joint arm fixed to the world, position interfaces, 1 kg links 0.3 m apart."""
+    """
+    Return a 6-joint arm fixed to the world, position interfaces, 1 kg links 0.3 m apart.
+
+    On its last link, two 50 g fingers open along y up to 0.04 m each, the right mimicking
+    the left (``finger_joint``, position), for a gripper action controller.
+    """
     links = ''.join(f"""
   <link name="link{i}"><inertial><origin xyz="0 0 0.15"/><mass value="1"/>{_I}</inertial>
     <collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.04" length="0.2"/>
@@ -109,6 +114,20 @@ def arm(yaml_path: str) -> str:
     <joint name="joint{i}"><command_interface name="position"/>
       <state_interface name="position"/><state_interface name="velocity"/></joint>"""
                      for i in range(1, 7))
+    joints += """
+    <joint name="finger_joint"><command_interface name="position"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>"""
+    links += ''.join(f"""
+  <link name="{side}_finger"><inertial><origin xyz="0 0 0.03"/><mass value="0.05"/>{_I}
+    </inertial><collision><origin xyz="0 0 0.03"/><geometry><box size="0.02 0.01 0.06"/>
+    </geometry></collision></link>
+  <joint name="{joint}" type="prismatic"><parent link="link6"/><child link="{side}_finger"/>
+    <origin xyz="0 {y} 0.3"/><axis xyz="0 {1 if y > 0 else -1} 0"/>
+    <limit lower="0" upper="0.04" effort="20" velocity="0.2"/>{mimic}</joint>"""
+                      for side, joint, y, mimic in (
+                          ('left', 'finger_joint', 0.01, ''),
+                          ('right', 'right_finger_joint', -0.01,
+                           '<mimic joint="finger_joint" multiplier="1"/>')))
     return f"""<robot name="arm">
   <link name="world"/>
   <link name="link0"><inertial><mass value="5"/>{_I}</inertial></link>
@@ -138,6 +157,13 @@ ARM_YAML = """controller_manager:
       type: imu_sensor_broadcaster/IMUSensorBroadcaster
     force_torque_sensor_broadcaster:
       type: force_torque_sensor_broadcaster/ForceTorqueSensorBroadcaster
+    gripper_controller:
+      type: position_controllers/GripperActionController
+
+gripper_controller:
+  ros__parameters:
+    joint: finger_joint
+    goal_tolerance: 0.002
 
 imu_sensor_broadcaster:
   ros__parameters:

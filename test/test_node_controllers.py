@@ -249,7 +249,8 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     held = states(watch, 'joint1')[-1]
     time.sleep(1.0)
     later = states(watch, 'joint1')[-1]
-    assert list(later.name) == list(corpus.ARM_JOINTS)
+    # every joint of its <ros2_control> block, in the order of their state interfaces' names
+    assert list(later.name) == ['finger_joint'] + list(corpus.ARM_JOINTS)
     # held where it was when activated (limp, it sagged)
     assert max(abs(a - b) for a, b in zip(held.position, later.position)) < 0.02
     client = ActionClient(watch.node, FollowJointTrajectory,
@@ -265,7 +266,8 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     result = _result(handle)
     assert result.error_code == 0, result.error_string
     got = states(watch, 'joint1')[-1]
-    assert max(abs(a - b) for a, b in zip(got.position, target)) < 0.03
+    at = dict(zip(got.name, got.position))
+    assert max(abs(at[j] - q) for j, q in zip(corpus.ARM_JOINTS, target)) < 0.03
     # its sensors' broadcasters: the IMU feels gravity, the wrist holds its 1 kg link
     from geometry_msgs.msg import WrenchStamped
     from sensor_msgs.msg import Imu
@@ -276,8 +278,21 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     assert imu.header.frame_id == 'link6'
     assert math.hypot(acc.x, acc.y, acc.z) == pytest.approx(9.81, rel=0.02)
     ft = heard(watch, WrenchStamped, '/force_torque_sensor_broadcaster/wrench')[-1]
-    f = ft.wrench.force
-    assert math.hypot(f.x, f.y, f.z) == pytest.approx(9.81, rel=0.03)
+    f = ft.wrench.force  # the wrist holds its 1 kg link and two 50 g fingers
+    assert math.hypot(f.x, f.y, f.z) == pytest.approx(9.81 * 1.1, rel=0.03)
+    # its gripper action opens the fingers to where it is asked
+    from control_msgs.action import GripperCommand
+    assert corpus.spawner(sim, 'gripper_controller')[0] is None
+    gripper = ActionClient(watch.node, GripperCommand, '/gripper_controller/gripper_cmd')
+    assert gripper.wait_for_server(timeout_sec=10)
+    opened = GripperCommand.Goal()
+    opened.command.position = 0.03
+    result = _result(_send(gripper, opened))
+    assert result.reached_goal and result.position == pytest.approx(0.03, abs=0.002)
+    fingers = states(watch, 'finger_joint')[-1]
+    assert fingers.position[list(fingers.name).index('finger_joint')] == pytest.approx(
+        0.03, abs=0.002)
+    gripper.destroy()
     # a partial goal is refused (allow_partial_joints_goal is false)
     goal.trajectory.joint_names = ['joint1']
     goal.trajectory.points = [JointTrajectoryPoint(positions=[0.0])]
@@ -590,7 +605,7 @@ def test_a_trajectory_controller_preempts_checks_its_constraints_and_reports_its
     traj.points = [JointTrajectoryPoint(positions=[-0.3, 0, 0, 0, 0, 0])]
     traj.points[0].time_from_start.sec = 1
     publish(watch, JointTrajectory, '/arm_controller/joint_trajectory', traj, times=1)
-    wait_for(lambda: abs(states(watch, 'joint1')[-1].position[0] + 0.3) < 0.03, timeout=20)
+    wait_for(lambda: abs(position(watch, 'joint1') + 0.3) < 0.03, timeout=20)
 
 
 def test_a_bicycle_goes_at_the_twist_asked_and_a_tricycle_within_its_limits(sim, watch):
@@ -635,6 +650,13 @@ def test_a_bicycle_goes_at_the_twist_asked_and_a_tricycle_within_its_limits(sim,
     last = odoms['trike'][-1]
     assert last.twist.twist.linear.x == pytest.approx(0.32 * math.cos(0.15), abs=0.02)
     assert last.twist.twist.angular.z == pytest.approx(0.32 * math.sin(0.15) / 0.5, abs=0.015)
+    # 1 s without commands: past the tricycle's cmd_vel_timeout of 500 (ms), within the
+    # bicycle's reference_timeout of 2.0 (s)
+    time.sleep(1.0)
+    trike = heard(watch, Odometry, '/trike/tricycle_controller/odom')[-1]
+    car = heard(watch, Odometry, '/bicycle_steering_controller/odometry')[-1]
+    assert abs(trike.twist.twist.linear.x) < 0.02
+    assert car.twist.twist.linear.x == pytest.approx(0.4, abs=0.05)
 
 
 def test_open_loop_control_starts_a_new_trajectory_from_the_last_command(sim, watch):
