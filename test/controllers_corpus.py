@@ -124,10 +124,10 @@ def arm(yaml_path: str) -> str:
   <joint name="{joint}" type="prismatic"><parent link="link6"/><child link="{side}_finger"/>
     <origin xyz="0 {y} 0.3"/><axis xyz="0 {1 if y > 0 else -1} 0"/>
     <limit lower="0" upper="0.04" effort="20" velocity="0.2"/>{mimic}</joint>"""
-                      for side, joint, y, mimic in (
-                          ('left', 'finger_joint', 0.01, ''),
-                          ('right', 'right_finger_joint', -0.01,
-                           '<mimic joint="finger_joint" multiplier="1"/>')))
+                     for side, joint, y, mimic in (
+                         ('left', 'finger_joint', 0.01, ''),
+                         ('right', 'right_finger_joint', -0.01,
+                          '<mimic joint="finger_joint" multiplier="1"/>')))
     return f"""<robot name="arm">
   <link name="world"/>
   <link name="link0"><inertial><mass value="5"/>{_I}</inertial></link>
