@@ -242,6 +242,7 @@ diff_drive_base_controller:
     base_frame_id: base_link
     cmd_vel_timeout: 0.5
     enable_odom_tf: true
+    pose_covariance_diagonal: [0.001, 0.001, 1000000.0, 1000000.0, 1000000.0, 0.01]
     linear:
       x:
         max_velocity: 1.0

@@ -348,6 +348,9 @@ def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watc
     last = odoms[-1]
     assert (last.header.frame_id, last.child_frame_id) == ('odom', 'base_link')
     assert last.twist.twist.linear.x == pytest.approx(0.3, abs=0.02)
+    diagonal = [last.pose.covariance[7 * i] for i in range(6)]
+    assert diagonal == [0.001, 0.001, 1e6, 1e6, 1e6, 0.01]  # the YAML's
+    assert list(last.twist.covariance) == [0.0] * 36  # none given
     # linear.x.max_acceleration 0.5 m/s^2: from 0.02 to 0.28 m/s takes 0.52 s
     stamp = [o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 for o in odoms]
     speed = [o.twist.twist.linear.x for o in odoms]

@@ -271,8 +271,9 @@ def publish_odometry(ctl, t: float) -> None:
     """
     Publish a base controller's odometry (``ctl.odometry``: x, y, yaw, v, w) at time `t`.
 
-    On ``ctl.odom_pub`` from ``ctl.odom_frame`` to ``ctl.base_frame``, and that transform on
-    ``ctl.tf_pub`` when it has one.
+    On ``ctl.odom_pub`` from ``ctl.odom_frame`` to ``ctl.base_frame``, with the YAML's
+    ``pose_covariance_diagonal`` and ``twist_covariance_diagonal`` (six finite values each,
+    else zeros), and that transform on ``ctl.tf_pub`` when it has one.
     """
     o = ctl.odometry
     stamp = convert.stamp(t)
@@ -282,6 +283,13 @@ def publish_odometry(ctl, t: float) -> None:
     msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
     msg.pose.pose.orientation = convert.quat_to_msg(o.quat_wxyz())
     msg.twist.twist.linear.x, msg.twist.twist.angular.z = o.v, o.w
+    for field, key in ((msg.pose, 'pose_covariance_diagonal'),
+                       (msg.twist, 'twist_covariance_diagonal')):
+        diagonal = ctl.params.get(key)
+        if isinstance(diagonal, (list, tuple)) and len(diagonal) == 6 and all(
+                isinstance(x, (int, float)) and math.isfinite(x) for x in diagonal):
+            for i, x in enumerate(diagonal):
+                field.covariance[7 * i] = float(x)
     ctl.odom_pub.publish(msg)
     if ctl.tf_pub is not None:
         ctl.tf_pub.publish(TFMessage(transforms=[convert.transform(
