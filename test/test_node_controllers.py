@@ -324,13 +324,18 @@ def _result(handle):
     return future.result().result
 
 
-def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watch):
-    from geometry_msgs.msg import TwistStamped
-    from nav_msgs.msg import Odometry
+def spawn_rover(sim) -> None:
+    """Spawn the corpus diff-drive rover at (2, -2), its broadcaster and controller active."""
     path = corpus.write(FOLDER['path'], 'rover.yaml', corpus.DIFF_DRIVE_YAML)
     sim.spawn('rover', resource_string=corpus.diff_drive(path), position=(2.0, -2.0, 0.15))
     for controller in ('joint_state_broadcaster', 'diff_drive_base_controller'):
         assert corpus.spawner(sim, controller)[0] is None
+
+
+def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watch):
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    spawn_rover(sim)
     cmd = TwistStamped()
     cmd.twist.linear.x = 0.3
     pub = watch.node.create_publisher(TwistStamped, '/diff_drive_base_controller/cmd_vel', 10)
@@ -700,3 +705,35 @@ def test_open_loop_control_starts_a_new_trajectory_from_the_last_command(sim, wa
         watch.node.destroy_subscription(sub)
     first = next(m for m in got if m.reference.velocities[0] < -0.1)
     assert first.reference.positions[0] > 0.85, first.reference.positions
+
+
+def test_a_diff_drive_base_drives_on_through_a_reset_of_the_worlds_state(sim, watch):
+    """
+    A reset of state puts the rover back where it spawned, its controllers still active.
+
+    The controller writes its wheel commands at every update, as the real one does, so the
+    twist still being sent drives the rover on from there (the reset cleared the wheels').
+    """
+    from geometry_msgs.msg import TwistStamped
+    from simulation_interfaces.srv import ResetSimulation
+    spawn_rover(sim)
+    cmd = TwistStamped()
+    cmd.twist.linear.x = 0.3
+    pub = watch.node.create_publisher(TwistStamped, '/diff_drive_base_controller/cmd_vel', 10)
+
+    def drive(seconds: float) -> None:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            pub.publish(cmd)
+            time.sleep(0.05)
+    try:
+        drive(2.0)
+        sim.reset(ResetSimulation.Request.SCOPE_STATE)
+        back = sim.entity_state('rover')['position']
+        assert math.hypot(back[0] - 2.0, back[1] + 2.0) < 0.05  # where it spawned
+        drive(3.0)
+    finally:
+        watch.node.destroy_publisher(pub)
+    moved = sim.entity_state('rover')['position']
+    assert math.hypot(moved[0] - back[0], moved[1] - back[1]) > 0.5  # 0.3 m/s for 3 s
+    assert listed(sim)['diff_drive_base_controller'].state == 'active'

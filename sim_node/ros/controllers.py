@@ -13,11 +13,10 @@ the real controller has relative to that name:
   within the interfaces' ``min``/``max``;
 * ``diff_drive_controller``: ``~/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with
   ``use_stamped_vel: false``), stopped after ``cmd_vel_timeout`` simulated seconds without
-  one; ``~/odom``
-  (nav_msgs/Odometry, ``odom_frame_id`` -> ``base_frame_id``, from the wheels) and, with
-  ``enable_odom_tf``, that transform on ``/tf``, at ``publish_rate``; the twist is limited
-  once per update by the ``linear.x`` and ``angular.z`` velocity, acceleration and jerk
-  limits (:mod:`sim_node.core.control.limits`).
+  one; ``~/odom`` (nav_msgs/Odometry, ``odom_frame_id`` -> ``base_frame_id``, from the
+  wheels) and, with ``enable_odom_tf``, that transform on ``/tf``, at ``publish_rate``; the
+  twist is limited once per update by the ``linear.x`` and ``angular.z`` velocity,
+  acceleration and jerk limits (:mod:`sim_node.core.control.limits`).
 * ``joint_trajectory_controller``: :mod:`.jtc`.
 
 A command that cannot be taken (a wrong length, a value not finite) is refused with its reason
@@ -173,12 +172,10 @@ class BaseController(Runtime):
         super().activate(sample)
         self.odometry.reset()
         self.command: Optional[tuple] = None  # (v, w, simulated time it came)
-        self.sent: dict = {}  # interface -> the values last sent through it
         self.last_update: Optional[float] = None
 
     def deactivate(self) -> None:
         super().deactivate()
-        self.sent = {}
         self._drive(0.0, 0.0)
 
     def _on_twist(self, msg) -> None:
@@ -202,11 +199,8 @@ class BaseController(Runtime):
         self.track(t, sample, index)
 
     def send(self, joints: tuple, values: list, interface: str) -> None:
-        """Command `joints` through `interface` unless these values were sent last."""
-        key = (joints, interface)
-        if self.sent.get(key) != values:
-            self.sent[key] = values
-            self.host.command(joints, values, interface)
+        """Command `joints` through `interface` (every update, as the real ones write)."""
+        self.host.command(joints, values, interface)
 
     def steer(self, v: float, w: float, dt: float, sample, index: dict) -> None:
         """Send the wheel commands for the twist (v, w), `dt` after the last update."""
