@@ -182,3 +182,25 @@ def test_base_limits_ramp_clamp_and_keep_signs_as_the_controllers_limiters():
         limits.traction({'traction.max_velocity': -1.0})
     with pytest.raises(ValueError, match='above'):
         limits.signed({'linear.x.max_velocity': 1.0, 'linear.x.min_velocity': 2.0}, 'linear.x')
+
+
+def test_a_reset_of_state_is_counted_and_the_joint_samples_after_it_carry_the_count(tmp_path):
+    """A controller tells a sample taken before a reset of state from one taken after."""
+    from sim_node.core.models import sources
+    from sim_node.core.records import RESET_STATE, RESET_TIME
+    from sim_node.core.world import World
+    path = corpus.write(tmp_path, 'c.yaml', corpus.cart_yaml('position'))
+    world = World.from_file(str(corpus.Path(__file__).resolve().parent.parent / 'scenes'
+                                / 'empty.xml'))
+    world.spawn('cart', sources.from_model_text(corpus.cart('position', path)))
+    world.sample_joints('cart', ['cart/slider_to_cart'], 100.0)
+    world.step(50)
+    count = world.clock().resets
+    before = [s for s in world.take_sensor_samples() if s.key == 'cart']
+    assert before and {s.resets for s in before} == {count}
+    world.reset(RESET_STATE)
+    world.reset(RESET_TIME)  # time alone is not state: not counted
+    assert world.clock().resets == count + 1
+    world.step(50)
+    after = [s for s in world.take_sensor_samples() if s.key == 'cart']
+    assert after and {s.resets for s in after} == {count + 1}

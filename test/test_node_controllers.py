@@ -324,12 +324,14 @@ def _result(handle):
     return future.result().result
 
 
-def spawn_rover(sim) -> None:
+def spawn_rover(sim, namespace: str = '') -> None:
     """Spawn the corpus diff-drive rover at (2, -2), its broadcaster and controller active."""
     path = corpus.write(FOLDER['path'], 'rover.yaml', corpus.DIFF_DRIVE_YAML)
-    sim.spawn('rover', resource_string=corpus.diff_drive(path), position=(2.0, -2.0, 0.15))
+    sim.spawn('rover', resource_string=corpus.diff_drive(path), position=(2.0, -2.0, 0.15),
+              namespace=namespace)
+    manager = f'/{namespace}/controller_manager' if namespace else '/controller_manager'
     for controller in ('joint_state_broadcaster', 'diff_drive_base_controller'):
-        assert corpus.spawner(sim, controller)[0] is None
+        assert corpus.spawner(sim, controller, manager=manager)[0] is None
 
 
 def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watch):
@@ -707,19 +709,41 @@ def test_open_loop_control_starts_a_new_trajectory_from_the_last_command(sim, wa
     assert first.reference.positions[0] > 0.85, first.reference.positions
 
 
-def test_a_diff_drive_base_drives_on_through_a_reset_of_the_worlds_state(sim, watch):
+def test_after_a_reset_of_state_a_robots_controllers_start_again_from_it(sim, watch):
     """
-    A reset of state puts the rover back where it spawned, its controllers still active.
+    A reset of state puts the robots back where they spawned, their controllers still active.
 
-    The controller writes its wheel commands at every update, as the real one does, so the
-    twist still being sent drives the rover on from there (the reset cleared the wheels').
+    As if activated anew: the arm's trajectory controller holds it where the reset put it
+    (spawned on its side, limp, gravity would swing it down); the rover's controller drives on
+    at the twist still being sent (it writes its wheels at every update, as the real one
+    does), its odometry from zero.
     """
+    from control_msgs.action import FollowJointTrajectory
     from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    from rclpy.action import ActionClient
     from simulation_interfaces.srv import ResetSimulation
-    spawn_rover(sim)
+    from trajectory_msgs.msg import JointTrajectoryPoint
+    folder = FOLDER['path']
+    sim.spawn('arm', resource_string=corpus.arm(corpus.write(folder, 'arm.yaml',
+                                                             corpus.ARM_YAML)),
+              position=(-2.0, 2.0, 1.5), orientation_xyzw=(0.0, 0.7071068, 0.0, 0.7071068))
+    assert corpus.spawner(sim, 'joint_state_broadcaster')[0] is None
+    jtc_file = corpus.write(folder, 'arm_jtc.yaml', corpus.ARM_JTC_YAML)
+    assert corpus.spawner(sim, 'arm_controller', param_file=jtc_file)[0] is None
+    client = ActionClient(watch.node, FollowJointTrajectory,
+                          '/arm_controller/follow_joint_trajectory')
+    assert client.wait_for_server(timeout_sec=10)
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory.joint_names = list(corpus.ARM_JOINTS)
+    goal.trajectory.points = [JointTrajectoryPoint(positions=[0.3, -0.2, 0.2, 0.1, 0.1, 0.1])]
+    goal.trajectory.points[0].time_from_start.sec = 1
+    assert _result(_send(client, goal)).error_code == 0
+    spawn_rover(sim, namespace='rover')  # a second robot: a namespace of its own
     cmd = TwistStamped()
     cmd.twist.linear.x = 0.3
-    pub = watch.node.create_publisher(TwistStamped, '/diff_drive_base_controller/cmd_vel', 10)
+    pub = watch.node.create_publisher(TwistStamped, '/rover/diff_drive_base_controller/cmd_vel',
+                                      10)
 
     def drive(seconds: float) -> None:
         t0 = time.monotonic()
@@ -732,8 +756,16 @@ def test_a_diff_drive_base_drives_on_through_a_reset_of_the_worlds_state(sim, wa
         back = sim.entity_state('rover')['position']
         assert math.hypot(back[0] - 2.0, back[1] + 2.0) < 0.05  # where it spawned
         drive(3.0)
+        odom = heard(watch, Odometry, '/rover/diff_drive_base_controller/odom')[-1]
     finally:
         watch.node.destroy_publisher(pub)
+        client.destroy()
     moved = sim.entity_state('rover')['position']
-    assert math.hypot(moved[0] - back[0], moved[1] - back[1]) > 0.5  # 0.3 m/s for 3 s
-    assert listed(sim)['diff_drive_base_controller'].state == 'active'
+    run = math.hypot(moved[0] - back[0], moved[1] - back[1])
+    assert run > 0.5  # 0.3 m/s for 3 s
+    assert odom.pose.pose.position.x == pytest.approx(run, abs=0.1)  # from zero at the reset
+    arm = dict(zip(*(lambda m: (m.name, m.position))(states(watch, 'joint1')[-1])))
+    assert max(abs(arm[j]) for j in corpus.ARM_JOINTS) < 0.02  # held at the spawn pose
+    assert listed(sim)['arm_controller'].state == 'active'
+    assert listed(sim, '/rover/controller_manager')['diff_drive_base_controller'].state == \
+        'active'

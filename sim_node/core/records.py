@@ -28,6 +28,7 @@ class Clock(NamedTuple):
     time: float  # simulated seconds
     step_count: int  # steps since the last time reset
     timestep: float  # seconds per step
+    resets: int = 0  # resets of state since the world was built (samples carry theirs)
 
 
 @dataclass(frozen=True)

@@ -93,6 +93,7 @@ class RobotControl:
         self.manager = core.Manager(commands, states, _Parameters(self.node), self._params)
         self.runtimes: dict = {}
         self.latest = None  # the last joint sample
+        self.resets = 0  # the world's resets of state: samples from before the last are stale
         self.info = None  # the model info of now (told by ControllerManagers.sync)
         self.sensors = any(c.sensors for c in control.components)
         self.key = f'{entity}:{self.namespace}/{control.manager}'
@@ -226,10 +227,25 @@ class RobotControl:
                     is_claimed=False) for j in c.joints for i in j.state]))
         return response
 
+    def after_reset(self) -> None:
+        """
+        After a reset of the world's state, each active controller starts again from it.
+
+        As if activated anew: trajectory and gripper controllers hold the joints where the
+        reset put them, forward controllers hold them (velocity, effort: at zero), bases
+        stop and their odometry starts again from zero.
+        """
+        self.resets = self.world().clock().resets
+        for rt in list(self.runtimes.values()):
+            if rt.active:
+                rt.after_reset(self.latest)
+
     # ------------------------------------------------------------------ for the runtimes
 
     def on_sample(self, sample) -> None:
         """Run the active controllers due at a joint sample's simulated time."""
+        if sample.resets < self.resets:
+            return  # taken before a reset of state the controllers have started again from
         self.latest = sample
         index = self.index
         for rt in list(self.runtimes.values()):
@@ -390,6 +406,13 @@ class ControllerManagers:
             if robot is not None:
                 for sample in taken[-MAX_BURST:]:
                     robot.on_sample(sample)
+
+    def after_reset(self) -> None:
+        """After a reset of state, before its answer: each robot's controllers start again."""
+        with self._lock:
+            robots = list(self.robots.values())
+        for robot in robots:
+            robot.after_reset()
 
     def close(self) -> None:
         self.sync(None)

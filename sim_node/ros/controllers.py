@@ -78,6 +78,10 @@ class Runtime:
     def deactivate(self) -> None:
         self.active = False
 
+    def after_reset(self, sample) -> None:
+        """Start again from the state a reset of the world put the joints in (when active)."""
+        self.activate(sample)
+
     def update(self, sample, index: dict) -> None:
         """Run once per update period with the joints' sample (`index`: URDF name -> i)."""
 
@@ -148,6 +152,10 @@ class ForwardCommand(Runtime):
     def deactivate(self) -> None:
         super().deactivate()
         self.host.hold(self.joints, self.interface)
+
+    def after_reset(self, sample) -> None:
+        super().after_reset(sample)
+        self.host.hold(self.joints, self.interface)  # its last command went with the reset
 
 
 class BaseController(Runtime):

@@ -122,6 +122,7 @@ class SimNode(Node):
                                      self.world_config, self.status.sync_paused_parameter,
                                      self.end_process)
         self.sim_services.after_edit = self._after_edit
+        self.sim_services.after_reset = self.controllers.after_reset
         self.create_timer(HOUSEKEEPING_SEC, self.status.housekeeping,
                           callback_group=self._events)
         self.add_on_set_parameters_callback(self._on_set_parameters)

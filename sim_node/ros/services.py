@@ -77,6 +77,8 @@ class Services:
         self._quit_process = quit_process
         #: Called after a spawn, delete, reset or load answers (before its answer goes out).
         self.after_edit: Callable[[], None] = lambda: None
+        #: Called after a reset, after `after_edit` (the robots' controllers start again).
+        self.after_reset: Callable[[], None] = lambda: None
         group = ReentrantCallbackGroup()
         table = {
             'get_simulator_features': (si_srv.GetSimulatorFeatures, self._features),
@@ -121,6 +123,8 @@ class Services:
                 response = handler(request, response)
                 if edits:
                     self.after_edit()
+                if handler.__name__ == '_reset':
+                    self.after_reset()
             except Exception as exc:  # a bug must not take the node down: report it
                 response.result = self._result_for(exc, srv_type.Response, handler.__name__)
             result = getattr(response, 'result', None)  # get_simulator_features has none

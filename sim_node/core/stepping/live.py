@@ -50,6 +50,7 @@ class Live:
         self.design = design
         self.generation = 0
         self.step_count = 0
+        self.resets = 0  # resets of state: a sample taken before one is stale after it
         self.snapshot_seq = 0
         #: The clock the loop's last batch left, while nothing changed since (see stepping).
         self.batch_clock: Optional[Clock] = None
@@ -80,7 +81,8 @@ class Live:
     # ---------------------------------------------------------------- reads
 
     def clock_locked(self) -> Clock:
-        return Clock(float(self.data.time), self.step_count, float(self.model.opt.timestep))
+        return Clock(float(self.data.time), self.step_count, float(self.model.opt.timestep),
+                     self.resets)
 
     def snapshot_locked(self) -> Snapshot:
         """Return an immutable copy for publishers, numbered (``seq``)."""
@@ -155,6 +157,7 @@ class Live:
         """Back to the `home` keyframe (or the initial state); held commands are dropped."""
         m, d = self.model, self.data
         t, steps = d.time, self.step_count
+        self.resets += 1
         self.control.clear(self.index, m, d)
         key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, 'home')
         if key >= 0:

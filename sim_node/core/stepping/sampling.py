@@ -71,6 +71,7 @@ class JointSample(NamedTuple):
     effort: np.ndarray
     generation: int = 0
     sensordata: Optional[np.ndarray] = None  # MuJoCo's sensor values then, if asked for
+    resets: int = 0  # the world's resets of state before it (Clock.resets)
 
 
 class _Joints:
@@ -116,9 +117,10 @@ class Sampler:
     """
 
     def __init__(self, index, samples: deque, request: ContactRequest = ContactRequest(),
-                 joints: tuple = ()):
+                 joints: tuple = (), resets: int = 0):
         info = index.info
         self.generation, self.request, self.joints = info.generation, request, joints
+        self.resets = resets
         self._entries = [_Entry(s.name, 1.0 / info.imus[s.name].rate_hz, s.adr,
                                 info.imus[s.name])
                          for s in info.sensors if s.kind == 'imu' and s.name in info.imus]
@@ -181,7 +183,7 @@ class Sampler:
             j.tokens -= 1.0
             self._samples.append(JointSample(
                 j.name, t, d.qpos[j.qpos], d.qvel[j.dof], d.qfrc_actuator[j.dof],
-                self.generation, d.sensordata.copy() if j.sensors else None))
+                self.generation, d.sensordata.copy() if j.sensors else None, self.resets))
         for c in self._contacts:
             if t < c.next - DUE_TOLERANCE * c.period:  # (NaN: due now)
                 continue

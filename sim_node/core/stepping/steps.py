@@ -135,9 +135,10 @@ class Stepping:
         sampler = live.sampler
         if sampler is None or sampler.generation != live.index.generation \
                 or sampler.request is not live.contact_request \
-                or sampler.joints is not live.joint_requests:
+                or sampler.joints is not live.joint_requests or sampler.resets != live.resets:
             sampler = live.sampler = sampling.Sampler(live.index, live.samples,
-                                                      live.contact_request, live.joint_requests)
+                                                      live.contact_request, live.joint_requests,
+                                                      live.resets)
         if control.per_step:
             self._step_each(m, d, n, sampler)
         elif control.batched or sampler:
