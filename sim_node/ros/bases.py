@@ -162,8 +162,12 @@ class BaseControllers:
             odom_pos, odom_q = odometry.base_pose(base.odometry, base.start, pos, q)
             frame = f'{prefix}{entity}/{base.spec.odom_frame}'
             child = prefix + entity  # the odom TF's child: one base frame (REP 105)
-            base.pub.publish(odometry.message(base.odometry, snap.time, frame, child,
-                                              odom_pos, odom_q, pose_cov, twist_cov))
+            msg = odometry.message(base.odometry, snap.time, frame, child, odom_pos, odom_q,
+                                   pose_cov, twist_cov)
+            with self._lock:  # a spawn's on_model may have destroyed its publisher meanwhile
+                if self._bases.get(entity) is not base:
+                    continue
+                base.pub.publish(msg)
             if with_tf:
                 where, turn = odometry.odom_frame_in_world(pos, q, odom_pos, odom_q)
                 transforms += odometry.transforms(snap.time, self._frames.out_world, frame,
