@@ -70,7 +70,7 @@ def main() -> None:
     loop = SimLoop(world)
     loop.set_real_time_factor(1.0)
     loop.start()
-    loop.play()
+    loop.run()
     timer = HoldTimer()
     box = sources.primitive('box', [0.05, 0.05, 0.05])
     counter = iter(range(10 ** 6))

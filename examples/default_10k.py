@@ -6,6 +6,7 @@ With a max-steps constraint of 10,000 steps: the loop stops by itself and says w
 
 from pathlib import Path
 import sys
+import threading
 import time
 
 from sim_node.core.config import WorldConfig
@@ -25,17 +26,18 @@ def main() -> dict:
         from sim_node.view.window import Window
         window = Window(session)
     t0 = time.perf_counter()
-    loop = session.load(world, 'default').loop
-    while not loop.paused:
-        time.sleep(0.01)
+    paused = threading.Event()  # told by the session, not asked in a loop
+    session.add_listener(on_state=lambda event: event.cause == 'limit' and paused.set())
+    session.load(world, 'default')
+    paused.wait()
     wall = time.perf_counter() - t0
-    status = loop.status()
+    reason = session.state_event().reason
     if window is not None:
         window.close()
     session.close()
     print(f'stopped after {world.step_count} steps (t = {world.time:.2f} s) in {wall:.2f} s '
-          f'wall: {status.stop_reason}')
-    return {'steps': world.step_count, 'time': world.time, 'reason': status.stop_reason}
+          f'wall: {reason}')
+    return {'steps': world.step_count, 'time': world.time, 'reason': reason}
 
 
 if __name__ == '__main__':

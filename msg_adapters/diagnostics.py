@@ -1,29 +1,34 @@
 """The loop's status as diagnostic_msgs/DiagnosticArray, for /diagnostics (rqt_robot_monitor)."""
 
+from typing import Optional
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from sim_node.core.records import LoopStatus
 
 from .convert import stamp
 
 
-def diagnostics(status: LoopStatus, name: str) -> DiagnosticArray:
+def diagnostics(status: LoopStatus, name: str, state: str, reason: str = '',
+                divergence: Optional[dict] = None) -> DiagnosticArray:
     """
     Return one status named `name`, with the culprit entity of a divergence as a value.
 
+    `state` (``'playing'``, ``'paused'``, ``'stopped'``), `reason` and `divergence` are the
+    session's (its state event); `status` is the loop's (step, time, the factors, lag).
     OK; WARN when lagging, or after a divergence handled by playing on; ERROR when paused or
     stopped by a divergence or a failure.
     """
-    level, message = DiagnosticStatus.OK, status.state
-    if status.lag:
+    level, message = DiagnosticStatus.OK, state
+    if status.lag and state == 'playing':
         level, message = DiagnosticStatus.WARN, status.lag
-    div = status.divergence
+    div = divergence
     if div is not None:
-        handled = div.get('action') in ('remove', 'reset') and status.state == 'playing'
+        handled = div.get('action') in ('remove', 'reset') and state == 'playing'
         level = DiagnosticStatus.WARN if handled else DiagnosticStatus.ERROR
-        message = status.stop_reason or 'the physics diverged'
-    elif status.state == 'stopped' and status.stop_reason:
-        level, message = DiagnosticStatus.ERROR, status.stop_reason
-    values = {'state': status.state, 'step': status.step, 'time': f'{status.time:.6f}',
+        message = reason or 'the physics diverged'
+    elif state == 'stopped' and reason:
+        level, message = DiagnosticStatus.ERROR, reason
+    values = {'state': state, 'step': status.step, 'time': f'{status.time:.6f}',
               'real_time_factor': status.real_time_factor,
               'achieved_real_time_factor': f'{status.achieved_real_time_factor:.3f}'}
     if div is not None:

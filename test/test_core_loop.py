@@ -1,4 +1,9 @@
-"""The stepping loop: pause costs nothing, step N while paused, limits, divergence, pacing."""
+"""
+The stepping loop: holding costs nothing, step N while held, limits, divergence, pacing.
+
+The loop keeps no lifecycle: it holds and reports what it did by itself (a limit, a divergence,
+a failure); the Session's tests (test_session.py) show what the simulation's state makes of it.
+"""
 
 import subprocess
 import sys
@@ -10,7 +15,7 @@ from conftest import DEFAULT_SCENE
 import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import IncorrectStateError
-from sim_node.core.stepping.loop import SimLoop
+from sim_node.core.stepping.loop import DIVERGED, DIVERGED_ON, FAILED, LIMIT, SimLoop
 from sim_node.core.world import World
 
 
@@ -52,33 +57,32 @@ def test_paused_loop_uses_no_cpu(make_loop):
 
 
 def test_max_steps_stops_the_loop_and_says_why(make_loop):
+    woken = threading.Event()
     loop = make_loop(real_time_factor=0, max_steps=3000)
-    deadline = time.monotonic() + 20
-    while not loop.paused and time.monotonic() < deadline:
-        time.sleep(0.01)
-    st = loop.status()
-    assert st.state == 'paused' and 'max_steps' in st.stop_reason
-    assert loop.world.step_count == 3000
+    loop.on_report = woken.set
+    assert woken.wait(20)  # its owner is told at once, not left to ask
+    assert loop.status().held and loop.world.step_count == 3000
+    [report] = loop.take_reports()
+    assert report.kind == LIMIT and 'max_steps' in report.reason
+    assert loop.take_reports() == []  # each report is decided on once
 
 
 def test_after_a_reset_max_steps_counts_again_from_zero(make_loop):
     """The loop reads the world afresh after a pause: not the step count it paused at."""
     loop = make_loop(real_time_factor=0, max_steps=3000)
-    assert _wait(lambda: loop.paused)
+    assert _wait(lambda: loop.held)
     loop.world.reset()
-    time.sleep(0.1)  # the loop waits, paused, with the world back at step 0
-    loop.play()
-    assert _wait(lambda: loop.paused and loop.world.step_count > 0)
-    assert loop.world.step_count == 3000, loop.status().stop_reason
+    time.sleep(0.1)  # the loop waits, held, with the world back at step 0
+    loop.run()
+    assert _wait(lambda: loop.held and loop.world.step_count > 0)
+    assert loop.world.step_count == 3000, loop.take_reports()
 
 
 def test_max_sim_time_stops_the_loop(make_loop):
     loop = make_loop(real_time_factor=0, max_sim_time=1.5)
-    deadline = time.monotonic() + 20
-    while not loop.paused and time.monotonic() < deadline:
-        time.sleep(0.01)
+    assert _wait(lambda: loop.held, 20)
     assert loop.world.time == pytest.approx(1.5, abs=1e-9)
-    assert 'max_sim_time' in loop.status().stop_reason
+    assert 'max_sim_time' in loop.take_reports()[-1].reason
 
 
 def test_real_time_factor_paces_simulated_time(make_loop):
@@ -91,19 +95,17 @@ def test_real_time_factor_paces_simulated_time(make_loop):
     assert wall < simulated <= 2.0 * wall + 0.05  # a busy host can only make it slower
 
 
-def test_divergence_pauses_the_loop_with_a_report(make_loop):
+def test_divergence_holds_the_loop_with_a_report(make_loop):
     loop = make_loop(real_time_factor=0)
     with loop.world.locked() as (m, d):
         d.qvel[-1] = 1e12
-    deadline = time.monotonic() + 10
-    while not loop.paused and time.monotonic() < deadline:
-        time.sleep(0.01)
-    st = loop.status()
-    assert st.state == 'paused' and st.divergence is not None
-    assert 'diverged' in st.stop_reason and st.divergence['step'] >= 1
-    loop.play()  # the restored state is good: it runs again
+    assert _wait(lambda: loop.held)
+    [report] = loop.take_reports()
+    assert report.kind == DIVERGED and report.divergence['step'] >= 1
+    assert 'diverged' in report.reason
+    loop.run()  # the restored state is good: it runs again
     time.sleep(0.1)
-    assert not loop.paused
+    assert not loop.held
 
 
 # A slide joint far too stiff for the time step: it diverges within a few steps, every time.
@@ -124,28 +126,31 @@ def test_divergence_names_the_culprit_entity_and_the_policy_acts_on_it(make_loop
     from sim_node.core.models import sources
     loop = make_loop(real_time_factor=0, divergence_policy=policy)
     loop.world.spawn('stiff', sources.from_model_text(STIFF), position=[2, 2, 1])
-    assert _wait(lambda: loop.status().divergence is not None)
-    st = loop.status()
-    assert st.divergence['entity'] == 'stiff' and "'stiff'" in st.stop_reason
-    assert st.divergence['action'] == policy
+    reports = []
+    assert _wait(lambda: reports.extend(loop.take_reports()) or reports)
+    report = reports[0]
+    assert report.divergence['entity'] == 'stiff' and "'stiff'" in report.reason
+    assert report.divergence['action'] == policy
     if policy == 'pause':
-        assert loop.paused and 'stiff' in loop.world.spawned_names()
+        assert report.kind == DIVERGED
+        assert loop.held and 'stiff' in loop.world.spawned_names()
         return
-    assert not loop.paused  # it played on (with 'reset' the spring diverges again and again,
+    assert report.kind == DIVERGED_ON
+    assert not loop.held  # it played on (with 'reset' the spring diverges again and again,
     t0 = loop.world.time  # a few steps apart: time still moves)
     assert _wait(lambda: loop.world.time > t0 + 0.05)
     if policy == 'remove':
         assert 'stiff' not in loop.world.spawned_names()
-        assert loop.status().divergence['entity'] == 'stiff'  # still reported
 
 
 def test_the_remove_policy_pauses_when_the_culprit_belongs_to_the_scene(make_loop):
     loop = make_loop(real_time_factor=0, divergence_policy='remove')
     with loop.world.locked() as (m, d):
         d.qvel[-1] = 1e12  # box_b, part of the scene: it cannot be removed
-    assert _wait(lambda: loop.paused)
-    assert loop.status().divergence['entity'] == 'box_b'
-    assert loop.status().divergence['action'] == 'pause'
+    assert _wait(lambda: loop.held)
+    [report] = loop.take_reports()
+    assert report.divergence['entity'] == 'box_b'
+    assert report.kind == DIVERGED and report.divergence['action'] == 'pause'
 
 
 def test_commands_from_many_threads_while_the_loop_runs(make_loop):
@@ -166,7 +171,7 @@ def test_commands_from_many_threads_while_the_loop_runs(make_loop):
     for t in threads:
         t.join(30)
     assert not errors
-    assert loop.status().state == 'playing'
+    assert not loop.held and loop.take_reports() == []
 
 
 @pytest.mark.slow  # a 1 s stall
@@ -185,12 +190,13 @@ def test_pacing_resyncs_after_a_stall_instead_of_bursting(make_loop):
     assert behind > 0.6, f'burst: only {behind:.2f} s behind the clock after a 1 s stall'
 
 
-def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_loop):
+def test_a_failed_loop_holds_and_reports_why(make_loop):
     """
     An injected fault in the stepping loop.
 
-    The loop stops with the reason, play and step are refused with it (nothing reports success
-    while time stands still), and a reset plus recover() brings it back, paused.
+    The loop holds (time stands still) and reports the fault; whether play and step are refused
+    is its owner's decision (the Session refuses them until a stop or a reset:
+    test_session.py), so its owner may run it again.
     """
     loop = make_loop(real_time_factor=0)
     world = loop.world
@@ -200,23 +206,16 @@ def test_a_failed_loop_says_so_refuses_to_step_and_recovers_after_a_reset(make_l
         world.stepping.batch = real_step
         raise RuntimeError('injected fault')
     world.stepping.batch = broken
-    deadline = time.monotonic() + 5
-    while not loop.failure and time.monotonic() < deadline:
-        time.sleep(0.01)
-    st = loop.status()
-    assert st.state == 'stopped' and 'injected fault' in st.stop_reason
-    with pytest.raises(IncorrectStateError, match='injected fault'):
-        loop.play()
-    with pytest.raises(IncorrectStateError, match='injected fault'):
-        loop.step(10)
+    reports = []
+    assert _wait(lambda: reports.extend(loop.take_reports()) or reports, 5)
+    assert reports[0].kind == FAILED and 'injected fault' in reports[0].reason
+    assert loop.status().held
     t0 = world.time
     time.sleep(0.2)
     assert world.time == t0
     world.reset()
-    loop.recover()
-    assert loop.status().state == 'paused'
     assert loop.step(10) == 10 and world.step_count == 10
-    loop.play()
+    loop.run()
     time.sleep(0.2)
     assert world.step_count > 10
 
@@ -234,7 +233,7 @@ def test_an_endless_step_request_is_ended_by_a_state_request(make_loop):
     t.start()
     time.sleep(0.3)
     assert loop.world.step_count > 0
-    loop.pause()  # already paused: the request still ends
+    loop.hold()  # already held: the request still ends
     t.join(2)
     assert not t.is_alive() and 'ended by a state request' in outcome[0]
     assert loop.step(10) == 10  # no "another step request is still running"
@@ -270,10 +269,10 @@ def test_loop_methods_called_inside_world_locked_do_not_deadlock():
         for _ in range(10):
             with w.locked():
                 time.sleep(0.05)  # the loop comes for the lock meanwhile
-                loop.pause()
+                loop.hold()
                 loop.status()
                 loop.set_real_time_factor(2.0)
-                loop.play()
+                loop.run()
         assert w.clock().step_count > 0
         loop.stop()
     """)
@@ -337,9 +336,9 @@ def test_once_pause_returns_no_step_runs_and_a_reset_stays_at_zero(make_loop):
         decided()
     world.stepping.wait_for_callers = preempted
     for _ in range(30):
-        loop.play()
+        loop.run()
         time.sleep(0.002)
-        loop.pause()
+        loop.hold()
         world.reset()
         time.sleep(0.01)
         assert world.time == 0.0 and world.step_count == 0

@@ -139,3 +139,31 @@ def test_divergence_names_the_culprit_on_diagnostics_and_the_policy_acts(rclpy_c
         watch.close()
         code, _ = node.interrupt()
         assert code == 0, node.output()
+
+
+def test_diagnostics_say_what_get_simulation_state_says_after_each_request(rclpy_context):
+    """
+    /diagnostics follows the session's one state, told at once with each change.
+
+    At d48b79a the loop kept a state of its own: after a stop /diagnostics said paused while
+    get_simulation_state said stopped.
+    """
+    node = NodeProcess()
+    watch = DiagnosticsWatcher()
+    sim = SimClient(timeout_sec=30)
+    try:
+        wait_for(lambda: watch.latest is not None, timeout=15)
+        stop = lambda: sim.set_state(SimulationState.STATE_STOPPED)  # noqa: E731
+        for request, state, word in ((stop, SimulationState.STATE_STOPPED, 'stopped'),
+                                     (sim.play, SimulationState.STATE_PLAYING, 'playing'),
+                                     (sim.pause, SimulationState.STATE_PAUSED, 'paused')):
+            request()
+            assert sim.state() == state
+            # At once, not at the next once-a-second refresh.
+            wait_for(lambda: watch.latest[2].get('state') == word, timeout=0.9)
+            assert watch.latest[1] == word
+    finally:
+        sim.close()
+        watch.close()
+        code, _ = node.interrupt()
+        assert code == 0, node.output()

@@ -96,13 +96,15 @@ def test_a_failed_loop_shows_stopped_until_a_stop_brings_it_back(session):
         loaded.world.stepping.batch = real
         raise RuntimeError('injected fault')
     loaded.world.stepping.batch = broken
-    wait_for(lambda: loaded.loop.failure, timeout=5)
+    wait_for(lambda: session.state_event().failed, timeout=5)
     assert session.state == lifecycle.STOPPED
     assert 'injected fault' in session.status_message()
     with pytest.raises(StateTransitionError, match='injected fault'):
         session.set_state(lifecycle.PLAYING)
+    with pytest.raises(IncorrectStateError, match='injected fault'):
+        session.step(10)  # nothing reports success while time stands still
     session.set_state(lifecycle.STOPPED)  # allowed although STOPPED: it recovers
-    assert session.state == lifecycle.STOPPED and not loaded.loop.failure
+    assert session.state == lifecycle.STOPPED and not session.state_event().failed
     session.set_state(lifecycle.PLAYING)
     t0 = session.world.time
     wait_for(lambda: session.world.time > t0 + 0.1, timeout=5)
@@ -232,26 +234,30 @@ def test_a_held_world_is_stepped_by_its_owner_alone_and_its_listeners_follow_it(
 
 
 def test_the_loop_reports_what_it_did_by_itself_and_the_session_decides():
-    """A limit pauses the loop at once; the session's state follows from the loop's report."""
+    """A limit holds the loop at once; the session's state follows from the loop's report."""
     from sim_node.core.stepping.loop import LIMIT, SimLoop
     loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=0,
                                                                    max_steps=50)))
     loop.start()
     try:
-        wait_for(lambda: loop.paused, timeout=10)
-        assert loop.take_reports() == [(LIMIT, 'max_steps reached (50 steps)')]
+        wait_for(lambda: loop.held, timeout=10)
+        assert loop.take_reports() == [(LIMIT, 'max_steps reached (50 steps)', None)]
         assert loop.take_reports() == []  # each report is decided on once
     finally:
         loop.stop()
     with Session(trim_memory=False) as session:
+        events = []
+        session.add_listener(on_state=events.append)
         session.load_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=0, max_steps=50))
-        wait_for(lambda: session.loop.paused, timeout=10)
-        assert session.state == lifecycle.PAUSED
-        assert session.loop.take_reports() == []  # the session took it, asking its state
+        # Told, not asked: the listener hears of the limit with nobody asking for the state.
+        wait_for(lambda: events and events[-1].cause == 'limit', timeout=10)
+        assert events[-1].state == lifecycle.PAUSED and 'max_steps' in events[-1].reason
+        assert session.loop.take_reports() == []  # the session took it when the loop told it
         session.loop.set_limits(max_steps=0)
         session.play()  # a play supersedes the pause reported before it
         time.sleep(0.2)
-        assert session.state == lifecycle.PLAYING and not session.loop.paused
+        assert session.state == lifecycle.PLAYING and not session.loop.held
+        assert events[-1] == session.state_event() and events[-1].reason == ''
 
 
 def test_the_lifecycle_is_one_table_that_every_change_of_state_goes_through():
@@ -262,9 +268,88 @@ def test_the_lifecycle_is_one_table_that_every_change_of_state_goes_through():
     writers = {f.name for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
                for n in ast.walk(f) if isinstance(n, ast.Attribute)
                and isinstance(n.ctx, ast.Store) and n.attr == '_state'}
-    assert writers == {'__init__', 'load', 'hold', 'unload', '_go'}
+    assert writers == {'__init__', '_go'}  # load, hold, unload and loading go through _go
+    events = {event for _, event in lifecycle.TRANSITIONS}
+    assert events >= {'load_stopped', 'load_paused', 'load_playing', 'hold', 'loading',
+                      'load_failed', 'unload', 'play', 'pause', 'stop', 'step', 'reset',
+                      'limit', 'diverged', 'failed'}
     targets = set(lifecycle.TRANSITIONS.values())
-    assert targets == {lifecycle.PLAYING, lifecycle.PAUSED, lifecycle.STOPPED, lifecycle.FAILED}
+    assert targets == {lifecycle.PLAYING, lifecycle.PAUSED, lifecycle.STOPPED, lifecycle.FAILED,
+                       lifecycle.NO_WORLD, lifecycle.LOADING_WORLD, lifecycle.BEFORE_LOADING}
+
+
+def test_the_loop_keeps_no_lifecycle_of_its_own():
+    """No state constants, no paused, failure or stop-reason flags: it holds, steps, reports."""
+    import ast
+    import inspect
+    from sim_node.core.stepping import loop as loop_module
+    for name in ('PLAYING', 'PAUSED', 'STOPPED'):
+        assert not hasattr(loop_module, name), name
+    tree = ast.parse(inspect.getsource(loop_module.SimLoop))
+    stored = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+              and isinstance(n.ctx, ast.Store)}
+    assert not stored & {'_paused', '_failure', '_stop_reason', '_divergence', '_state'}
+    assert 'state' not in set(loop_module.LoopStatus.__dataclass_fields__)
+
+
+def test_after_a_stop_every_listener_hears_stopped(session):
+    """The old bug: after Session.stop() the loop's own state said paused (/diagnostics)."""
+    events = []
+    session.add_listener(on_state=events.append)
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    session.stop()
+    wait_for(lambda: events and events[-1].cause == 'stop', timeout=5)
+    assert [e.state for e in events] == [lifecycle.NO_WORLD, lifecycle.PLAYING,
+                                         lifecycle.STOPPED]
+    assert session.loop.status().held
+
+
+def test_a_load_that_fails_goes_back_through_the_table(session):
+    events = []
+    session.load_file(str(DEFAULT_SCENE), FAST)
+    session.pause()
+    session.add_listener(on_state=events.append)
+    with pytest.raises(RuntimeError):
+        with session.loading():
+            assert session.state == lifecycle.LOADING_WORLD
+            raise RuntimeError('the file did not parse')
+    assert session.state == lifecycle.PAUSED
+    wait_for(lambda: len(events) == 3, timeout=5)
+    assert [(e.state, e.cause) for e in events] == [
+        (lifecycle.PAUSED, 'pause'), (lifecycle.LOADING_WORLD, 'loading'),
+        (lifecycle.PAUSED, 'load_failed')]
+
+
+def test_a_listener_that_blocks_holds_back_nobody_but_itself(session):
+    """Each listener has a thread: one stuck in its hook delays neither the session nor others."""
+    import threading
+    stuck, models, states = threading.Event(), [], []
+    session.add_listener(lambda loaded, snap: stuck.wait(30), lambda event: stuck.wait(30))
+    session.add_listener(lambda loaded, snap: models.append(snap.info.generation),
+                         states.append)
+    try:
+        session.load_file(str(DEFAULT_SCENE), FAST)
+        session.world.spawn('crate', box(), position=[2, 0, 0.5])
+        t0 = time.monotonic()
+        session.pause()
+        session.play()
+        assert time.monotonic() - t0 < 1.0  # the session never waits for a listener
+        wait_for(lambda: models and models[-1] == session.world.generation, timeout=5)
+        wait_for(lambda: states and states[-1].cause == 'play', timeout=5)
+    finally:
+        stuck.set()
+
+
+def test_the_front_ends_follow_on_state_and_never_ask_for_the_state_in_a_loop():
+    """The window, the browser view and the node's status read no Session.state."""
+    import ast
+    for path in ('sim_node/view/source.py', 'sim_node/view/window.py', 'sim_node/view/web.py',
+                 'sim_node/ros/status.py'):
+        tree = ast.parse((ROOT / path).read_text())
+        reads = [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+                 and n.attr == 'state' and isinstance(n.value, ast.Attribute)
+                 and n.value.attr in ('session', '_session')]
+        assert reads == [], (path, reads)
 
 
 def test_a_view_takes_a_session_and_nothing_else(session):

@@ -2,13 +2,17 @@
 The shape of the code, as a new maintainer meets it (issue 31).
 
 No module reads a private name that another file defines (one class lives in one file; objects
-talk through public methods), no module is over 500 lines and the node's is at most 350, and the
-README is a door of at most 200 lines whose map names exactly the package's folders.
+talk through public methods), no module holds more than 400 lines of code (docstrings, comments
+and blank lines not counted: sizes follow concepts, and prose is never cut to fit) and the node's
+at most 250, and the README is a door of at most 200 lines whose map names exactly the package's
+folders.
 """
 
 import ast
+import io
 from pathlib import Path
 import re
+import tokenize
 
 import pytest
 
@@ -24,8 +28,11 @@ LIBRARY_PRIVATES = {
     '_get_sim': "mujoco.viewer.Handle's passive Simulate: its Run flag and a model reload (the "
                 'only ways to a pause button and a new model without reopening the window)',
 }
-MAX_MODULE_LINES = 500
-MAX_NODE_LINES = 350
+#: Lines of code a module may hold (docstrings, comments and blank lines are not counted:
+#: dm_control sizes modules by concept and keeps its prose; issue 51 replaced a 500-line cap
+#: that was met by shortening docstrings).
+MAX_CODE_LINES = 400
+MAX_NODE_CODE_LINES = 250
 MAX_README_LINES = 200
 
 
@@ -93,10 +100,35 @@ def test_the_check_sees_a_borrowed_private_name(tmp_path):
     assert borrowed_privates(host) == []
 
 
-def test_no_module_is_over_500_lines_and_the_node_is_at_most_350():
-    sizes = {p.relative_to(ROOT).as_posix(): len(p.read_text().splitlines()) for p in modules()}
-    assert {p: n for p, n in sizes.items() if n > MAX_MODULE_LINES} == {}
-    assert sizes['sim_node/ros/node.py'] <= MAX_NODE_LINES
+def code_lines(text: str) -> int:
+    """Return how many lines of `text` hold code: not docstrings, comments or blank lines."""
+    prose = set()
+    for node in ast.walk(ast.parse(text)):
+        # Docstrings of modules, classes and functions, and strings standing as statements
+        # (attribute docstrings).
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) \
+                and isinstance(node.value.value, str):
+            prose.update(range(node.lineno, node.end_lineno + 1))
+    code = set()
+    skip = (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
+            tokenize.ENDMARKER)
+    for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+        if tok.type not in skip:
+            code.update(range(tok.start[0], tok.end[0] + 1))
+    return len(code - prose)
+
+
+def test_no_module_holds_over_400_lines_of_code_and_the_node_at_most_250():
+    sizes = {p.relative_to(ROOT).as_posix(): code_lines(p.read_text()) for p in modules()}
+    assert {p: n for p, n in sizes.items() if n > MAX_CODE_LINES} == {}
+    assert sizes['sim_node/ros/node.py'] <= MAX_NODE_CODE_LINES
+
+
+def test_the_size_count_leaves_prose_out():
+    """The counter itself: a docstring, comments and blank lines add nothing; code does."""
+    text = ('"""A module.\n\nIts long story.\n"""\n\n# why\n\ndef f(x):\n'
+            '    """Say what f does."""\n    #: a note\n    return (x +\n            1)\n')
+    assert code_lines(text) == 3  # def, and the two lines of the return
 
 
 def test_only_the_ros_folder_and_the_adapters_import_rclpy():

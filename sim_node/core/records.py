@@ -370,15 +370,35 @@ class PhysicsState:
 
 @dataclass(frozen=True)
 class LoopStatus:
-    """What the stepping loop is doing and why it stopped, if it did."""
+    """
+    How the stepping loop is stepping: where it is, how fast, whether it is told to hold.
 
-    state: str  # 'playing', 'paused', 'stopped'
+    The loop keeps no lifecycle of its own: whether the simulation is playing, paused, stopped
+    or failed, and why, is the :class:`~sim_node.session.Session`'s (its ``StateEvent``).
+    """
+
     step: int
     time: float
     real_time_factor: float
-    stop_reason: str = ''
-    divergence: Optional[dict] = None
-    #: Simulated seconds per wall second over the last measuring window while playing.
+    #: The loop is holding (told to, or by itself after what it reported): no step is due.
+    held: bool = False
+    #: Simulated seconds per wall second over the last measuring window while stepping.
     achieved_real_time_factor: float = 0.0
-    #: Set while playing slower than the requested factor: by how much, and why.
+    #: Set while stepping slower than the requested factor: by how much, and why.
     lag: str = ''
+
+
+class Report(NamedTuple):
+    """
+    What a stepping loop did by itself, for its owner to decide on (``SimLoop.take_reports``).
+
+    ``kind`` is ``'limit'`` (a termination constraint made it hold), ``'diverged'`` (the
+    physics diverged and it holds), ``'diverged_on'`` (the physics diverged, its policy removed
+    the culprit or reset the state, and it steps on) or ``'failed'`` (an internal error made it
+    hold); ``reason`` says why in a sentence; ``divergence`` is the divergence's report (the
+    step, time, entity, body, warnings and the policy's ``action``) or None.
+    """
+
+    kind: str
+    reason: str
+    divergence: Optional[dict] = None

@@ -143,6 +143,19 @@ class World:
         """Block until the model generation is no longer `after` (or `timeout` s); return it."""
         return self._live.wait_new_model(after, timeout)
 
+    def add_model_watcher(self, watcher: Callable[[], None]) -> None:
+        """
+        Call ``watcher()`` after each new model (a spawn, a delete, a reset of the spawned).
+
+        It is called under the world lock, from the thread that made the model: it must not
+        block or touch the world (an owner sets an event and does its work on its own thread).
+        """
+        self._live.model_watchers.append(watcher)
+
+    def remove_model_watcher(self, watcher: Callable[[], None]) -> None:
+        """Stop calling `watcher` (compared by equality); nothing if it was not watching."""
+        self._live.model_watchers[:] = [w for w in self._live.model_watchers if w != watcher]
+
     # ---------------------------------------------------------------- introspection
 
     @property

@@ -1,10 +1,13 @@
 """
 What the node says about itself: /diagnostics, the core's log lines, the `paused` parameter.
 
-Run from the node's housekeeping timer (every 0.2 s, on the executor): the core logs to a queue
-(its threads never call rclpy) that is drained into the ROS logger here; /diagnostics goes out
-once a second and at once when the physics diverges or a joint command is refused; the `paused`
-parameter follows the simulation's state, whoever changed it.
+The session's state comes to :meth:`Status.on_state` (a listener of the session, on its own
+thread) with every change: /diagnostics goes out at once with it and the `paused` parameter
+follows it, whoever changed it (a service, the parameter, a limit, a divergence, a failure).
+Nothing here asks the session for its state in a loop. The node's housekeeping timer (every
+0.2 s, on the executor) drains the core's log lines (its threads never call rclpy) into the ROS
+logger and sends /diagnostics again once a second, as diagnostic_updater does, with the last
+state received and the loop's rate; a refused joint command or goal goes out at once too.
 """
 
 import collections
@@ -18,7 +21,7 @@ from msg_adapters import diagnostics
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..session import LOADING_WORLD, NO_WORLD, PLAYING, Session
+from ..session import LOADING_WORLD, NO_WORLD, PLAYING, Session, StateEvent
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
 REFUSAL_SHOWN_SEC = 10.0
@@ -43,18 +46,28 @@ class Status:
         self._session = session
         self._pub = node.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._name = f'{node.get_fully_qualified_name()}: physics'
-        self._diagnosed = (None, 0.0)  # (divergence report, wall time) last published
+        self._last_sent = 0.0  # wall time /diagnostics last went out
+        self._publish_lock = threading.Lock()  # the listener's thread and the executor's
         self._refused: dict = {}  # topic -> (what, why, names, wall time), the latest
         self._forwarder = LogForwarder()
         logging.getLogger('sim_node').addHandler(self._forwarder)
         logging.getLogger('sim_node').setLevel(logging.INFO)
         self.syncing_thread: Optional[int] = None  # set while we mirror `paused` ourselves
+        self._param_lock = threading.Lock()
+        self._event: StateEvent = session.state_event()
+        self._handle = session.add_listener(on_state=self.on_state, name='status')
 
     def close(self) -> None:
+        self._session.remove_listener(self._handle)
         logging.getLogger('sim_node').removeHandler(self._forwarder)
 
+    def on_state(self, event: StateEvent) -> None:
+        """Take a new state of the session's (as its listener): /diagnostics now, `paused`."""
+        self._event = event
+        self.sync_paused_parameter(event)
+        self.publish(force=True)
+
     def housekeeping(self) -> None:
-        self.sync_paused_parameter()
         self.drain_logs()
         self.publish(force=False)
 
@@ -71,34 +84,34 @@ class Status:
         """
         self._node.get_logger().warning(f'{what} {verdict}: {why}', throttle_duration_sec=1.0)
         self._refused[topic] = (what, why, names, time.monotonic(), verdict)
-        self.publish(force=True)
+        self.publish(force=True, at_most_every=0.1)
 
-    def publish(self, force: bool) -> None:
+    def publish(self, force: bool, at_most_every: float = 0.0) -> None:
         """
-        /diagnostics once a second, and at once when the physics diverges.
+        /diagnostics once a second, and at once (`force`) with a new state or a refusal.
 
-        Also at once (at most ten times a second) when a joint command is refused: a status
-        ``<node>: joint_commands`` says why (the joint, and for an unknown name the closest
-        valid ones) and stays in the messages for REFUSAL_SHOWN_SEC.
+        A refused joint command or goal adds a status ``<node>: <topic>`` that says why (the
+        joint, and for an unknown name the closest valid ones) and stays in the messages for
+        REFUSAL_SHOWN_SEC; a flood of refusals is sent `at_most_every` seconds. Every state
+        event is sent: a new state is never held back.
         """
         loaded = self._session.loaded
-        if loaded is None:
+        if loaded is None or loaded.loop is None:
             return
-        status = loaded.loop.status()
-        now = time.monotonic()
-        last_report, last_time = self._diagnosed
-        if force and now - last_time < 0.1:
-            return
-        if not force and status.divergence is last_report and now - last_time < 1.0:
-            return
-        self._diagnosed = (status.divergence, now)
-        msg = diagnostics.diagnostics(status, self._name)
-        for topic, (what, why, names, when, verdict) in list(self._refused.items()):
-            if now - when < REFUSAL_SHOWN_SEC:
-                msg.status.append(diagnostics.refused_command(
-                    why, names, f'{self._node.get_fully_qualified_name()}: {topic}', what,
-                    verdict))
-        self._pub.publish(msg)
+        with self._publish_lock:
+            now = time.monotonic()
+            if now - self._last_sent < (at_most_every if force else 1.0):
+                return
+            self._last_sent = now
+            event = self._event
+            msg = diagnostics.diagnostics(loaded.loop.status(), self._name, event.state,
+                                          event.reason, event.divergence)
+            for topic, (what, why, names, when, verdict) in list(self._refused.items()):
+                if now - when < REFUSAL_SHOWN_SEC:
+                    msg.status.append(diagnostics.refused_command(
+                        why, names, f'{self._node.get_fully_qualified_name()}: {topic}', what,
+                        verdict))
+            self._pub.publish(msg)
 
     def drain_logs(self) -> None:
         log = self._node.get_logger()
@@ -113,19 +126,23 @@ class Status:
             else:
                 log.info(text)
 
-    def sync_paused_parameter(self) -> None:
+    def sync_paused_parameter(self, event: Optional[StateEvent] = None) -> None:
         """
         Mirror the session's state in the `paused` parameter, so `ros2 param get` is true.
 
         The state changes through services, limits and divergence too, not only the parameter.
+        `event`: the state to mirror (a listener's); None: the session's now (a service that
+        changed it mirrors it before it answers).
         """
-        state = self._session.state
+        state = (event or self._session.state_event()).state
         if state in (NO_WORLD, LOADING_WORLD):
             return
         paused = state != PLAYING
-        if self._node.get_parameter('paused').value != paused:
-            self.syncing_thread = threading.get_ident()
-            try:
-                self._node.set_parameters([Parameter('paused', Parameter.Type.BOOL, paused)])
-            finally:
-                self.syncing_thread = None
+        with self._param_lock:
+            if self._node.get_parameter('paused').value != paused:
+                self.syncing_thread = threading.get_ident()
+                try:
+                    self._node.set_parameters([Parameter('paused', Parameter.Type.BOOL,
+                                                         paused)])
+                finally:
+                    self.syncing_thread = None

@@ -10,7 +10,7 @@ its model and data from above.
 import time
 from typing import Optional
 
-from ..session import Loaded, PLAYING, Session
+from ..session import Loaded, PLAYING, Session, StateEvent
 
 #: What a view shows as the state of a world its owner steps (no loop to pause or step).
 OWNER_STEPPED = 'stepped by its owner'
@@ -18,10 +18,12 @@ OWNER_STEPPED = 'stepped by its owner'
 
 class Source:
     """
-    A view's target: a session's listener that records which world is loaded.
+    A view's target: a session's listener that records which world is loaded and its state.
 
-    The session's thread tells it of every new model (:meth:`Session.add_listener`); it only
-    records it, and the view's own thread acts on it at its next frame. :meth:`close` detaches.
+    The session tells it of every new model and every change of state
+    (:meth:`Session.add_listener`: ``on_model``, ``on_state``); it only records them, and the
+    view's own thread shows them at its next frame, never asking the session. :meth:`close`
+    detaches.
     """
 
     def __init__(self, session: Session):
@@ -30,13 +32,17 @@ class Source:
                             'world with Session.hold(world))')
         self.session = session
         self._loaded: Optional[Loaded] = session.loaded
-        session.add_listener(self._on_model)
+        self._state: StateEvent = session.state_event()
+        self._handle = session.add_listener(self._on_model, self._on_state, name='view')
 
     def _on_model(self, loaded: Optional[Loaded], snap) -> None:
         self._loaded = loaded
 
+    def _on_state(self, event: StateEvent) -> None:
+        self._state = event
+
     def close(self) -> None:
-        self.session.remove_listener(self._on_model)
+        self.session.remove_listener(self._handle)
 
     def current(self) -> tuple:
         """Return ``(world, loop)``; either may be None (nothing loaded; its owner steps it)."""
@@ -44,11 +50,15 @@ class Source:
         return (loaded.world, loaded.loop) if loaded is not None else (None, None)
 
     def state(self, loop) -> str:
-        return self.session.state if loop is not None else OWNER_STEPPED
+        """Return the state to show: the session's last event (a failure shows its reason)."""
+        if loop is None:
+            return OWNER_STEPPED
+        event = self._state
+        return f'{event.state}: {event.reason}' if event.failed else event.state
 
     def playing(self) -> bool:
-        """Whether the session plays (its state, not its loop's flag: the session decides)."""
-        return self.session.state == PLAYING
+        """Whether the session plays (its last state event, not its loop's flag)."""
+        return self._state.state == PLAYING
 
     def set_paused(self, paused: bool) -> None:
         self.session.pause() if paused else self.session.play()

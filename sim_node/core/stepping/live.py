@@ -63,6 +63,9 @@ class Live:
         self.stale_kinematics = self.stale_dynamics = True
         #: Notified (a leaf lock) each time a new model becomes the world's.
         self.new_model = threading.Condition(threading.Lock())
+        #: Called (no argument, under the world lock: they must not block) after each new
+        #: model: an owner's wake-up (:meth:`World.add_model_watcher`).
+        self.model_watchers: list = []
         #: Declared sensors sampled as the world steps (:mod:`.sampling`), and their queue.
         self.sampler = None
         self.samples = sampling.new_queue()
@@ -208,6 +211,8 @@ class Live:
             raise
         with self.new_model:
             self.new_model.notify_all()
+        for watcher in list(self.model_watchers):
+            watcher()
 
     def wait_new_model(self, after: int, timeout: float) -> int:
         """Block until the generation is no longer `after` (or `timeout` s); return it."""

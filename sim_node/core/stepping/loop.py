@@ -4,11 +4,15 @@ The stepping loop: one thread that advances a :class:`World` at a fixed step.
 * Real-time factor 1.0 paces simulated time to the wall clock (2.0: twice as fast; 0: as fast
   as possible). Pacing sleeps to absolute deadlines outside the world lock and re-syncs after a
   stall instead of bursting to catch up.
-* Pause and play; :meth:`SimLoop.step` runs N steps while paused and blocks until done.
-  A paused loop waits on a condition: no CPU.
-* Termination constraints (max steps, max simulated time) pause the loop with a reason: the
-  loop stops after the first step whose time is >= max_sim_time (see :func:`time_reached`).
-* Divergence pauses the loop with a report; the world is back at the last good state.
+* :meth:`SimLoop.hold` and :meth:`SimLoop.run`; :meth:`SimLoop.step` runs N steps while it
+  holds and blocks until done. A holding loop waits on a condition: no CPU.
+* Termination constraints (max steps, max simulated time) make the loop hold: it stops after
+  the first step whose time is >= max_sim_time (see :func:`time_reached`).
+* Divergence makes it hold (or its policy acts); the world is back at the last good state.
+* What it did by itself (a limit, a divergence, an internal error) it reports
+  (:meth:`SimLoop.take_reports`, and its ``on_report`` hook at once); it keeps no lifecycle of
+  its own. Playing, paused, stopped or failed, and why, is its owner's to decide: a
+  :class:`~sim_node.session.Session` turns the reports into its one state.
 * Every ``1/snapshot_rate_hz`` wall seconds (and after every change) the loop makes an
   immutable :class:`~sim_node.core.records.Snapshot` that consumers read from any thread.
 """
@@ -27,17 +31,15 @@ from .snapshots import Snapshots
 from ..config import WorldConfig
 from ..errors import (DivergenceError, IncorrectStateError, InvalidArgumentError,
                       OperationFailedError, SimError)
-from ..records import Clock, LoopStatus, RESET_STATE, Snapshot
+from ..records import Clock, LoopStatus, Report, RESET_STATE, Snapshot
 from ..world import World
 
 log = logging.getLogger(__name__)
 
-PLAYING = 'playing'
-PAUSED = 'paused'
-STOPPED = 'stopped'
-#: What the loop reports having done by itself (:meth:`SimLoop.take_reports`).
+#: What the loop reports having done by itself (:class:`~sim_node.core.records.Report`).
 LIMIT = 'limit'
 DIVERGED = 'diverged'
+DIVERGED_ON = 'diverged_on'
 FAILED = 'failed'
 #: Reports kept for an owner that does not ask (a loop run on its own): the newest only.
 REPORTS_KEPT = 16
@@ -68,6 +70,7 @@ ERR_FAILED = ('the stepping loop failed ({error}); reset the simulation or load 
 ERR_INTERRUPTED = ('the step request was ended by a state request after {done} of {n} '
                    'steps')
 ERR_STEP_WHILE_PLAYING = 'the simulation is playing; pause it before stepping'
+ERR_BUSY = 'another step request is still running'
 ERR_NOT_RUNNING = 'the stepping loop is not running'
 ERR_STEP_UNDER_LOCK = ('step() called inside World.locked(): the loop steps under the world lock, '
                        'so it would wait for ever; leave the block first')
@@ -89,9 +92,14 @@ class SimLoop:
 
     Start with :meth:`start`, end with :meth:`stop`. What watches it (a window, a browser
     view, a recorder) attaches from above, through a :class:`~sim_node.session.Session`.
+
+    :param on_report: called with no argument, from the loop's thread and holding none of its
+        locks, each time it reports something (:meth:`take_reports`): its owner's wake-up. It
+        must not block (a session sets an event).
     """
 
-    def __init__(self, world: World, config: Optional[WorldConfig] = None):
+    def __init__(self, world: World, config: Optional[WorldConfig] = None,
+                 on_report: Optional[Callable[[], None]] = None):
         cfg = config or world.config
         self.world = world
         self._rtf = float(cfg.real_time_factor)
@@ -104,23 +112,23 @@ class SimLoop:
                                        f'got {cfg.divergence_policy!r}')
         self._policy = cfg.divergence_policy
         self._cv = threading.Condition()
-        self._paused = bool(cfg.paused)
+        self._held = bool(cfg.paused)  # told to hold (or holding after a report)
         self._stopping = False
         self._pending_steps = 0
         self._in_batch = False  # the loop thread is running a batch it decided on
         self._steps_done_cv = threading.Condition(self._cv)
-        self._stop_reason = ''
-        self._failure = ''  # set when the loop caught an internal error: see recover()
         #: What the loop did by itself, for its owner to decide on (:meth:`take_reports`).
         self._reports: collections.deque = collections.deque(maxlen=REPORTS_KEPT)
+        self.on_report = on_report
         self._cancelled_left: Optional[int] = None  # steps a cancelled request had left
-        self._divergence: Optional[dict] = None
+        self._request_divergence: Optional[dict] = None  # met by the running step request
         self._thread: Optional[threading.Thread] = None
         self._snapshots = Snapshots(world.snapshot())
         self._batch = 1
         self._deadline = time.perf_counter()
         self._last_snapshot = 0.0
         self._rate = RateWindow()
+        self._told = True  # on_report was called for every report so far
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -147,9 +155,9 @@ class SimLoop:
 
     # ------------------------------------------------------------------ control
 
-    def pause(self) -> None:
+    def hold(self) -> None:
         """
-        Pause; a step request in progress ends (see :meth:`cancel_steps`).
+        Hold: take no step until :meth:`run` (or :meth:`step`); a step request in progress ends.
 
         When it returns no step runs any more: a batch already under way (at most about
         :data:`MAX_BATCH_WALL_SEC`) has ended, so a reset or a state write that follows is what
@@ -158,8 +166,8 @@ class SimLoop:
         """
         with self._cv:
             self._cancel_steps_locked()
-            self._paused = True
-            self._drop_reports_locked(LIMIT, DIVERGED)  # this pause supersedes them
+            self._held = True
+            self._drop_reports_locked(LIMIT, DIVERGED)  # this hold supersedes them
             self._cv.notify_all()
             # Not on the loop's thread, nor under the world lock (the batch needs it).
             if threading.get_ident() != getattr(self._thread, 'ident', None) \
@@ -182,58 +190,50 @@ class SimLoop:
             self._cancelled_left, self._pending_steps = self._pending_steps, 0
             self._steps_done_cv.notify_all()
 
-    def play(self) -> None:
-        """
-        Resume; clears a termination or divergence report (limits still apply).
-
-        :raises IncorrectStateError: the loop failed; :meth:`recover` first.
-        """
+    def run(self) -> None:
+        """Step (paced by the real-time factor) until told to hold; limits still apply."""
         with self._cv:
-            if self._failure:
-                raise IncorrectStateError(self._failure)
             self._cancel_steps_locked()
-            self._paused = False
-            self._stop_reason = ''
-            self._divergence = None
-            self._reports.clear()  # this play supersedes the pauses the loop made itself
+            self._held = False
+            self._reports.clear()  # this run supersedes the holds the loop made itself
             self._cv.notify_all()
 
     @property
-    def paused(self) -> bool:
-        return self._paused
+    def held(self) -> bool:
+        """Whether the loop holds (told to, or by itself after a report): no step is due."""
+        return self._held
 
     def take_reports(self) -> list:
         """
         Return, and forget, what the loop did by itself since it was last asked, oldest first.
 
-        Each is ``(kind, reason)``: :data:`LIMIT` (a termination constraint paused it),
-        :data:`DIVERGED` (divergence paused it), :data:`FAILED` (an internal error stopped it;
-        :meth:`recover` clears it). The loop acts at once (it must not take another step); its
-        owner (a :class:`~sim_node.session.Session`) decides what that means for its lifecycle.
-        A later :meth:`play` or :meth:`pause` supersedes the pauses reported before it.
+        Each is a :class:`~sim_node.core.records.Report`: :data:`LIMIT` (a termination
+        constraint made it hold), :data:`DIVERGED` (divergence made it hold),
+        :data:`DIVERGED_ON` (its divergence policy acted and it steps on), :data:`FAILED` (an
+        internal error made it hold). The loop acts at once (it must not take another step);
+        its owner (a :class:`~sim_node.session.Session`) decides what that means for its
+        lifecycle. A later :meth:`run` or :meth:`hold` supersedes the holds reported before it.
         """
         with self._cv:
             reports = list(self._reports)
             self._reports.clear()
             return reports
 
+    def _report_locked(self, report: Report) -> None:
+        """Keep `report` for :meth:`take_reports` (``_cv`` held; the owner is told after)."""
+        self._reports.append(report)
+        self._told = False
+
+    def _tell_owner(self) -> None:
+        """Call ``on_report`` once for what was reported (no lock of the loop's held)."""
+        hook = self.on_report
+        if hook is not None and not self._told:
+            self._told = True
+            hook()
+
     def _drop_reports_locked(self, *kinds: str) -> None:
         self._reports = collections.deque((r for r in self._reports if r[0] not in kinds),
                                           maxlen=REPORTS_KEPT)
-
-    @property
-    def failure(self) -> str:
-        """Why the loop stopped on an internal error ('' if it did not)."""
-        return self._failure
-
-    def recover(self) -> None:
-        """After the world was reset or replaced: clear a failure; the loop stays paused."""
-        with self._cv:
-            if self._failure:
-                log.info('the stepping loop recovers (paused): %s', self._failure)
-            self._failure = ''
-            self._stop_reason = ''
-            self._reports.clear()
 
     def set_real_time_factor(self, rtf: float) -> None:
         if not (rtf >= 0 and rtf < float('inf')):
@@ -256,12 +256,12 @@ class SimLoop:
     def step(self, n: int = 1, timeout: Optional[float] = None,
              feedback: Optional[Callable[[int, int], None]] = None) -> int:
         """
-        Run `n` steps while paused; block until they are done.
+        Run `n` steps while the loop holds; block until they are done.
 
         Returns steps completed.
 
         :param feedback: called as ``feedback(completed, remaining)`` from this thread.
-        :raises OperationFailedError: the loop is playing (an IncorrectStateError).
+        :raises OperationFailedError: the loop is stepping on its own (not held).
         :raises IncorrectStateError: the loop is not running.
         :raises DivergenceError: the physics diverged during these steps.
         """
@@ -271,17 +271,15 @@ class SimLoop:
             raise IncorrectStateError(ERR_STEP_UNDER_LOCK)  # come, and the caller wait for ever
         deadline = None if timeout is None else time.monotonic() + timeout
         with self._cv:
-            if self._failure:
-                raise IncorrectStateError(self._failure)
-            if not self._paused:
+            if not self._held:
                 raise OperationFailedError(ERR_STEP_WHILE_PLAYING)
             if not self.running:
                 raise IncorrectStateError(ERR_NOT_RUNNING)
             if self._pending_steps:
-                raise IncorrectStateError('another step request is still running')
+                raise IncorrectStateError(ERR_BUSY)
             self._pending_steps = n
             self._cancelled_left = None
-            self._divergence = None
+            self._request_divergence = None
             self._cv.notify_all()
             last = n
             while self._pending_steps and not self._stopping:
@@ -301,8 +299,8 @@ class SimLoop:
             if self._cancelled_left is not None:
                 done, self._cancelled_left = n - self._cancelled_left, None
                 raise IncorrectStateError(ERR_INTERRUPTED.format(done=done, n=n))
-            if self._divergence is not None:
-                div = self._divergence
+            if self._request_divergence is not None:
+                div, self._request_divergence = self._request_divergence, None
                 raise DivergenceError(f'physics diverged at step {div["step"]}', div['step'],
                                       div)
         return n - remaining
@@ -327,16 +325,13 @@ class SimLoop:
     # ------------------------------------------------------------------ status, snapshots
 
     def status(self) -> LoopStatus:
+        """Where the loop is and how fast it steps (the lifecycle is its owner's)."""
         snap = self._snapshots.latest
         with self._cv:
-            state = PAUSED if self._paused else PLAYING
-            if not self.running or self._failure:
-                state = STOPPED
-            return LoopStatus(state=state, step=snap.step, time=snap.time,
-                              real_time_factor=self._rtf, stop_reason=self._stop_reason,
-                              divergence=self._divergence,
-                              achieved_real_time_factor=self._rate.achieved,
-                              lag=self._rate.lag_message if state == PLAYING else '')
+            held = self._held or not self.running
+            return LoopStatus(step=snap.step, time=snap.time, real_time_factor=self._rtf,
+                              held=held, achieved_real_time_factor=self._rate.achieved,
+                              lag='' if held else self._rate.lag_message)
 
     def latest_snapshot(self) -> Snapshot:
         return self._snapshots.latest
@@ -370,14 +365,14 @@ class SimLoop:
         while not self._stopping:
             try:
                 self._iterate()
-            except Exception as exc:  # never die silently: stop, say why, refuse to step
+            except Exception as exc:  # never die silently: hold, say why, let the owner decide
                 log.exception('the stepping loop failed')
                 with self._cv:
-                    self._paused = True
-                    self._failure = self._stop_reason = ERR_FAILED.format(error=repr(exc))
-                    self._reports.append((FAILED, self._failure))
+                    self._held = True
+                    self._report_locked(Report(FAILED, ERR_FAILED.format(error=repr(exc))))
                     self._pending_steps = 0
                     self._steps_done_cv.notify_all()
+            self._tell_owner()  # outside every lock of the loop's (see on_report)
 
     def _iterate(self) -> None:
         """
@@ -389,28 +384,27 @@ class SimLoop:
         (``world.stepping.clock_since_batch``), and the snapshot is made in the batch's hold.
         """
         with self._cv:
-            idle = not self._stopping and self._paused and not self._pending_steps
+            idle = not self._stopping and self._held and not self._pending_steps
         if idle:
             # Consumers see the state the loop stopped in, not one from before the pause.
             self.refresh_snapshot()
         clock = self.world.stepping.clock_since_batch() or self.world.clock()
         with self._cv:
-            if not self._stopping and self._paused and not self._pending_steps:
-                while not self._stopping and self._paused and not self._pending_steps:
+            if not self._stopping and self._held and not self._pending_steps:
+                while not self._stopping and self._held and not self._pending_steps:
                     self._cv.wait()
                 self._deadline = time.perf_counter()
                 self._rate.restart()  # a pause is not lag
                 return  # the world may have changed meanwhile (a reset): read it again
             if self._stopping:
                 return
-            stepping_request = self._paused
+            stepping_request = self._held
             rtf = self._rtf
             reason = '' if stepping_request else self._limit_reason(clock)
             if reason:
-                self._paused = True
-                self._stop_reason = reason
-                self._reports.append((LIMIT, reason))
-                log.info('loop paused: %s', reason)
+                self._held = True
+                self._report_locked(Report(LIMIT, reason))
+                log.info('loop holds: %s', reason)
                 return
             if stepping_request:
                 n = min(self._pending_steps, self._batch)
@@ -452,11 +446,12 @@ class SimLoop:
             log.error('%s', exc)
             action = self._after_divergence(exc.report)
             with self._cv:
-                self._paused = self._paused or action == 'pause'
-                self._divergence = dict(exc.report, action=action)
-                self._stop_reason = f'{exc}; {ACTIONS[action]}'
-                if action == 'pause':
-                    self._reports.append((DIVERGED, self._stop_reason))
+                self._held = self._held or action == 'pause'
+                divergence = dict(exc.report, action=action)
+                if self._pending_steps:
+                    self._request_divergence = divergence
+                self._report_locked(Report(DIVERGED if action == 'pause' else DIVERGED_ON,
+                                           f'{exc}; {ACTIONS[action]}', divergence))
                 self._pending_steps = 0
                 self._steps_done_cv.notify_all()
             self.refresh_snapshot()
