@@ -27,7 +27,7 @@ setup(
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
         ('share/' + PACKAGE + '/rviz', glob('rviz/*.rviz')),
     ] + scene_data_files(),
-    package_data={'sim_node.ros': ['fastdds_profiles.xml']},
+    package_data={'sim_node.ros.node': ['fastdds_profiles.xml']},
     install_requires=['setuptools'],
     zip_safe=True,
     maintainer='sim developers',
@@ -36,8 +36,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'node = sim_node.ros.main:main',
-            'spawn = sim_node.ros.spawn:main',
+            'node = sim_node.ros.node.main:main',
+            'spawn = sim_node.ros.client.spawn:main',
         ],
         'gymnasium.envs': [
             '__root__ = sim_node.gym.env:register_envs',

@@ -22,7 +22,7 @@ import rclpy
 from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from sim_node.ros.client import SimClient
-from sim_node.ros.trajectories import duration
+from sim_node.ros.commands.trajectories import duration
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 ENTITY = 'arm'

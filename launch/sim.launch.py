@@ -16,7 +16,7 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from sim_node.ros.rviz_config import with_robot_model
+from sim_node.ros.topics.rviz_config import with_robot_model
 
 ARGUMENTS = {
     'scene': ('default', 'scene name (see get_available_worlds) or MJCF file'),

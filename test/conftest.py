@@ -388,7 +388,7 @@ class Watcher:
 
     def robot_description(self, entity: str, timeout: float = 15.0) -> str:
         """Subscribe late (transient local) and return the first description received."""
-        from sim_node.ros.descriptions import DESCRIPTION_QOS
+        from sim_node.ros.topics.descriptions import DESCRIPTION_QOS
         from std_msgs.msg import String
         got = []
         sub = self.node.create_subscription(String, f'/{entity}/robot_description',

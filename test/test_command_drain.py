@@ -2,7 +2,7 @@
 
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
-from sim_node.ros.command_drain import coalesce, joint_names
+from sim_node.ros.commands.command_drain import coalesce, joint_names
 
 
 def wire(names, frame='', value=1.0) -> bytes:

@@ -205,7 +205,7 @@ def test_meshes_are_files_rviz_can_read_and_the_description_goes_with_its_entity
 def test_the_launch_files_robot_model_display_reads_our_topic_and_frames(sim, watch):
     """``entity:=robot``: RViz's RobotModel reads the description and finds every link's frame."""
     from conftest import installed_prefix
-    from sim_node.ros.rviz_config import with_robot_model
+    from sim_node.ros.topics.rviz_config import with_robot_model
     import yaml
     base = (installed_prefix() / 'share' / 'sim' / 'rviz' / 'sim.rviz').read_text()
     config = yaml.safe_load(with_robot_model(base, 'robot'))

@@ -1,7 +1,8 @@
 """
 The node gives memory back: its RSS after reset cycles, a spawn/delete storm, refused requests.
 
-And the process settings that make it so (:mod:`sim_node.ros.middleware`) yield to the user's own.
+And the process settings that make it so (:mod:`sim_node.ros.node.middleware`) yield to the
+user's own.
 """
 
 import os

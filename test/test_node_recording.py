@@ -42,7 +42,7 @@ def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_cont
     from rclpy.action import ActionClient
     from rosbags.rosbag2 import Reader
     from sim_node.ros.client import SimClient
-    from sim_node.ros.trajectories import duration
+    from sim_node.ros.commands.trajectories import duration
     from trajectory_msgs.msg import JointTrajectoryPoint
     folder = tmp_path / 'run'
     node = NodeProcess(f'record:={folder}', 'record_cameras:=true', 'camera_rate_hz:=5.0',

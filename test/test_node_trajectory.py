@@ -15,7 +15,7 @@ from control_msgs.msg import JointTolerance, JointTrajectoryControllerState
 import pytest
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
-from sim_node.ros.trajectories import duration
+from sim_node.ros.commands.trajectories import duration
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 ARM = TWO_JOINT_ARM

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
-from sim_node.ros.trajectories import duration
+from sim_node.ros.commands.trajectories import duration
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'ros_env'))

@@ -344,7 +344,7 @@ def test_the_front_ends_follow_on_state_and_never_ask_for_the_state_in_a_loop():
     """The window, the browser view and the node's status read no Session.state."""
     import ast
     for path in ('sim_node/view/source.py', 'sim_node/view/window.py', 'sim_node/view/web.py',
-                 'sim_node/ros/status.py'):
+                 'sim_node/ros/node/status.py'):
         tree = ast.parse((ROOT / path).read_text())
         reads = [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Attribute)
                  and n.attr == 'state' and isinstance(n.value, ast.Attribute)

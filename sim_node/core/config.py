@@ -8,7 +8,7 @@ class WorldConfig:
     """
     Configuration of a :class:`~sim_node.core.world.World` and its stepping loop.
 
-    The node declares its ROS parameters from these fields (``sim_node.ros.params``).
+    The node declares its ROS parameters from these fields (``sim_node.ros.node.params``).
     """
 
     #: Wall-clock pacing: 1.0 is real time, 2.0 twice as fast, 0 as fast as possible.

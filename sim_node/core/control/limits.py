@@ -14,7 +14,7 @@ The readers take the limits from a controller's flattened YAML:
   ``max_position`` is signed, ``min_position`` defaulting to minus it. Traction slowing
   down uses the ``*_deceleration`` limits.
 
-ROS-free; :mod:`sim_node.ros.controllers` and :mod:`sim_node.ros.steering` use it.
+ROS-free; :mod:`sim_node.ros.control.controllers` and :mod:`sim_node.ros.control.steering` use it.
 """
 
 from dataclasses import dataclass

@@ -12,7 +12,7 @@ switch if any controller cannot switch; ``BEST_EFFORT`` switches those that can;
 ``STRICT`` here (no chained controllers, whose order AUTO resolves); ``FORCE_AUTO`` also
 deactivates active controllers that hold an interface a controller to activate claims.
 
-:mod:`sim_node.ros.controller_manager` serves it on the wire; :mod:`.controller_types` says
+:mod:`sim_node.ros.control.controller_manager` serves it on the wire; :mod:`.controller_types` says
 what each controller type claims and needs.
 """
 

@@ -1,7 +1,7 @@
 """
 A mobile base's odometry: its pose in its odometry frame, from its wheels or the ground truth.
 
-ROS-free, used by the node's ``<entity>/odom`` (:mod:`sim_node.ros.bases`).
+ROS-free, used by the node's ``<entity>/odom`` (:mod:`sim_node.ros.commands.bases`).
 """
 
 from dataclasses import dataclass, field

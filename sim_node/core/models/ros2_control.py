@@ -14,7 +14,7 @@ A robot made for Gazebo and ros2_control carries (after xacro):
   ``<ros><namespace>``.
 
 :func:`read` returns a :class:`Ros2Control` of it, with the robot's own names; the node serves
-its controller manager (:mod:`sim_node.ros.controller_manager`). ROS-free.
+its controller manager (:mod:`sim_node.ros.control.controller_manager`). ROS-free.
 """
 
 from dataclasses import dataclass, field

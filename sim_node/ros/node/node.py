@@ -30,24 +30,24 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from . import instances, params
-from .bases import BaseControllers
-from .command_drain import CommandDrain
-from .controller_manager import ControllerManagers
-from .descriptions import default_mesh_dir, RobotDescriptions
-from .perception import Perception
-from .publishing import ModelTopics, StatePublisher
-from .recording import Recording
-from .services import Services
 from .status import Status
-from .trajectories import TrajectoryServers
-from ..core.config import WorldConfig
-from ..core.errors import InvalidArgumentError, SimError
-from ..core.models import resources
-from ..core.records import EFFORT, POSITION, VELOCITY
-from ..record.bag import Limits
-from ..session import Session
-from ..view import web
-from ..view.window import check_display, Window
+from ..commands.bases import BaseControllers
+from ..commands.command_drain import CommandDrain
+from ..commands.trajectories import TrajectoryServers
+from ..control.controller_manager import ControllerManagers
+from ..services.services import Services
+from ..topics.descriptions import default_mesh_dir, RobotDescriptions
+from ..topics.perception import Perception
+from ..topics.publishing import ModelTopics, StatePublisher
+from ..topics.recording import Recording
+from ...core.config import WorldConfig
+from ...core.errors import InvalidArgumentError, SimError
+from ...core.models import resources
+from ...core.records import EFFORT, POSITION, VELOCITY
+from ...record.bag import Limits
+from ...session import Session
+from ...view import web
+from ...view.window import check_display, Window
 
 NODE_NAME = 'sim'
 #: How often the housekeeping timer runs: the `paused` parameter, log lines, /diagnostics.

@@ -24,9 +24,9 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import NO_EVENTS, NO_SUB_EVENTS, Runtime
-from .trajectories import finish, LeavableActionServer, point, seconds, tolerances
-from ..core.control import trajectory
-from ..core.errors import SimError
+from ..commands.trajectories import finish, LeavableActionServer, point, seconds, tolerances
+from ...core.control import trajectory
+from ...core.errors import SimError
 
 ERR_PARTIAL = ('the goal names {given} of joints {joints}: a goal must name them all unless '
                'allow_partial_joints_goal is true')

@@ -29,10 +29,10 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from .params import Frames
-from .qos import LATCHED_QOS
-from ..core.records import Snapshot
-from ..session import Loaded
+from ..node.params import Frames
+from ..node.qos import LATCHED_QOS
+from ...core.records import Snapshot
+from ...session import Loaded
 
 
 def _next_deadline(deadline: float, period: float, now: float) -> float:

@@ -105,7 +105,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 def _spawn(node, args: argparse.Namespace) -> int:
     """Find the description, call the service, say what happened; return the exit status."""
-    from .client import SimClient, SimServiceError
+    from .sim_client import SimClient, SimServiceError
     uri, text = '', ''
     if args.topic:
         text = _from_topic(node, args.topic, args.timeout)

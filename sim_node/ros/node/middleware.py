@@ -17,7 +17,7 @@ Two things kept a refused request's memory for the life of the node (measured wi
 import os
 from pathlib import Path
 
-from ..core import memory
+from ...core import memory
 
 PROFILES = Path(__file__).with_name('fastdds_profiles.xml')
 

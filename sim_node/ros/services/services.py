@@ -22,15 +22,15 @@ from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Res
                                        SimulationState, SimulatorFeatures, Spawnable,
                                        WorldResource)
 
-from .params import Frames
-from .qos import FEEDBACK_QOS, SERVICE_QOS
-from .. import session as lifecycle
-from ..core import query
-from ..core.errors import (FeatureUnsupportedError, IncorrectTransitionError, NotFoundError,
-                           SimError)
-from ..core.models import resources, sources
-from ..core.world import World
-from ..session import Loaded, Session
+from ..node.params import Frames
+from ..node.qos import FEEDBACK_QOS, SERVICE_QOS
+from ... import session as lifecycle
+from ...core import query
+from ...core.errors import (FeatureUnsupportedError, IncorrectTransitionError, NotFoundError,
+                            SimError)
+from ...core.models import resources, sources
+from ...core.world import World
+from ...session import Loaded, Session
 
 MAX_RESOURCE_STRING_BYTES = 5_000_000
 #: Most steps simulate_steps runs between two looks for a cancel (a few ms of physics).

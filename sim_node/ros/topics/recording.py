@@ -15,7 +15,7 @@ from typing import Callable, Optional
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 
-from ..record.bag import BagWriter, Limits
+from ...record.bag import BagWriter, Limits
 
 #: Never recorded: ROS's own plumbing.
 NOT_RECORDED = ('/parameter_events', '/rosout', '/_sim_instances')

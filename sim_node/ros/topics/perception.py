@@ -24,15 +24,15 @@ from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
 from .contacts import ContactPublishers
-from ..core import quat
-from ..core.config import PerceptionConfig
-from ..core.devices.cameras import CameraRig, select
-from ..core.devices.contacts import ContactReport
-from ..core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
-from ..core.devices.rendering import RenderingUnavailableError
-from ..core.records import ModelInfo, Snapshot
-from ..core.stepping.sampling import JointSample
-from ..session import Loaded
+from ...core import quat
+from ...core.config import PerceptionConfig
+from ...core.devices.cameras import CameraRig, select
+from ...core.devices.contacts import ContactReport
+from ...core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
+from ...core.devices.rendering import RenderingUnavailableError
+from ...core.records import ModelInfo, Snapshot
+from ...core.stepping.sampling import JointSample
+from ...session import Loaded
 
 #: For sensors sampled at their own rates: the samples of one publishing tick at 1 kHz fit.
 SAMPLED_QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,

@@ -27,10 +27,10 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.waitable import NumberOfEntities
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from ..core.control import trajectory
-from ..core.errors import SimError
-from ..core.records import ModelInfo, Snapshot
-from ..session import Loaded, Session
+from ...core.control import trajectory
+from ...core.errors import SimError
+from ...core.records import ModelInfo, Snapshot
+from ...session import Loaded, Session
 
 ERR_MULTI_DOF = 'multi-DOF trajectories are not supported: send joint trajectories'
 ERR_GONE = 'entity {entity!r} is not in the world (any more)'

@@ -20,8 +20,8 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from sensor_msgs.msg import JointState
 
 from .controllers import Runtime
-from .trajectories import LeavableActionServer
-from ..core.control import controller_types as types
+from ..commands.trajectories import LeavableActionServer
+from ...core.control import controller_types as types
 
 
 class GripperAction(Runtime):

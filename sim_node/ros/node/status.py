@@ -21,7 +21,7 @@ from msg_adapters import diagnostics
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..session import LOADING_WORLD, NO_WORLD, PLAYING, Session, StateEvent
+from ...session import LOADING_WORLD, NO_WORLD, PLAYING, Session, StateEvent
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
 REFUSAL_SHOWN_SEC = 10.0

@@ -10,9 +10,9 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
 from . import middleware
 from .params import parameter_error
-from ..core import memory
-from ..core.errors import SimError
-from ..core.models import asset_store
+from ...core import memory
+from ...core.errors import SimError
+from ...core.models import asset_store
 
 #: How long a thread may hold the GIL before another that waits for it gets it (s; Python's
 #: default is 0.005). The stepping loop needs the GIL for a moment between batches of

@@ -38,12 +38,12 @@ from .gripper import GripperAction
 from .jtc import TrajectoryController
 from .steering import Steering
 from .topic_hardware import TopicHardware
-from ..core.control import controller_types, manager as core
-from ..core.errors import SimError
-from ..core.models import controller_yaml
-from ..core.models.paths import inside_roots
-from ..core.records import ModelInfo, Snapshot
-from ..session import Loaded, Session
+from ...core.control import controller_types, manager as core
+from ...core.errors import SimError
+from ...core.models import controller_yaml
+from ...core.models.paths import inside_roots
+from ...core.records import ModelInfo, Snapshot
+from ...session import Loaded, Session
 
 #: The most joint samples of one robot its controllers take per publishing tick.
 MAX_BURST = 20

@@ -34,8 +34,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
-from ..core.control import controller_types as types
-from ..core.control import diff_drive, limits
+from ...core.control import controller_types as types
+from ...core.control import diff_drive, limits
 
 NO_EVENTS = {'event_callbacks': PublisherEventCallbacks(use_default_callbacks=False)}
 NO_SUB_EVENTS = {'event_callbacks': SubscriptionEventCallbacks(use_default_callbacks=False)}

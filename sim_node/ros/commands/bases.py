@@ -29,11 +29,11 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from tf2_msgs.msg import TFMessage
 
-from .params import Frames
-from ..core.control import bases
-from ..core.errors import SimError
-from ..core.records import Snapshot
-from ..session import Loaded, Session
+from ..node.params import Frames
+from ...core.control import bases
+from ...core.errors import SimError
+from ...core.records import Snapshot
+from ...session import Loaded, Session
 
 
 class _Base:

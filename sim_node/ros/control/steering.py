@@ -26,8 +26,8 @@ from nav_msgs.msg import Odometry
 from tf2_msgs.msg import TFMessage
 
 from .controllers import BaseController, NO_EVENTS, publish_odometry
-from ..core.control import controller_types as types
-from ..core.control import limits, steering
+from ...core.control import controller_types as types
+from ...core.control import limits, steering
 
 
 class Steering(BaseController):

@@ -1,0 +1,10 @@
+"""
+What the node publishes.
+
+What the node publishes: :mod:`.publishing` (/tf, /tf_static, markers, joint_states and /clock
+from the loop's snapshots, on threads of their own), :mod:`.perception` (cameras, laser scans,
+IMUs and MuJoCo sensors as ROS messages), :mod:`.contacts` (contact reports as Gazebo's contact
+sensor sends them), :mod:`.descriptions` (``<entity>/robot_description`` for RViz and MoveIt),
+:mod:`.rviz_config` (RViz configurations) and :mod:`.recording` (the ``record`` parameter:
+what goes out, written into rosbag2 bags).
+"""
