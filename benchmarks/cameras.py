@@ -25,10 +25,10 @@ import threading
 import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from sim_node.core.cameras import CameraRig  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
-from sim_node.core.devices.cameras import CameraRig  # noqa: E402
 from sim_node.core.devices.rendering import choose_backend  # noqa: E402
-from sim_node.core.stepping.loop import SimLoop  # noqa: E402
+from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from verdict import verdict  # noqa: E402, I100

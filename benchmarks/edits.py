@@ -20,8 +20,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from sim_node.core import sources  # noqa: E402
+from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.stepping.lock import WorldLock  # noqa: E402, I100
-from sim_node.core.stepping.loop import SimLoop  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from box_scene import box_scene  # noqa: E402, I100

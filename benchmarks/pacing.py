@@ -34,7 +34,7 @@ SCENE = str(ROOT / 'scenes' / 'default.xml')
 
 def loop_of(**config):
     from sim_node.core.config import WorldConfig
-    from sim_node.core.stepping.loop import SimLoop
+    from sim_node.core.loop import SimLoop
     from sim_node.core.world import World
     loop = SimLoop(World.from_file(SCENE, WorldConfig(**config)))
     loop.start()

@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sim_node.core import sources  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
-from sim_node.core.stepping.loop import SimLoop  # noqa: E402
+from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
 from verdict import summary, verdict  # noqa: E402, I100
 

@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT / 'benchmarks'))
 from box_scene import box_scene  # noqa: E402, I100
 from sim_node.core import sources  # noqa: E402
 from sim_node.core.config import WorldConfig  # noqa: E402
-from sim_node.core.stepping.loop import SimLoop  # noqa: E402
+from sim_node.core.loop import SimLoop  # noqa: E402
 from sim_node.core.world import World  # noqa: E402
 from verdict import verdict  # noqa: E402, I100
 

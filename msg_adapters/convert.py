@@ -14,9 +14,9 @@ from geometry_msgs.msg import (Accel, Point, Pose, Quaternion, Transform, Transf
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from sim_node.core import errors, quat
+from sim_node.core.base import errors, quat
+from sim_node.core.base.records import DYNAMIC, ModelInfo, ROBOT, Snapshot, STATIC
 from sim_node.core.query import Region
-from sim_node.core.records import DYNAMIC, ModelInfo, ROBOT, Snapshot, STATIC
 from simulation_interfaces.msg import Bounds, EntityCategory, EntityState, Result, SimulationState
 from tf2_msgs.msg import TFMessage
 

@@ -3,7 +3,7 @@
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from sim_node.core.records import LoopStatus
+from sim_node.core.base.records import LoopStatus
 
 from .convert import stamp
 

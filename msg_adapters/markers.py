@@ -8,7 +8,7 @@ model info.
 from typing import Sequence
 
 import numpy as np
-from sim_node.core.records import GeomVisual, ModelInfo
+from sim_node.core.base.records import GeomVisual, ModelInfo
 
 from .cdr import CdrWriter, split_time
 

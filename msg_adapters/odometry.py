@@ -12,7 +12,7 @@ from typing import Sequence
 
 from nav_msgs.msg import Odometry
 import numpy as np
-from sim_node.core import quat
+from sim_node.core.base import quat
 from sim_node.core.control.bases import Odometry as Integrator
 from sim_node.core.control.bases import yaw_of
 

@@ -19,10 +19,10 @@ from typing import Optional, Sequence
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
 from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, PointField, Range
-from sim_node.core import quat
-from sim_node.core.devices.cameras import OPTICAL_FROM_MUJOCO_WXYZ
-from sim_node.core.devices.lidar import LaserConfig, LaserReading
-from sim_node.core.records import CameraSpec, EntityRecord, ModelInfo, SensorSpec, SiteSpec
+from sim_node.core.base import quat
+from sim_node.core.base.records import CameraSpec, EntityRecord, ModelInfo, SensorSpec, SiteSpec
+from sim_node.core.cameras import OPTICAL_FROM_MUJOCO_WXYZ
+from sim_node.core.lidar import LaserConfig, LaserReading
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from tf2_msgs.msg import TFMessage
 

@@ -11,7 +11,7 @@ everything again: listeners handle that by the time jump.
 from typing import Optional
 
 import numpy as np
-from sim_node.core.records import ModelInfo, Snapshot
+from sim_node.core.base.records import ModelInfo, Snapshot
 
 from . import convert
 

@@ -1,3 +1,3 @@
 """Older path of :mod:`sim_node.ros.node.qos`, kept for existing scripts."""
 
-from .ros.node.qos import *  # noqa: F401,F403
+from .ros.settings.qos import *  # noqa: F401,F403

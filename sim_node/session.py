@@ -2,7 +2,7 @@
 The simulation that is loaded now: one owner for the world, its loop and its lifecycle. No ROS.
 
 A :class:`Session` holds the loaded :class:`~sim_node.core.world.World` and its stepping
-:class:`~sim_node.core.stepping.loop.SimLoop`, and swaps them as one (:meth:`Session.load`,
+:class:`~sim_node.core.loop.SimLoop`, and swaps them as one (:meth:`Session.load`,
 :meth:`Session.unload`). Its state is one machine, the single source of what
 ``get_simulation_state`` answers and of everything that shows it (/diagnostics, the `paused`
 parameter, a window's overlay, the browser view). Every change of it, whoever asked for it or
@@ -22,7 +22,7 @@ still runs (a limit, a divergence) is applied to the state it goes back to if th
 
 The loop reports, the session decides: the loop holds by itself when a limit is reached, the
 physics diverges or it fails (it must not take another step), and reports it
-(:meth:`SimLoop.take_reports <sim_node.core.stepping.loop.SimLoop.take_reports>`), waking the
+(:meth:`SimLoop.take_reports <sim_node.core.loop.SimLoop.take_reports>`), waking the
 session's thread, which applies the report at once; the session also takes the reports before it
 answers any question or request, so its state never lags the loop's. :meth:`Session.set_state`
 applies the standard's rules for a requested state (already there, not allowed, tried and
@@ -39,7 +39,7 @@ delivered as the newest one when the listener's turn comes (under a burst of edi
 replaced before that are skipped, as a publisher would skip them); state events are delivered
 each, in order. :meth:`sync` waits until every listener has seen the current model (a script or
 test that must see the listeners' work before it goes on). Freed heap goes back to the system
-from a listener of the same kind (:class:`~sim_node.core.memory.HeapTrimmer`).
+from a listener of the same kind (:class:`~sim_node.core.base.memory.HeapTrimmer`).
 
 Threads: the session's lock (which world, the lifecycle state) is taken before any world or
 loop lock and never held while calling a listener; a mailbox's lock is a leaf.
@@ -52,12 +52,12 @@ import threading
 import time
 from typing import Callable, Iterator, NamedTuple, Optional
 
-from .core.config import WorldConfig
-from .core.errors import (AlreadyInStateError, IncorrectStateError, IncorrectTransitionError,
-                          NoWorldError, StateTransitionError)
-from .core.memory import HeapTrimmer
-from .core.records import RESET_ALL
-from .core.stepping.loop import SimLoop
+from .core.base.config import WorldConfig
+from .core.base.errors import (AlreadyInStateError, IncorrectStateError, IncorrectTransitionError,
+                               NoWorldError, StateTransitionError)
+from .core.base.memory import HeapTrimmer
+from .core.base.records import RESET_ALL
+from .core.loop import SimLoop
 from .core.world import World
 from .listeners import Listener, Mailbox, StateListener
 
@@ -432,7 +432,7 @@ class Session:
         Run `n` steps while paused (or stopped: the simulation is then paused); block until done.
 
         Returns the steps taken; raises as
-        :meth:`SimLoop.step <sim_node.core.stepping.loop.SimLoop.step>`, and
+        :meth:`SimLoop.step <sim_node.core.loop.SimLoop.step>`, and
         IncorrectStateError while the loop has failed.
         """
         with self._lock:

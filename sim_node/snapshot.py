@@ -10,8 +10,8 @@ seconds first (objects come to rest). Needs no ROS and no display (see
 import argparse
 import sys
 
-from .core.devices.cameras import picture
-from .core.errors import SimError
+from .core.base.errors import SimError
+from .core.cameras import picture
 from .core.models.resources import installed_scenes_dir, resolve_scene
 from .core.world import World
 

@@ -12,7 +12,7 @@ import gymnasium
 from msg_adapters import convert
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
-from sim_node.core import quat
+from sim_node.core.base import quat
 from sim_node.core.models import sources
 from sim_node.core.world import World
 from tf2_msgs.msg import TFMessage

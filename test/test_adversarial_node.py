@@ -16,7 +16,7 @@ import time
 from conftest import returns, serve_node, wait_for, Watcher
 import pytest
 from sim_node.ros.client import SimClient, SimServiceError
-from sim_node.ros.node.qos import SERVICE_QOS
+from sim_node.ros.settings.qos import SERVICE_QOS
 from simulation_interfaces.msg import Result, SimulationState
 from simulation_interfaces.srv import SetEntityState, SpawnEntities, SpawnEntity
 
@@ -68,7 +68,7 @@ def burst(n: int, make_request) -> list:
     executor = SingleThreadedExecutor()  # spun by this thread only (see _spin_until)
     try:
         srv_type, service = make_request(None)
-        # The clients keep a deep reply history, as SimClient does (see sim_node.ros.node.qos).
+        # The clients keep a deep reply history, as SimClient does (see sim_node.ros.settings.qos).
         clients = [nd.create_client(srv_type, service, qos_profile=SERVICE_QOS) for nd in nodes]
         for c in clients:
             assert c.wait_for_service(timeout_sec=20)
@@ -131,7 +131,7 @@ def assert_burst_served(codes: list, served: bool) -> None:
 
     The node dropped 38 of 50 requests before its request queue was deepened; clients with
     ROS's default reply depth of 10 lost 9 to 14 answers of 50 with both cores busy (replies
-    to the other clients pushed theirs out, see sim_node.ros.node.qos).
+    to the other clients pushed theirs out, see sim_node.ros.settings.qos).
     """
     assert served
     assert codes == [Result.RESULT_OK] * len(codes), codes

@@ -13,10 +13,10 @@ import struct
 from conftest import DEFAULT_SCENE, returns
 import numpy as np
 import pytest
+from sim_node.core.base.memory import release_free_memory
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import (MissingAssetsError, NameInvalidError, ResourceParseError,
                                   UnsupportedAssetsError, UnsupportedFormatError)
-from sim_node.core.memory import release_free_memory
 from sim_node.core.models import assets, sources
 from sim_node.core.world import World
 import trimesh
@@ -276,7 +276,7 @@ def test_the_body_cap_refuses_a_spawn_past_it_and_says_which_limit():
 
 def test_a_busy_trim_waits_until_enough_is_free_then_memory_goes_back():
     """The trim stalls allocations: a caller that asks for a lot free gets no trim short of it."""
-    from sim_node.core.memory import free_heap_bytes
+    from sim_node.core.base.memory import free_heap_bytes
     if free_heap_bytes() is None:
         pytest.skip('not glibc 2.33 or later: no mallinfo2, every trim is made')
     blocks = [bytearray(4000) for _ in range(50_000)]  # 200 MB of heap blocks

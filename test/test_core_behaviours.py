@@ -16,11 +16,11 @@ import mujoco
 import numpy as np
 import pytest
 from sim_node.core.config import WorldConfig
-from sim_node.core.errors import (FeatureUnsupportedError, InvalidArgumentError,
-                                  InvalidPoseError, NameNotUniqueError, ResourceParseError)
+from sim_node.core.errors import (FeatureUnsupportedError, InvalidArgumentError, InvalidPoseError,
+                                  NameNotUniqueError, ResourceParseError)
+from sim_node.core.loop import SimLoop
 from sim_node.core.models import sources
 from sim_node.core.records import RESET_SPAWNED, RESET_STATE, RESET_TIME
-from sim_node.core.stepping.loop import SimLoop
 from sim_node.core.world import World
 from sim_node.simulation import EMPTY_WORLD, Simulation
 
@@ -88,7 +88,7 @@ def test_a_delete_that_fails_while_switching_models_changes_nothing(stage, monke
     w.step(10)
     before = (w.entities(), w.joint_names(), w.generation)
     live = w.stepping.live  # the run phase's parts: public, so that tests can reach them
-    targets = {'index': (sys.modules['sim_node.core.index'], 'build'),
+    targets = {'index': (sys.modules['sim_node.core.compiled.index'], 'build'),
                'commands': (live.control, 'bind'), 'guard': (live.guard, 'bind')}
     owner, attr = targets[stage]
     real, calls = getattr(owner, attr), []

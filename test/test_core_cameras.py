@@ -14,9 +14,9 @@ import sys
 from msg_adapters import perception as pm
 import numpy as np
 import pytest
-from sim_node.core import quat
-from sim_node.core.devices.cameras import CameraRig
-from sim_node.core.devices.lidar import LaserConfig, LaserScanner
+from sim_node.core.base import quat
+from sim_node.core.cameras import CameraRig
+from sim_node.core.lidar import LaserConfig, LaserScanner
 from sim_node.core.models import sources
 from sim_node.core.world import World
 

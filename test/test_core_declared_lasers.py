@@ -15,8 +15,8 @@ import math
 from conftest import DEFAULT_SCENE
 import numpy as np
 import pytest
-from sim_node.core.devices.lidar import LaserConfig, LaserScanner, sweep_of
 from sim_node.core.errors import NamespaceInvalidError
+from sim_node.core.lidar import LaserConfig, LaserScanner, sweep_of
 from sim_node.core.models import sensor_tags, sources
 from sim_node.core.world import World
 

@@ -15,7 +15,7 @@ from conftest import DEFAULT_SCENE
 import pytest
 from sim_node.core.config import WorldConfig
 from sim_node.core.errors import IncorrectStateError
-from sim_node.core.stepping.loop import DIVERGED, DIVERGED_ON, FAILED, LIMIT, SimLoop
+from sim_node.core.loop import DIVERGED, DIVERGED_ON, FAILED, LIMIT, SimLoop
 from sim_node.core.world import World
 
 
@@ -248,7 +248,7 @@ def _ends_in_a_subprocess(body: str) -> None:
     code = textwrap.dedent(f"""
         import threading, time
         from sim_node.core.config import WorldConfig
-        from sim_node.core.stepping.loop import SimLoop
+        from sim_node.core.loop import SimLoop
         from sim_node.core.world import World
         {textwrap.indent(textwrap.dedent(body), ' ' * 8).strip()}
         print('done')

@@ -13,8 +13,8 @@ import time
 from conftest import DEFAULT_SCENE
 import pytest
 from sim_node.core.config import WorldConfig
+from sim_node.core.loop import SimLoop
 from sim_node.core.records import RESET_SPAWNED
-from sim_node.core.stepping.loop import SimLoop
 from sim_node.core.stepping.rate import RATE_WINDOW_SEC
 from sim_node.core.world import World
 

@@ -93,7 +93,7 @@ def test_spawn_and_delete_keep_every_other_state_bit_for_bit(world):
 
 def test_compacting_the_spec_keeps_the_state_bit_for_bit(world):
     """Every 32nd removal rewrites the spec (an extra generation); the state stays as it was."""
-    from sim_node.core.editing.design import COMPACT_AFTER_REMOVALS
+    from sim_node.core.stepping.design import COMPACT_AFTER_REMOVALS
     world.spawn('arm', sources.from_model_text(ARM_MJCF), position=[-1, 0, 0.5])
     names = [f'b{i}' for i in range(COMPACT_AFTER_REMOVALS)]
     for i, name in enumerate(names):
@@ -121,7 +121,7 @@ def test_contact_settings_stay_with_their_entity_through_deletes_and_compaction(
     A new entity of a deleted one's name starts with the world's; a scene entity keeps its own
     through 32 removals (a compaction) and later changes of the world's default.
     """
-    from sim_node.core.editing.design import COMPACT_AFTER_REMOVALS
+    from sim_node.core.stepping.design import COMPACT_AFTER_REMOVALS
     world.set_default_contact(friction=[0.6, 0.005, 0.0001])
     world.set_friction('box_a', 0.2)
     world.spawn('crate', box(), position=[2, 0, 0.5])
@@ -570,8 +570,8 @@ _EVERY_STATE_PART = """
 
 def test_the_loops_numpy_state_copy_is_mj_getState_bit_for_bit():
     """Every part of the integration state, each set to something, in MuJoCo's order."""
-    from sim_node.core.index import STATE_SPEC
-    from sim_node.core.state import state_copier
+    from sim_node.core.compiled.index import STATE_SPEC
+    from sim_node.core.compiled.state import state_copier
     m = mujoco.MjModel.from_xml_string(_EVERY_STATE_PART)
     d = mujoco.MjData(m)
     d.ctrl[:] = 0.7
@@ -632,7 +632,7 @@ def test_generated_textures_keep_their_pixels_through_spawns_deletes_and_compact
 
     What a camera sees must not change: the pixels are those MuJoCo makes from the files.
     """
-    from sim_node.core.editing.design import COMPACT_AFTER_REMOVALS
+    from sim_node.core.stepping.design import COMPACT_AFTER_REMOVALS
     sky = mujoco.MjModel.from_xml_path(str(DEFAULT_SCENE))
     grid = mujoco.MjModel.from_xml_string(CHECKERED)
 

@@ -54,9 +54,9 @@ def test_local_interface_definitions_are_hidden_from_colcon_workspaces():
 
 
 def test_core_imports_no_ros():
-    code = ('import sys; import sim_node.core.world, sim_node.core.stepping.loop, '
-            'sim_node.core.models.sources, sim_node.core.devices.cameras, '
-            'sim_node.core.devices.lidar, sim_node.session, sim_node.simulation; '
+    code = ('import sys; import sim_node.core.world, sim_node.core.loop, '
+            'sim_node.core.models.sources, sim_node.core.cameras, '
+            'sim_node.core.lidar, sim_node.session, sim_node.simulation; '
             'bad = [m for m in sys.modules if m.split(".")[0] in '
             '("rclpy", "geometry_msgs", "std_msgs", "simulation_interfaces", "tf2_msgs")]; '
             'print(bad); sys.exit(1 if bad else 0)')

@@ -141,7 +141,7 @@ def test_the_renderer_runs_below_the_physics(node, sensors, watcher):
 
 
 def test_a_spawned_ball_appears_where_camera_info_and_tf_predict(sim, sensors, watcher):
-    from sim_node.core import quat
+    from sim_node.core.base import quat
     sim.spawn('ball', resource_string=BALL_MJCF, position=list(BALL))
     spawned_at = sim.entity_state('ball')['stamp']  # a simulated time the ball was there
     info = sensors.after(f'{CAM}/camera_info', spawned_at)

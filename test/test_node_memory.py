@@ -140,7 +140,7 @@ def test_the_node_loads_its_fast_dds_profiles_only_where_the_user_set_none(given
 _FAULTS_PER_COPY = """
 import resource, sys
 import mujoco
-from sim_node.core import memory
+from sim_node.core.base import memory
 if sys.argv[1] == 'node':
     memory.keep_large_blocks_mapped()
 spec = mujoco.MjSpec.from_file(sys.argv[2])
@@ -175,7 +175,7 @@ def test_copying_the_default_worlds_spec_faults_no_page_in_with_the_nodes_heap_s
 _TRACKED = """
 import gc, sys
 from sim_node.ros import node  # noqa: F401 (everything the node imports)
-from sim_node.core import memory
+from sim_node.core.base import memory
 from sim_node.core.world import World
 world = World.from_file(sys.argv[1])
 before = len(gc.get_objects())

@@ -235,7 +235,7 @@ def test_a_held_world_is_stepped_by_its_owner_alone_and_its_listeners_follow_it(
 
 def test_the_loop_reports_what_it_did_by_itself_and_the_session_decides():
     """A limit holds the loop at once; the session's state follows from the loop's report."""
-    from sim_node.core.stepping.loop import LIMIT, SimLoop
+    from sim_node.core.loop import LIMIT, SimLoop
     loop = SimLoop(World.from_file(str(DEFAULT_SCENE), WorldConfig(real_time_factor=0,
                                                                    max_steps=50)))
     loop.start()
@@ -282,7 +282,7 @@ def test_the_loop_keeps_no_lifecycle_of_its_own():
     """No state constants, no paused, failure or stop-reason flags: it holds, steps, reports."""
     import ast
     import inspect
-    from sim_node.core.stepping import loop as loop_module
+    from sim_node.core import loop as loop_module
     for name in ('PLAYING', 'PAUSED', 'STOPPED'):
         assert not hasattr(loop_module, name), name
     tree = ast.parse(inspect.getsource(loop_module.SimLoop))

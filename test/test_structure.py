@@ -172,13 +172,13 @@ def test_every_link_of_the_readme_and_docs_leads_somewhere(doc):
 
 @pytest.mark.parametrize('old, new, name', [
     ('sim_node.core.sources', 'sim_node.core.models.sources', 'primitive'),
-    ('sim_node.core.cameras', 'sim_node.core.devices.cameras', 'CameraRig'),
-    ('sim_node.core.lidar', 'sim_node.core.devices.lidar', 'LaserScanner'),
-    ('sim_node.core.loop', 'sim_node.core.stepping.loop', 'SimLoop'),
     ('sim_node.core.bases', 'sim_node.core.control.bases', 'Odometry'),
+    ('sim_node.core.config', 'sim_node.core.base.config', 'WorldConfig'),
+    ('sim_node.core.errors', 'sim_node.core.base.errors', 'SimError'),
+    ('sim_node.core.records', 'sim_node.core.base.records', 'Snapshot'),
     ('sim_node.gym_env', 'sim_node.gym.env', 'Task'),
     ('sim_node.client', 'sim_node.ros.client', 'SimClient'),
-    ('sim_node.qos', 'sim_node.ros.node.qos', 'SERVICE_QOS'),
+    ('sim_node.qos', 'sim_node.ros.settings.qos', 'SERVICE_QOS'),
 ])
 def test_the_import_paths_older_code_uses_still_work(old, new, name):
     import importlib
@@ -279,6 +279,36 @@ def test_the_core_imports_nothing_above_it_and_no_module_is_in_an_import_cycle()
     assert import_cycles(graph) == []
 
 
+def folder_of(module: str, root: Path = ROOT) -> str:
+    """Return the package (folder) a module lives in; a package is its own folder."""
+    path = root / module.replace('.', '/')
+    return module if (path / '__init__.py').is_file() else module.rpartition('.')[0]
+
+
+def folder_imports(graph: dict, root: Path = ROOT) -> dict:
+    """Return the import graph between folders: {folder: {(line, folder)}} of `graph`'s."""
+    out: dict = {}
+    for mod, deps in graph.items():
+        here = folder_of(mod, root)
+        out.setdefault(here, set())
+        out[here] |= {(line, folder_of(d, root)) for line, d in deps
+                      if folder_of(d, root) != here}
+    return out
+
+
+def test_folders_are_layers_no_import_between_folders_runs_back_up():
+    """
+    Tarjan over folders as well as modules (issue 51).
+
+    At d48b79a, core's root, stepping/, editing/, control/, models/ and devices/ formed one
+    cycle (the loop and the cameras read the World facade above them; the index read devices),
+    and the ROS layer's files sat in one folder.
+    """
+    graph = folder_imports(package_imports(modules()))
+    assert 'sim_node.core.stepping' in graph and 'sim_node.ros.control' in graph
+    assert import_cycles(graph) == []
+
+
 def test_the_import_check_sees_a_function_level_import_and_a_cycle(tmp_path):
     """The checker itself, on a package shaped like the one before issue 41."""
     core = tmp_path / 'sim_node' / 'core'
@@ -295,6 +325,9 @@ def test_the_import_check_sees_a_function_level_import_and_a_cycle(tmp_path):
     graph = package_imports(sorted(tmp_path.rglob('*.py')), tmp_path)
     assert core_upward_imports(graph) == ['sim_node.core.loop:5 imports sim_node.view.window']
     assert import_cycles(graph) == [['sim_node.core.loop', 'sim_node.view.window']]
+    # Between folders: core -> view -> core.
+    assert import_cycles(folder_imports(graph, tmp_path)) == [['sim_node.core',
+                                                               'sim_node.view']]
 
 
 # ------------------------------------------------------------------ core/ by job, with maps
@@ -350,14 +383,14 @@ def test_the_map_check_sees_a_module_left_out_and_one_that_is_gone(tmp_path):
 
 
 def test_the_parameter_reference_is_the_table_the_node_declares_from():
-    """docs/parameters.md holds what ``python -m sim_node.ros.node.parameter_table`` prints."""
-    from sim_node.ros.node.parameter_table import markdown, PARAMETERS
+    """docs/parameters.md holds what ``python -m sim_node.ros.settings.parameter_table`` prints."""
+    from sim_node.ros.settings.parameter_table import markdown, PARAMETERS
     text = (ROOT / 'docs' / 'parameters.md').read_text()
     block = re.search(r'<!-- parameters:[^\n]*-->\n(.*?)<!-- /parameters -->', text, re.S)
     assert block, 'docs/parameters.md has no generated block'
     assert block.group(1) == markdown(), \
-        'docs/parameters.md is out of date: python -m sim_node.ros.node.parameter_table'
+        'docs/parameters.md is out of date: python -m sim_node.ros.settings.parameter_table'
     names = [p.name for p in PARAMETERS]
     assert len(names) == len(set(names)) > 50
-    params = (ROOT / 'sim_node' / 'ros' / 'node' / 'params.py').read_text()
+    params = (ROOT / 'sim_node' / 'ros' / 'settings' / 'params.py').read_text()
     assert 'declare_parameter(spec.name' in params and params.count('declare_parameter(') == 1

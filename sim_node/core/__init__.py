@@ -1,19 +1,21 @@
 """
 The ROS-free MuJoCo world: no rclpy or message imports here.
 
-Folders by job, beside the facade :mod:`.world` (what every user of the core talks to: the
-lock, reads, stepping, reset, edits; its public methods lock, validate and delegate):
-:mod:`.stepping` (the world lock, the live state, the steps, divergence, the stepping thread),
-:mod:`.editing` (structural edits and state writes through one commit path), :mod:`.control`
-(joint commands, torques, trajectories, mobile bases), :mod:`.models` (what users bring: model
-files, meshes, assets, URDF and xacro) and :mod:`.devices` (cameras, laser scanners, sensor
-groups). Shared by all of them: :mod:`.config` (the one configuration value), :mod:`.errors`
-(typed errors), :mod:`.records` (immutable values: snapshots, states, entity records),
-:mod:`.index` (names and addresses of one compiled model), :mod:`.state` (reading and writing
-the state of one model and data), :mod:`.query` (which entities match a query),
-:mod:`.checks` and :mod:`.quat` (input checks, quaternions), :mod:`.memory` (freed memory given
-back to the system). Older import paths kept for existing scripts: :mod:`.loop`,
-:mod:`.bases`, :mod:`.sources`, :mod:`.cameras`, :mod:`.lidar`.
+Folders that are layers, each importing only those below it (a test runs Tarjan over folders):
+:mod:`.base` at the bottom (configuration, typed errors, immutable records, input checks,
+quaternions, memory given back), then :mod:`.models` (what users bring: model files, meshes,
+assets, URDF and xacro) and :mod:`.devices` (what a model carries that looks at the world:
+sensor groups, contacts, the renderer), :mod:`.compiled` (one compiled model: its index of
+names and addresses, its state read and written), :mod:`.control` (joint commands, torques,
+trajectories, mobile bases, controllers' rules), :mod:`.stepping` (the world lock, the live
+state and its design, the steps, divergence) and :mod:`.editing` (structural edits and state
+writes through one commit path). On top, in this folder, what uses the whole world: the facade
+:mod:`.world` (what every user of the core talks to: the lock, reads, stepping, reset, edits;
+its public methods lock, validate and delegate), :mod:`.loop` (the stepping thread),
+:mod:`.cameras` and :mod:`.lidar` (camera rigs and laser scanners, which read the world through
+it) and :mod:`.query` (which entities match a query). The paths scripts import by, kept:
+:mod:`.config`, :mod:`.errors` and :mod:`.records` (each re-exports its module of
+:mod:`.base`), :mod:`.bases` and :mod:`.sources`.
 
 Threading contract
 ------------------
@@ -34,12 +36,12 @@ Threading contract
 * **Who may take it.** Any thread. MuJoCo releases the GIL while stepping and compiling, so the
   lock is what keeps readers from seeing torn state. A plain lock is not fair: the loop calls
   ``world.stepping.wait_for_callers`` before each batch, and callers waiting for the lock go first.
-* **Who steps.** Only the stepping loop (:class:`~.stepping.loop.SimLoop`, its own thread) calls
+* **Who steps.** Only the stepping loop (:class:`~.loop.SimLoop`, its own thread) calls
   ``World.step`` in the node; a script or the Gym environment that owns its world steps it
   from its own thread instead. Nobody calls ``mj_step`` outside ``World``.
 * **Changes.** Spawn, delete, reset, set-state and physics parameters are validated, then
   applied between steps, all or nothing, through one commit path (``Transaction.change``,
-  :mod:`.editing.transaction`, over the edit phase's state :class:`~.editing.design.Design`):
+  :mod:`.editing.transaction`, over the edit phase's state :class:`~.stepping.design.Design`):
   under
   the lock the edit is planned and the current spec taken; with the lock released a copy of the
   spec is edited and compiled and everything that does not need the live state is prepared

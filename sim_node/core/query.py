@@ -13,7 +13,7 @@ from typing import Optional
 import numpy as np
 import regex
 
-from .errors import InvalidArgumentError
+from .base.errors import InvalidArgumentError
 from .world import World
 
 ERR_REGEX = 'invalid filter regex {pattern!r}: {err}'

@@ -17,22 +17,22 @@ from typing import Callable, Iterator, Optional, Sequence, TypeVar
 import mujoco
 import numpy as np
 
-from . import state
-from .config import WorldConfig
+from .base.config import WorldConfig
+from .base.errors import FeatureUnsupportedError, InvalidArgumentError, ResourceParseError
+from .base.records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
+                           RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
+from .compiled import state
+from .compiled.index import STATE_SPEC
 from .control.bases import COMMAND_TIMEOUT
 from .control.motion import Motion
 from .control.trajectory import TrajectoryHandle
 from .editing import editor
-from .editing.design import Design
 from .editing.edits import Edits
 from .editing.transaction import Transaction
 from .editing.writes import Writes
-from .errors import FeatureUnsupportedError, InvalidArgumentError, ResourceParseError
-from .index import STATE_SPEC
 from .models import asset_store, description, sources
-from .records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsState, RESET_ALL,
-                      RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
 from .stepping import guard, sampling
+from .stepping.design import Design
 from .stepping.live import Live
 from .stepping.steps import Stepping
 

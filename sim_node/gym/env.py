@@ -27,8 +27,8 @@ import numpy as np
 from . import autoload as gym_autoload
 from .tasks import (Batch, PushBoxTask, PusherTask, ReacherTask, ReachTask,  # noqa: F401
                     scene_path, Task)  # the tasks, importable from here as before
-from ..core.checks import MAX_ABS_VALUE as MAX_CONTROL
-from ..core.devices.cameras import View
+from ..core.base.checks import MAX_ABS_VALUE as MAX_CONTROL
+from ..core.cameras import View
 from ..core.world import World
 
 #: The render modes, as Gymnasium's MuJoCo envs name them ('human' needs a window: refused).

@@ -36,8 +36,8 @@ import numpy as np
 from . import env as gym_env, tasks
 from .env import SimEnv
 from .tasks import Batch, Task
-from ..core.checks import MAX_ABS_VALUE as MAX_CONTROL
-from ..core.errors import DivergenceError
+from ..core.base.checks import MAX_ABS_VALUE as MAX_CONTROL
+from ..core.base.errors import DivergenceError
 
 ERR_AUTORESET = 'autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}'
 

@@ -28,7 +28,7 @@ import threading
 import time
 from typing import Callable, Optional
 
-from ..core.errors import SimError
+from ..core.base.errors import SimError
 
 log = logging.getLogger(__name__)
 

@@ -14,7 +14,7 @@ from typing import Optional
 from msg_adapters.markers import CUBE, CYLINDER, DELETEALL, SPHERE, TRIANGLE_LIST
 import numpy as np
 
-from ..core import quat as quat_maths
+from ..core.base import quat as quat_maths
 
 #: visualization_msgs/Marker's DELETE action (the node's markers write ADD and DELETEALL).
 DELETE = 2

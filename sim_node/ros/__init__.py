@@ -8,6 +8,7 @@ publishes: /tf, joint_states, /clock, sensors, contacts, robot descriptions, bag
 :mod:`.commands` (the node's own command inputs: joint_commands, trajectories, mobile bases'
 cmd_vel), :mod:`.control` (ros2_control on the wire: a controller manager per robot and the
 ROS side of its controllers) and :mod:`.client` (what talks to a running node: the Python
-client and the ``spawn`` tool). Nothing here does physics: every room converts, calls the core
-or the session, and converts back.
+client and the ``spawn`` tool); below them all, :mod:`.settings` (the node's parameters as one
+table, and the services' quality of service). Nothing here does physics: every room converts,
+calls the core or the session, and converts back.
 """

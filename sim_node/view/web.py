@@ -24,7 +24,7 @@ from typing import Optional
 import numpy as np
 
 from .source import camera_position, framing, RateMeter, Source
-from ..core.errors import SimError
+from ..core.base.errors import SimError
 
 log = logging.getLogger(__name__)
 

@@ -31,7 +31,7 @@ import weakref
 import mujoco
 
 from .source import framing, RateMeter, Source
-from ..core.errors import SimError
+from ..core.base.errors import SimError
 
 log = logging.getLogger(__name__)
 

@@ -10,8 +10,8 @@ from typing import Optional
 import mujoco
 import numpy as np
 
-from ..index import ModelIndex
-from ..records import EFFORT
+from ..base.records import EFFORT
+from ..compiled.index import ModelIndex
 
 NONE_INT = np.zeros(0, int)
 

@@ -291,7 +291,7 @@ class Drive:
     def bind(self, index, model: mujoco.MjModel) -> bool:
         """Take the addresses of its joints in `index`; False if one is gone."""
         from .actuation import Outputs
-        from ..records import VELOCITY
+        from ..base.records import VELOCITY
         names = self.spec.wheels if self.spec.kind == DIFF_DRIVE else self.spec.planar
         if self.spec.kind == PLANAR_FREE:
             root = index.entity_by_name.get(self.spec.entity)
@@ -460,7 +460,7 @@ def _body_yaw(data: mujoco.MjData, body: int) -> float:
 
 def check_command(vx: float, vy: float, wz: float) -> tuple:
     """Return a command as floats, or raise InvalidArgumentError (not finite, too large)."""
-    from ..errors import InvalidArgumentError
+    from ..base.errors import InvalidArgumentError
     try:
         values = tuple(float(v) for v in (vx, vy, wz))
     except (TypeError, ValueError):

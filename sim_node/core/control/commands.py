@@ -2,9 +2,9 @@
 Joint commands: staged by any thread, held by joint *name*, bound to one model's addresses.
 
 Commands survive recompiles because they are keyed by name: :meth:`Control.bind` turns the held
-ones into arrays of the current :class:`~sim_node.core.index.ModelIndex` and drops those whose
-joint no longer exists, while the others stay in force. The world calls every method except
-:meth:`Control.stage` with its lock held.
+ones into arrays of the current :class:`~sim_node.core.compiled.index.ModelIndex` and drops
+those whose joint no longer exists, while the others stay in force. The world calls every
+method except :meth:`Control.stage` with its lock held.
 """
 
 import math
@@ -17,10 +17,10 @@ import numpy as np
 from . import bases
 from .actuation import Outputs, times_mass
 from .trajectory import INVALID_GOAL, SUCCESSFUL, Tracker
-from ..checks import check_finite
-from ..errors import InvalidArgumentError
-from ..index import ModelIndex
-from ..records import EFFORT, MODES, POSITION, VELOCITY
+from ..base.checks import check_finite
+from ..base.errors import InvalidArgumentError
+from ..base.records import EFFORT, MODES, POSITION, VELOCITY
+from ..compiled.index import ModelIndex
 
 ERR_MODE = 'unknown command mode {mode!r}; use one of ' + ', '.join(MODES)
 ERR_LENGTH = '{what}: {n} names but {m} values'

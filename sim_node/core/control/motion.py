@@ -13,8 +13,8 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import bases, trajectory
-from ..checks import check_finite
-from ..errors import InvalidArgumentError
+from ..base.checks import check_finite
+from ..base.errors import InvalidArgumentError
 
 
 class Motion:

@@ -18,7 +18,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from .. import checks
+from ..base import checks
 
 # FollowJointTrajectory's error codes (the controller's meaning; the node maps them 1:1).
 SUCCESSFUL, INVALID_GOAL, INVALID_JOINTS, OLD_HEADER_TIMESTAMP = 0, -1, -2, -3
@@ -221,7 +221,7 @@ def plan(index, model, data, entity: str, joint_names: Sequence[str], times: Seq
     """
     Check a goal against a world's joints and plan it.
 
-    :param index: the model's :class:`~sim_node.core.index.ModelIndex`.
+    :param index: the model's :class:`~sim_node.core.compiled.index.ModelIndex`.
 
     Starts from the joints' state now, or from what `start_state()` returns once the goal is
     checked ((positions, velocities) in `joint_names` order: what was last commanded). See

@@ -8,7 +8,7 @@ a range; every other sensor is generic (its values as MuJoCo gives them).
 
 import mujoco
 
-from ..records import CameraSpec, SensorSpec, SiteSpec
+from ..base.records import CameraSpec, SensorSpec, SiteSpec
 
 _SITE = int(mujoco.mjtObj.mjOBJ_SITE)
 _FIXED = int(mujoco.mjtCamLight.mjCAMLIGHT_FIXED)

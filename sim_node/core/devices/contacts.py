@@ -17,7 +17,7 @@ from typing import NamedTuple, Optional
 import mujoco
 import numpy as np
 
-from ..records import DeclaredContact
+from ..base.records import DeclaredContact
 
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 _BODY = int(mujoco.mjtObj.mjOBJ_BODY)

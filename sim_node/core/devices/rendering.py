@@ -20,7 +20,7 @@ from typing import Optional
 import mujoco
 import numpy as np
 
-from ..errors import SimError
+from ..base.errors import SimError
 
 log = logging.getLogger(__name__)
 

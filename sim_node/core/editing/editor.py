@@ -14,12 +14,13 @@ import warnings
 import mujoco
 import numpy as np
 
-from .. import quat
+from ..base import quat
+from ..base.errors import ResourceParseError
+from ..base.records import EntityRecord
+from ..compiled.index import ModelIndex
 from ..control import bases, wheels
-from ..errors import ResourceParseError
-from ..index import ModelIndex
 from ..models import sources
-from ..records import EntityRecord
+from ..stepping import design
 
 log = logging.getLogger(__name__)
 
@@ -35,8 +36,9 @@ MAX_RESTITUTION = 0.8
 # 0.3-3 m with 1-5 ms steps and every integrator, keeps the bounce within 0.06 of e.
 _RESTITUTION_CORRECTION = 0.12
 # Geoms with contact settings of their own win over geoms without (MuJoCo uses the higher
-# priority geom's solref and friction instead of mixing them).
-OWN_CONTACT_PRIORITY = 1
+# priority geom's solref and friction instead of mixing them): defined with the design, which
+# carries a geom's own settings across recompiles.
+OWN_CONTACT_PRIORITY = design.OWN_CONTACT_PRIORITY
 
 _BODY_TYPES = (int(mujoco.mjtObj.mjOBJ_BODY), int(mujoco.mjtObj.mjOBJ_XBODY))
 # The frame a spawned entity is attached through: ``<entity>/__spawn_frame``.

@@ -20,15 +20,16 @@ import mujoco
 import numpy as np
 
 from . import editor
-from .design import Contact, Edit, NOTHING, Spawned
 from .transaction import Transaction
-from .. import checks, quat, state
-from ..checks import check_finite, check_pose
+from ..base import checks, quat
+from ..base.checks import check_finite, check_pose
+from ..base.errors import (CapacityError, IncorrectStateError, InvalidArgumentError,
+                           InvalidPoseError, NameNotUniqueError, NamespaceInvalidError)
+from ..base.records import ROBOT, STATIC
+from ..compiled import state
 from ..control import bases
-from ..errors import (CapacityError, IncorrectStateError, InvalidArgumentError, InvalidPoseError,
-                      NameNotUniqueError, NamespaceInvalidError)
 from ..models import sensor_tags, sources
-from ..records import ROBOT, STATIC
+from ..stepping.design import Contact, Edit, NOTHING, Spawned
 from ..stepping.live import Live
 
 ERR_CAPACITY = ('the world would hold {n} bodies, over its limit of {limit} (parameter '

@@ -17,10 +17,10 @@ from typing import Callable, Optional, Sequence
 import mujoco
 
 from . import transfer
-from .design import Design, Edit
-from .. import index as model_index
-from ..memory import release_free_memory
+from ..base.memory import release_free_memory
+from ..compiled import index as model_index
 from ..models import asset_store
+from ..stepping.design import Design, Edit
 from ..stepping.live import Live
 
 #: Times an edit is built outside the lock before it is done under it (see Transaction.change).

@@ -2,7 +2,7 @@
 Writing the state of a world: entity poses and twists, joint positions and velocities.
 
 Each method of :class:`Writes` locks the world (its :class:`~sim_node.core.stepping.live.Live`),
-checks everything, then writes (see :mod:`sim_node.core.state`): an error changes nothing.
+checks everything, then writes (see :mod:`sim_node.core.compiled.state`): an error changes nothing.
 :class:`~sim_node.core.world.World` delegates to it.
 """
 
@@ -11,12 +11,13 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import editor
-from .design import Edit
 from .transaction import Transaction
-from .. import checks, quat, state
-from ..checks import check_finite, check_pose
-from ..errors import IncorrectStateError, InvalidArgumentError, OperationFailedError
-from ..records import EntityRecord, PhysicsState
+from ..base import checks, quat
+from ..base.checks import check_finite, check_pose
+from ..base.errors import IncorrectStateError, InvalidArgumentError, OperationFailedError
+from ..base.records import EntityRecord, PhysicsState
+from ..compiled import state
+from ..stepping.design import Edit
 from ..stepping.guard import clean
 from ..stepping.live import Live
 

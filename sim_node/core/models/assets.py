@@ -34,8 +34,8 @@ from . import meshes
 from .asset_store import store, StoredFile
 from .meshes import CONVERTED_SUFFIXES
 from .paths import inside_real_roots, real_path, real_roots
-from ..errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
-                      UnsupportedFormatError)
+from ..base.errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
+                           UnsupportedFormatError)
 
 #: Deepest element nesting accepted (a real robot is a few dozen deep).
 MAX_DEPTH = 200

@@ -29,7 +29,7 @@ import time
 from typing import Optional, Sequence
 
 from . import asset_store
-from ..errors import UnsupportedAssetsError
+from ..base.errors import UnsupportedAssetsError
 
 #: The most faces MuJoCo's STL decoder reads; a mesh with more is decimated to this.
 MUJOCO_MAX_FACES = 200_000

@@ -13,7 +13,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 
 from . import asset_store, assets, meshes
-from ..errors import MissingAssetsError, ResourceParseError, UnsupportedAssetsError
+from ..base.errors import MissingAssetsError, ResourceParseError, UnsupportedAssetsError
 
 log = logging.getLogger(__name__)
 

@@ -19,8 +19,8 @@ from typing import Optional, Sequence, Tuple
 from urllib.parse import unquote, urlparse
 
 from . import sources
-from ..errors import (FeatureUnsupportedError, MissingAssetsError, NoResourceError,
-                      NotFoundError, UnsupportedFormatError)
+from ..base.errors import (FeatureUnsupportedError, MissingAssetsError, NoResourceError,
+                           NotFoundError, UnsupportedFormatError)
 
 SPAWNABLE_SUFFIXES = sources.MODEL_SUFFIXES + sources.MESH_SUFFIXES
 PACKAGE = 'sim'

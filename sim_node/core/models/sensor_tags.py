@@ -29,8 +29,8 @@ import re
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from ..records import (DeclaredCamera, DeclaredContact, DeclaredImu, DeclaredLaser,
-                       DeclaredWrench)
+from ..base.records import (DeclaredCamera, DeclaredContact, DeclaredImu, DeclaredLaser,
+                            DeclaredWrench)
 
 log = logging.getLogger(__name__)
 

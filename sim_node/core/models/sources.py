@@ -23,10 +23,10 @@ from .assets import Reader
 from .paths import inside_roots  # noqa: F401 (this module's too)
 from .prepare import compile_error, WORLD_GEOMS_BODY  # noqa: F401 (named by scripts)
 from .urdf import Prepared
-from ..config import WorldConfig
-from ..errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
-                      NoResourceError, ResourceParseError, UnsupportedAssetsError,
-                      UnsupportedElementsError, UnsupportedFormatError)
+from ..base.config import WorldConfig
+from ..base.errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
+                           NoResourceError, ResourceParseError, UnsupportedAssetsError,
+                           UnsupportedElementsError, UnsupportedFormatError)
 
 MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
 MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf', '.xacro')

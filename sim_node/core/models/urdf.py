@@ -38,7 +38,7 @@ import numpy as np
 
 from . import inertias, urdf_declared
 from .ros2_control import read as read_ros2_control, Ros2Control
-from ..errors import CapacityError, ResourceParseError
+from ..base.errors import CapacityError, ResourceParseError
 
 log = logging.getLogger(__name__)
 

@@ -19,7 +19,7 @@ import sys
 import threading
 from typing import Mapping, Optional, Sequence
 
-from ..errors import FeatureUnsupportedError, ResourceParseError
+from ..base.errors import FeatureUnsupportedError, ResourceParseError
 
 #: Suffixes of description files xacro expands.
 XACRO_SUFFIXES = ('.xacro',)

@@ -13,8 +13,8 @@ from typing import Callable, Optional
 import mujoco
 import numpy as np
 
-from ..checks import MAX_ABS_VALUE
-from ..index import STATE_SPEC
+from ..base.checks import MAX_ABS_VALUE
+from ..compiled.index import STATE_SPEC
 
 log = logging.getLogger(__name__)
 
@@ -80,7 +80,7 @@ class DivergenceGuard:
 
         Logs other new warnings. Runs after every batch: two C calls and one comparison; with
         `quiet`, numpy instead of the C calls while the state is clean (a few microseconds more,
-        but no release of the GIL: see :func:`sim_node.core.state.state_copier`).
+        but no release of the GIL: see :func:`sim_node.core.compiled.state.state_copier`).
         """
         # mj_step checks qpos and qvel only at the start of the next step; the integrator may
         # have just carried a bad acceleration into them. Check them now, as MuJoCo would.

@@ -2,7 +2,7 @@
 The world as it runs now: the world lock and everything it guards, in one object.
 
 A :class:`Live` holds the current model, data and index, the edit phase's
-:class:`~sim_node.core.editing.design.Design` and the generation, the step count, the joint
+:class:`~sim_node.core.stepping.design.Design` and the generation, the step count, the joint
 commands (:class:`~sim_node.core.control.commands.Control`), the divergence guard, and what is
 derived from the state and may be stale (body poses after a step, the clean state the last
 batch left). The facade (:class:`~sim_node.core.world.World`), the stepping protocol
@@ -19,16 +19,16 @@ import mujoco
 import numpy as np
 
 from . import sampling
+from .design import Design
 from .guard import DivergenceGuard
 from .lock import WorldLock
-from .. import index as model_index
-from .. import state
-from ..config import WorldConfig
+from ..base.config import WorldConfig
+from ..base.errors import InvalidPoseError
+from ..base.records import Clock, Snapshot
+from ..compiled import index as model_index
+from ..compiled import state
+from ..compiled.index import ModelIndex, STATE_SPEC
 from ..control.commands import Control
-from ..editing.design import Design
-from ..errors import InvalidPoseError
-from ..index import ModelIndex, STATE_SPEC
-from ..records import Clock, Snapshot
 
 ERR_FRAME = ('the pose is given in frame {frame!r}, which is not known: use the world frame '
              "('' or 'world') or the name of an entity")
@@ -151,7 +151,7 @@ class Live:
         self.guard.note()
 
     def set_state_locked(self, values: np.ndarray, step: int) -> None:
-        """Write a full integration state (layout :data:`~sim_node.core.index.STATE_SPEC`)."""
+        """Write a full integration state (layout: :data:`.compiled.index.STATE_SPEC`)."""
         mujoco.mj_setState(self.model, self.data, values, STATE_SPEC)
         self.step_count = step
         self.forward_locked()

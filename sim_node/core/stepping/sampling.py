@@ -22,8 +22,8 @@ import zlib
 import mujoco
 import numpy as np
 
+from ..base.errors import InvalidArgumentError
 from ..devices import contacts
-from ..errors import InvalidArgumentError
 
 #: Samples kept for the node between two drains (a slow consumer loses the oldest).
 SAMPLES_KEPT = 10_000

@@ -8,7 +8,7 @@ never make a consumer see time go backwards. Its condition is a leaf of the lock
 
 import threading
 
-from ..records import Snapshot
+from ..base.records import Snapshot
 
 
 class Snapshots:

@@ -17,11 +17,11 @@ import numpy as np
 from . import sampling
 from .guard import clean
 from .live import Live
-from .. import state
-from ..checks import check_finite
-from ..errors import DivergenceError, InvalidArgumentError
-from ..index import STATE_SPEC
-from ..records import Clock, Snapshot
+from ..base.checks import check_finite
+from ..base.errors import DivergenceError, InvalidArgumentError
+from ..base.records import Clock, Snapshot
+from ..compiled import state
+from ..compiled.index import STATE_SPEC
 
 ERR_STEPS = 'steps must be >= 1, got {n}'
 #: How long the loop lets callers waiting for the world lock go first, at most, per batch. It

@@ -26,7 +26,7 @@ from simulation_interfaces import srv
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.msg import EntityState, Result, SimulationState
 
-from ..node.qos import FEEDBACK_QOS, SERVICE_QOS
+from ..settings.qos import FEEDBACK_QOS, SERVICE_QOS
 
 
 #: The simulation_interfaces services of a `sim` node, by name (as simulators name them).

@@ -29,10 +29,10 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from tf2_msgs.msg import TFMessage
 
-from ..node.params import Frames
+from ..settings.params import Frames
+from ...core.base.errors import SimError
+from ...core.base.records import Snapshot
 from ...core.control import bases
-from ...core.errors import SimError
-from ...core.records import Snapshot
 from ...session import Loaded, Session
 
 

@@ -27,9 +27,9 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.waitable import NumberOfEntities
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from ...core.base.errors import SimError
+from ...core.base.records import ModelInfo, Snapshot
 from ...core.control import trajectory
-from ...core.errors import SimError
-from ...core.records import ModelInfo, Snapshot
 from ...session import Loaded, Session
 
 ERR_MULTI_DOF = 'multi-DOF trajectories are not supported: send joint trajectories'

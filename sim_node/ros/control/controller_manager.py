@@ -24,10 +24,10 @@ from typing import Callable, Optional
 
 from controller_manager_msgs.msg import (ControllerState, HardwareComponentState,
                                          HardwareInterface)
-from controller_manager_msgs.srv import (CleanupController, ConfigureController,
-                                         ListControllers, ListControllerTypes,
-                                         ListHardwareComponents, ListHardwareInterfaces,
-                                         LoadController, SwitchController, UnloadController)
+from controller_manager_msgs.srv import (CleanupController, ConfigureController, ListControllers,
+                                         ListControllerTypes, ListHardwareComponents,
+                                         ListHardwareInterfaces, LoadController, SwitchController,
+                                         UnloadController)
 from lifecycle_msgs.msg import State
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
@@ -38,11 +38,11 @@ from .gripper import GripperAction
 from .jtc import TrajectoryController
 from .steering import Steering
 from .topic_hardware import TopicHardware
+from ...core.base.errors import SimError
+from ...core.base.records import ModelInfo, Snapshot
 from ...core.control import controller_types, manager as core
-from ...core.errors import SimError
 from ...core.models import controller_yaml
 from ...core.models.paths import inside_roots
-from ...core.records import ModelInfo, Snapshot
 from ...session import Loaded, Session
 
 #: The most joint samples of one robot its controllers take per publishing tick.

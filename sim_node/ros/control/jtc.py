@@ -25,8 +25,8 @@ from trajectory_msgs.msg import JointTrajectory
 
 from .controllers import NO_EVENTS, NO_SUB_EVENTS, Runtime
 from ..commands.trajectories import finish, LeavableActionServer, point, seconds, tolerances
+from ...core.base.errors import SimError
 from ...core.control import trajectory
-from ...core.errors import SimError
 
 ERR_PARTIAL = ('the goal names {given} of joints {joints}: a goal must name them all unless '
                'allow_partial_joints_goal is true')

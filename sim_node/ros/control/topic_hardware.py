@@ -23,7 +23,7 @@ from msg_adapters import convert
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from sensor_msgs.msg import JointState
 
-from ...core.errors import SimError
+from ...core.base.errors import SimError
 
 #: Joint states per simulated second.
 STATES_HZ = 100.0

@@ -18,7 +18,7 @@ from typing import Callable
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from .qos import LATCHED_QOS
+from ..settings.qos import LATCHED_QOS
 
 DUPLICATE_WINDOW_SEC = 30.0
 #: During its window a node says it again this often: a node that starts beside it hears it

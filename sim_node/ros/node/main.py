@@ -9,9 +9,9 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 
 from . import middleware
-from .params import parameter_error
-from ...core import memory
-from ...core.errors import SimError
+from ..settings.params import parameter_error
+from ...core.base import memory
+from ...core.base.errors import SimError
 from ...core.models import asset_store
 
 #: How long a thread may hold the GIL before another that waits for it gets it (s; Python's

@@ -11,13 +11,13 @@ Two things kept a refused request's memory for the life of the node (measured wi
   not configured Fast DDS already (``FASTRTPS_DEFAULT_PROFILES_FILE`` or
   ``RMW_FASTRTPS_USE_QOS_FROM_XML`` set, or another middleware chosen): theirs wins.
 * glibc's allocator kept large blocks in its heap: see
-  :func:`~sim_node.core.memory.keep_large_blocks_mapped`.
+  :func:`~sim_node.core.base.memory.keep_large_blocks_mapped`.
 """
 
 import os
 from pathlib import Path
 
-from ...core import memory
+from ...core.base import memory
 
 PROFILES = Path(__file__).with_name('fastdds_profiles.xml')
 

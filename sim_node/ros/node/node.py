@@ -29,21 +29,22 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from . import instances, params
+from . import instances
 from .status import Status
 from ..commands.bases import BaseControllers
 from ..commands.command_drain import CommandDrain
 from ..commands.trajectories import TrajectoryServers
 from ..control.controller_manager import ControllerManagers
 from ..services.services import Services
+from ..settings import params
 from ..topics.descriptions import default_mesh_dir, RobotDescriptions
 from ..topics.perception import Perception
 from ..topics.publishing import ModelTopics, StatePublisher
 from ..topics.recording import Recording
-from ...core.config import WorldConfig
-from ...core.errors import InvalidArgumentError, SimError
+from ...core.base.config import WorldConfig
+from ...core.base.errors import InvalidArgumentError, SimError
+from ...core.base.records import EFFORT, POSITION, VELOCITY
 from ...core.models import resources
-from ...core.records import EFFORT, POSITION, VELOCITY
 from ...record.bag import Limits
 from ...session import Session
 from ...view import web

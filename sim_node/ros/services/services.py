@@ -22,12 +22,12 @@ from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Res
                                        SimulationState, SimulatorFeatures, Spawnable,
                                        WorldResource)
 
-from ..node.params import Frames
-from ..node.qos import FEEDBACK_QOS, SERVICE_QOS
+from ..settings.params import Frames
+from ..settings.qos import FEEDBACK_QOS, SERVICE_QOS
 from ... import session as lifecycle
 from ...core import query
-from ...core.errors import (FeatureUnsupportedError, IncorrectTransitionError, NotFoundError,
-                            SimError)
+from ...core.base.errors import (FeatureUnsupportedError, IncorrectTransitionError, NotFoundError,
+                                 SimError)
 from ...core.models import resources, sources
 from ...core.world import World
 from ...session import Loaded, Session

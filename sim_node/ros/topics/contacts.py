@@ -18,8 +18,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_gz_interfaces.msg import Contacts
 
+from ...core.base.records import ModelInfo
 from ...core.devices.contacts import ContactReport
-from ...core.records import ModelInfo
 
 #: Reliable, as a burst of reports (those of one publishing tick) must all arrive.
 CONTACTS_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,

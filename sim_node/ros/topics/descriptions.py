@@ -18,9 +18,9 @@ from msg_adapters.perception import interface_base
 from rclpy.event_handler import PublisherEventCallbacks
 from std_msgs.msg import String
 
-from ..node.qos import LATCHED_QOS
-from ...core.errors import SimError
-from ...core.records import ModelInfo, Snapshot
+from ..settings.qos import LATCHED_QOS
+from ...core.base.errors import SimError
+from ...core.base.records import ModelInfo, Snapshot
 from ...session import Loaded, Session
 
 DESCRIPTION_QOS = LATCHED_QOS

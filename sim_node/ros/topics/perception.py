@@ -24,13 +24,13 @@ from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
 from .contacts import ContactPublishers
-from ...core import quat
-from ...core.config import PerceptionConfig
-from ...core.devices.cameras import CameraRig, select
+from ...core.base import quat
+from ...core.base.config import PerceptionConfig
+from ...core.base.records import ModelInfo, Snapshot
+from ...core.cameras import CameraRig, select
 from ...core.devices.contacts import ContactReport
-from ...core.devices.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
 from ...core.devices.rendering import RenderingUnavailableError
-from ...core.records import ModelInfo, Snapshot
+from ...core.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
 from ...core.stepping.sampling import JointSample
 from ...session import Loaded
 

@@ -29,9 +29,9 @@ from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
-from ..node.params import Frames
-from ..node.qos import LATCHED_QOS
-from ...core.records import Snapshot
+from ..settings.params import Frames
+from ..settings.qos import LATCHED_QOS
+from ...core.base.records import Snapshot
 from ...session import Loaded
 
 

@@ -16,8 +16,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from .parameter_table import DOUBLES, PARAMETERS, Spec, STRING_ARRAY
-from ...core.checks import closest_hint
-from ...core.config import PerceptionConfig, WorldConfig
+from ...core.base.checks import closest_hint
+from ...core.base.config import PerceptionConfig, WorldConfig
 
 
 @dataclasses.dataclass(frozen=True)

@@ -26,12 +26,12 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .core.config import WorldConfig
-from .core.errors import InvalidArgumentError
-from .core.models import sources
-from .core.records import RESET_STATE, RESET_TIME
-from .core.stepping.loop import time_reached
-from .core.world import World
+from ..core.base.config import WorldConfig
+from ..core.base.errors import InvalidArgumentError
+from ..core.base.records import RESET_STATE, RESET_TIME
+from ..core.loop import time_reached
+from ..core.models import sources
+from ..core.world import World
 
 #: With a window in real time, a long step is shown in slices of this much simulated time.
 FRAME_SEC = 1.0 / 60.0
@@ -176,8 +176,8 @@ class Simulation:
         motion; closing the window ends the wait. Options go to
         :class:`~sim_node.view.window.Window`.
         """
-        from .session import Session  # above the core: a window attaches from here
-        from .view.window import Window
+        from ..session import Session  # above the core: a window attaches from here
+        from ..view.window import Window
         if self._viewed is not None:
             self._viewed.close()
         self._viewed = Session(trim_memory=False)

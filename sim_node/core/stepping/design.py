@@ -23,11 +23,15 @@ import warnings
 import mujoco
 import numpy as np
 
-from . import editor
-from ..errors import ResourceParseError
+from ..base.errors import ResourceParseError
 from ..models import asset_store
 
 log = logging.getLogger(__name__)
+
+#: The contact priority of geoms with contact settings of their own (friction, restitution):
+#: they win a contact over geoms without, and MuJoCo then uses their solref and friction
+#: instead of mixing them (the editor sets it; the design keeps it across recompiles).
+OWN_CONTACT_PRIORITY = 1
 
 ERR_COMPILE = 'the model does not compile: {err}'
 #: Compact the spec (:meth:`Design.compacted`) after this many spawned entities were removed.
@@ -194,14 +198,14 @@ class Design:
         Return (friction, restitution, priority) for the geoms of entity `name` (None: none).
 
         Its own settings where it has them, else the world's; own settings win contacts
-        (:data:`editor.OWN_CONTACT_PRIORITY`).
+        (:data:`OWN_CONTACT_PRIORITY`).
         """
         own = self.contacts.get(name, Contact()) if name is not None else Contact()
         d = self.default_contact
         friction = own.friction if own.friction is not None else d.friction
         return (None if friction is None else np.array(friction),
                 own.restitution if own.restitution is not None else d.restitution,
-                editor.OWN_CONTACT_PRIORITY if own.is_set else 0)
+                OWN_CONTACT_PRIORITY if own.is_set else 0)
 
     @property
     def due_for_compaction(self) -> bool:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import math
 from typing import Optional
 
-from ...core.config import PerceptionConfig, WorldConfig
+from ...core.base.config import PerceptionConfig, WorldConfig
 
 #: The default of a string-array parameter declared without a value (``resource_paths``).
 STRING_ARRAY = 'string array'

@@ -12,13 +12,13 @@ from typing import Iterable, Mapping
 import mujoco
 import numpy as np
 
-from .checks import closest_hint
-from .devices import catalog, contacts
-from .errors import NotFoundError
-from .models import description
-from .records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench, DYNAMIC,
-                      EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT, STATIC,
-                      VELOCITY)
+from ..base.checks import closest_hint
+from ..base.errors import NotFoundError
+from ..base.records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench, DYNAMIC,
+                            EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT, STATIC,
+                            VELOCITY)
+from ..devices import catalog, contacts
+from ..models import description
 
 ERR_UNKNOWN_ENTITY = 'no entity named {name!r}; existing: {names}'
 ERR_UNKNOWN_JOINT = 'no commandable (hinge or slide) joint named {name!r}'
@@ -95,9 +95,9 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
     """
     Index a compiled model.
 
-    :param spawned: entity name -> :class:`~.editing.design.Spawned` for the entities spawned since
-        load (their top-level bodies, description, namespace). Every other top-level body is
-        an entity of its own.
+    :param spawned: entity name -> :class:`~sim_node.core.stepping.design.Spawned` for the
+        entities spawned since load (their top-level bodies, description, namespace). Every
+        other top-level body is an entity of its own.
     """
     names = tuple('world' if b == 0 else (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
                                           or f'body_{b}') for b in range(m.nbody))

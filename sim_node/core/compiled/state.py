@@ -11,9 +11,9 @@ from typing import Callable, Optional
 import mujoco
 import numpy as np
 
-from . import quat
 from .index import ModelIndex
-from .records import EntityRecord, EntityState, Snapshot
+from ..base import quat
+from ..base.records import EntityRecord, EntityState, Snapshot
 
 _XBODY = int(mujoco.mjtObj.mjOBJ_XBODY)  # a body's own frame (mjOBJ_BODY: its centre of mass)
 _NO_GRAVITY = int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
