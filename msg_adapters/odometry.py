@@ -7,20 +7,14 @@ world -> odom transform absorbs what the odometry gets wrong (its drift), and od
 entity's frame replaces the world -> entity transform /tf otherwise carries.
 """
 
-import math
 from typing import Sequence
 
 from nav_msgs.msg import Odometry
 import numpy as np
 from sim_node.core.base import quat
 from sim_node.core.control.bases import Odometry as Integrator
-from sim_node.core.control.bases import yaw_of
 
 from . import convert
-
-
-def _yaw_quat(yaw: float) -> np.ndarray:
-    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
 
 
 def base_pose(odo: Integrator, start: tuple, position: np.ndarray,
@@ -31,10 +25,10 @@ def base_pose(odo: Integrator, start: tuple, position: np.ndarray,
     x, y and yaw are the odometry's; height, roll and pitch the base's true ones (odometry on
     a plane has none), relative to `start` (position, yaw) where the odom frame is.
     """
-    true_yaw = yaw_of(quat_wxyz)
-    tilt = quat.mul(_yaw_quat(-true_yaw), quat_wxyz)  # roll and pitch only
+    true_yaw = quat.yaw_of(quat_wxyz)
+    tilt = quat.mul(quat.from_yaw(-true_yaw), quat_wxyz)  # roll and pitch only
     return (np.array([odo.x, odo.y, float(position[2]) - float(start[0][2])]),
-            quat.mul(_yaw_quat(odo.yaw), tilt))
+            quat.mul(quat.from_yaw(odo.yaw), tilt))
 
 
 def odom_frame_in_world(position: np.ndarray, quat_wxyz: np.ndarray, pos_odom: np.ndarray,

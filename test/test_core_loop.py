@@ -86,13 +86,18 @@ def test_max_sim_time_stops_the_loop(make_loop):
 
 
 def test_real_time_factor_paces_simulated_time(make_loop):
-    """A factor of 2 runs ahead of the clock, never past twice it (bench-pacing: how close)."""
+    """
+    A factor of 2 never runs past twice the clock; it runs.
+
+    An upper bound only: a busy host can only make the loop slower, so this cannot fail for
+    want of CPU. How close it comes to the factor is make bench-pacing's verdict.
+    """
     loop = make_loop(real_time_factor=2.0)
     time.sleep(0.2)
     s0, w0 = loop.world.time, time.monotonic()
     time.sleep(1.0)
     simulated, wall = loop.world.time - s0, time.monotonic() - w0
-    assert wall < simulated <= 2.0 * wall + 0.05  # a busy host can only make it slower
+    assert 0 < simulated <= 2.0 * wall + 0.05
 
 
 def test_divergence_holds_the_loop_with_a_report(make_loop):

@@ -167,14 +167,17 @@ def test_the_stepping_api_shows_its_world_in_real_time_until_the_window_closes(d
     sim.add_object('ball', 'sphere', [0.05], position=[0, 0, 1.0], mass=0.2)
     window = sim.view(show_ui=False)
     assert until(lambda: window.frames > 3)
+    assert sim.paced
     t0 = time.monotonic()
     sim.step(dt=0.5)
-    assert time.monotonic() - t0 >= 0.45  # simulated time no faster than the clock
+    # Simulated time no faster than the clock: a lower bound, which a busy host only helps.
+    assert time.monotonic() - t0 >= 0.45
     window.handle.close()  # the user closes it
     assert until(lambda: not window.is_open)
-    t0 = time.monotonic()
     sim.step(dt=2.0)
-    assert time.monotonic() - t0 < 2.0  # free again: its 2 simulated seconds, not paced to 2 s
+    # Free again: the step no longer waits for the clock (a behaviour, not a wall-clock bound
+    # that a loaded machine could miss).
+    assert not sim.paced and sim.time == pytest.approx(2.5, abs=1e-9)
     window.close()
 
 

@@ -366,6 +366,27 @@ def test_the_core_is_folders_by_job():
     assert len(flat) <= 16, sorted(flat)
 
 
+#: What writes a rotation: MuJoCo's quaternion routines and half-angle quaternion formulas.
+ROTATION_CODE = re.compile(r'mju_(axisAngle2Quat|mulQuat|quat2Mat|mat2Quat|rotVecQuat|negQuat|'
+                           r'euler2Quat)|(cos|sin)\(\w+(\.\w+)? / 2\)|atan2\(2 \*')
+
+
+def test_rotations_are_written_only_in_quat():
+    """
+    Rotations in one place (issue 51): at d48b79a they were written in six files besides it.
+
+    Every other module calls :mod:`sim_node.core.base.quat` (from_rpy, to_rpy, from_yaw,
+    yaw_of, from_axis_angle, from_matrix, ...).
+    """
+    quat = ROOT / 'sim_node' / 'core' / 'base' / 'quat.py'
+    found = [f'{p.relative_to(ROOT)}:{n}' for p in modules() if p != quat
+             for n, line in enumerate(p.read_text().splitlines(), 1)
+             if ROTATION_CODE.search(line)]
+    assert found == [], found
+    assert ROTATION_CODE.search('mujoco.mju_mulQuat(out, a, b)')  # the check itself
+    assert ROTATION_CODE.search('np.array([math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)])')
+
+
 def test_the_ros_layer_is_rooms_by_job():
     """A new engineer finds where a controller ticks: ros/ holds rooms, not flat files."""
     ros = ROOT / 'sim_node' / 'ros'

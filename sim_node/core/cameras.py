@@ -207,9 +207,8 @@ class CameraRig:
             view.fixedcamid = cam.cam_id
             mujoco.mjv_updateScene(m, d, self._option, None, view,
                                    mujoco.mjtCatBit.mjCAT_ALL, scene)
-            q = np.empty(4)
-            mujoco.mju_mat2Quat(q, d.cam_xmat[cam.cam_id])
-            pos, q = optical_pose(d.cam_xpos[cam.cam_id], q)
+            pos, q = optical_pose(d.cam_xpos[cam.cam_id],
+                                  quat.from_matrix(d.cam_xmat[cam.cam_id]))
             k = frustum_intrinsics(scene.camera[0],
                                    *self._sizes.get(cam.name, (self.width, self.height)))
             out.append((cam, float(d.time), generation, pos, q, k))

@@ -7,8 +7,9 @@ its contract in its docstring. What is current (the lock, the model, data, index
 generation) is one :class:`~.stepping.live.Live`; the steps and the stepping loop's protocol are
 :mod:`.stepping.steps` (``world.stepping``); structural edits are planned in
 :mod:`.editing.edits` and made by the one commit path, :mod:`.editing.transaction`; state
-writes are :mod:`.editing.writes`; trajectories, bases, pushes, gains :mod:`.control.motion`;
-addresses :mod:`.index`, reads :mod:`.state`. Threading: the package docstring.
+writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
+:mod:`.control.motion`; addresses come from :mod:`.compiled.index`, reads from
+:mod:`.compiled.state`. The threading contract is in the package docstring (``sim_node.core``).
 """
 
 import contextlib
@@ -106,7 +107,11 @@ class World:
 
     @contextlib.contextmanager
     def locked(self) -> Iterator[tuple]:
-        """``(model, data)`` under the world lock, the loop held off; changes are the caller's."""
+        """
+        Direct access to ``(model, data)`` under the world lock, for advanced use.
+
+        Anything changed here is the caller's responsibility; the loop is held off meanwhile.
+        """
         live = self._live
         with live.lock:
             live.cached = None  # the caller may change anything
@@ -131,7 +136,9 @@ class World:
         """
         Call ``read(model, data, generation)`` under the world lock with poses up to date.
 
-        For cameras and ray casts; `read` must change nothing and be quick (the loop waits).
+        For sensors that look at the world (cameras, ray casts): body, geom, site and camera
+        poses describe the current state. `read` must change nothing and be quick: the loop
+        waits meanwhile.
         """
         live = self._live
         with live.lock:
@@ -246,7 +253,11 @@ class World:
         return self._descriptions.of(name, model, info, rec, mesh_dir)
 
     def entity_bounds(self, name: str, local: bool = False) -> tuple:
-        """Axis-aligned bounds of an entity's geoms, (min (3,), max (3,)): world or `local`."""
+        """
+        Axis-aligned bounds of an entity's geoms: (min (3,), max (3,)).
+
+        In the world frame, or with `local` in the entity's own (root body) frame.
+        """
         live = self._live
         with live.lock:
             rec = live.index.entity(name)
@@ -274,7 +285,11 @@ class World:
         self._writes.set_state(physics_state)
 
     def get_entity_state(self, name: str, reference: str = '') -> EntityState:
-        """Pose, twist, acceleration of its root body, in the world or `reference`'s frame."""
+        """
+        Pose, twist and acceleration of the entity's root body origin.
+
+        In the world or `reference`'s frame (see :func:`.compiled.state.entity_state`).
+        """
         live = self._live
         with live.lock:
             rec = live.index.entity(name)
@@ -358,7 +373,11 @@ class World:
                          velocities: Sequence[Sequence[float]] = (),
                          accelerations: Sequence[Sequence[float]] = (),
                          start_time: float = 0.0, allow_end_velocity: bool = False) -> None:
-        """Raise the TrajectoryError :meth:`follow_trajectory` would; start nothing."""
+        """
+        Raise what :meth:`follow_trajectory` would refuse the goal for; start nothing.
+
+        :raises TrajectoryError: with FollowJointTrajectory's error code.
+        """
         self._motion.check(entity, joint_names, times, positions, velocities, accelerations,
                            start_time, allow_end_velocity)
 
@@ -381,11 +400,13 @@ class World:
         Drive an entity's base at `vx`, `vy` (m/s) and `wz` (rad/s), in its own frame.
 
         From the next step on, until another command, a reset, or `timeout` simulated seconds
-        without one (then it stops; 0: never, as Gazebo's DiffDrive system). Its motion tracks
-        the command (:mod:`.control.bases`). A differential drive ignores `vy`.
+        without one (then it stops; 0: never, as Gazebo's DiffDrive system). The base's own
+        motion tracks the command (see :mod:`.control.bases`). A differential drive ignores
+        `vy`.
 
-        :returns: what it could not take, in words: `vy` on a differential drive, a command
-            beyond its actuators (:data:`.control.bases.NOTE_BEYOND`); empty: all of it.
+        :returns: what the base could not take, in words (empty: all of it): `vy` on a
+            differential drive; the command before this one needing more than the model's
+            actuators give (:data:`.control.bases.NOTE_BEYOND`).
 
         :raises NotFoundError: no such entity.
         :raises InvalidArgumentError: it has no base; a value not finite or beyond

@@ -186,6 +186,11 @@ class Simulation:
         self._paced = (time.monotonic(), self.world.time) if real_time else None
         return self.window
 
+    @property
+    def paced(self) -> bool:
+        """Whether :meth:`step` waits for the clock (a window opened by :meth:`view` is open)."""
+        return self._paced is not None
+
     def _pace(self) -> None:
         if self._paced is None:
             return

@@ -45,3 +45,78 @@ def from_frame(frame_pos: np.ndarray, frame_quat: np.ndarray, pos: np.ndarray,
                quat: np.ndarray) -> tuple:
     """Return a pose given in another frame, expressed in the world: (position (3,), quat (4,))."""
     return frame_pos + rotate(frame_quat, pos), mul(frame_quat, quat)
+
+
+def from_axis_angle(axis, angle: float) -> np.ndarray:
+    """Return the (4,) quaternion of a turn by `angle` (rad) about `axis` (3,), any length > 0."""
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    half = 0.5 * float(angle)
+    return np.concatenate([[np.cos(half)], np.sin(half) * axis])
+
+
+def from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """
+    Return the (4,) quaternion of URDF's (and SDF's) fixed-axis roll, pitch, yaw.
+
+    R = Rz(yaw) Ry(pitch) Rx(roll): the roll is applied first, about the fixed x axis.
+    """
+    return mul(mul(from_axis_angle((0, 0, 1), yaw), from_axis_angle((0, 1, 0), pitch)),
+               from_axis_angle((1, 0, 0), roll))
+
+
+def to_matrix(q) -> np.ndarray:
+    """Return the (3, 3) rotation matrix of a quaternion (normalised first)."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def from_matrix(r) -> np.ndarray:
+    """Return the unit (4,) quaternion (w >= 0) of a (3, 3) rotation matrix (Shepperd's way)."""
+    r = np.asarray(r, dtype=float).reshape(3, 3)
+    trace = r[0, 0] + r[1, 1] + r[2, 2]
+    if trace > 0:
+        s = 2.0 * np.sqrt(1.0 + trace)
+        q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
+    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
+        q = [(r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s]
+    elif r[1, 1] > r[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
+        q = [(r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
+        q = [(r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s]
+    q = np.asarray(q)
+    q = q / np.linalg.norm(q)
+    return -q if q[0] < 0 else q
+
+
+def from_xyaxes(x, y) -> np.ndarray:
+    """Return the quaternion of a frame whose x and y axes are `x` and `y` (MJCF's xyaxes)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    return from_matrix(np.stack([x, y, np.cross(x, y)], axis=1))
+
+
+def to_rpy(q) -> tuple:
+    """Return roll, pitch, yaw as URDF has them (fixed axes: R = Rz(yaw) Ry(pitch) Rx(roll))."""
+    r = to_matrix(q)
+    sp = -r[2, 0]
+    if abs(sp) < 1 - 1e-9:
+        return (float(np.arctan2(r[2, 1], r[2, 2])), float(np.arcsin(sp)),
+                float(np.arctan2(r[1, 0], r[0, 0])))
+    # Gimbal lock: pitch +-90 degrees; only yaw - roll (or yaw + roll) is defined.
+    return (0.0, float(np.copysign(np.pi / 2, sp)), float(np.arctan2(-r[0, 1], r[1, 1])))
+
+
+def from_yaw(yaw: float) -> np.ndarray:
+    """Return the (4,) quaternion of a heading: a turn by `yaw` (rad) about z."""
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def yaw_of(q) -> float:
+    """Return the heading (rotation about z) of a quaternion."""
+    w, x, y, z = (float(v) for v in q)
+    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))

@@ -40,6 +40,7 @@ import mujoco
 import numpy as np
 
 from .odometry import Odometry  # noqa: F401 (where it was, for its users)
+from ..base import quat
 
 DIFF_DRIVE, PLANAR_JOINTS, PLANAR_FREE = 'diff_drive', 'planar_joints', 'planar_free'
 #: Seconds of simulated time without a command after which a base stops.
@@ -229,10 +230,7 @@ def _wheel_radius(m: mujoco.MjModel, body: int, axis: np.ndarray) -> float:
     solid = [g for g in geoms if m.geom_contype[g] or m.geom_conaffinity[g]] or list(geoms)
     best = 0.0
     for g in solid:
-        q = m.geom_quat[g]
-        local = np.zeros(3)  # the axis in the geom's frame
-        mujoco.mju_rotVecQuat(local, np.asarray(axis, float),
-                              np.array([q[0], -q[1], -q[2], -q[3]]))
+        local = quat.rotate(quat.conj(m.geom_quat[g]), axis)  # the axis in the geom's frame
         half = m.geom_aabb[g, 3:]
         across = [half[k] for k in range(3) if abs(local[k]) < 0.5]
         if across:
@@ -483,7 +481,5 @@ class Command:
     timeout: float = COMMAND_TIMEOUT
 
 
-def yaw_of(quat_wxyz: np.ndarray) -> float:
-    """Return the heading (rotation about z) of a quaternion."""
-    w, x, y, z = (float(v) for v in quat_wxyz)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+#: The heading of a quaternion (rotation about z); :func:`sim_node.core.base.quat.yaw_of`.
+yaw_of = quat.yaw_of

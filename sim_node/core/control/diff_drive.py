@@ -12,6 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..base import quat
+
 
 class Geometry(NamedTuple):
     """A diff drive's wheel separation and wheel radii (m), multipliers applied."""
@@ -66,4 +68,4 @@ class WheelOdometry:
         self.v, self.w = ds / dt, dyaw / dt
 
     def quat_wxyz(self) -> np.ndarray:
-        return np.array([math.cos(self.yaw / 2), 0.0, 0.0, math.sin(self.yaw / 2)])
+        return quat.from_yaw(self.yaw)

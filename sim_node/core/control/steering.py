@@ -14,6 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..base import quat
+
 
 class Steered(NamedTuple):
     """Steering angles (rad) and traction wheel speeds (rad/s), in the YAML's joint order."""
@@ -79,4 +81,4 @@ class SteeringOdometry:
         self.v, self.w = ds / (t - t0), dyaw / (t - t0)
 
     def quat_wxyz(self) -> np.ndarray:
-        return np.array([math.cos(self.yaw / 2), 0.0, 0.0, math.sin(self.yaw / 2)])
+        return quat.from_yaw(self.yaw)

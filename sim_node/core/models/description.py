@@ -29,7 +29,6 @@ model (:func:`from_model`):
 import copy
 from dataclasses import dataclass
 import hashlib
-import math
 import os
 from pathlib import Path
 import tempfile
@@ -39,6 +38,8 @@ from xml.etree import ElementTree as ET  # writing only: parsing goes through de
 import defusedxml.ElementTree as SafeET
 import mujoco
 import numpy as np
+
+from ..base import quat as rotations
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
@@ -257,12 +258,12 @@ def _chain(m: mujoco.MjModel, b: int, entity: str, child: str, taken: set) -> tu
         axis = m.jnt_axis[j]
         ref = float(m.qpos0[m.jnt_qposadr[j]]) if jtype in (_HINGE, _SLIDE) else 0.0
         # The joint's frame: at the anchor, turned (or shifted) back by its reference value.
-        jpos = pos + _rotate(quat, anchor)
+        jpos = pos + rotations.rotate(quat, anchor)
         jquat = quat
         if jtype == _HINGE and ref:
-            jquat = _mul(quat, _axis_angle(axis, -ref))
+            jquat = rotations.mul(quat, rotations.from_axis_angle(axis, -ref))
         elif jtype == _SLIDE and ref:
-            jpos = jpos - _rotate(quat, axis * ref)
+            jpos = jpos - rotations.rotate(quat, axis * ref)
         direct = k == len(jids) - 1 and not np.any(np.abs(anchor) > _EPS)
         to = child if direct else _unique(f'{child}/{link_name(entity, jname)}', taken)
         steps.append((to, direct, jpos, jquat, j))
@@ -387,7 +388,8 @@ class _Writer:
             return [(pos, quat, geometry('cylinder', radius=_num(size[0]),
                                          length=_num(2 * size[1])))]
         if kind == _CAPSULE:
-            ends = [pos + _rotate(quat, np.array([0.0, 0.0, s * size[1]])) for s in (1, -1)]
+            ends = [pos + rotations.rotate(quat, np.array([0.0, 0.0, s * size[1]]))
+                    for s in (1, -1)]
             return [(pos, quat, geometry('cylinder', radius=_num(size[0]),
                                          length=_num(2 * size[1])))] + [
                 (end, quat, geometry('sphere', radius=_num(size[0]))) for end in ends]
@@ -467,31 +469,5 @@ def _origin(el: ET.Element, pos, quat_wxyz) -> None:
     ET.SubElement(el, 'origin', xyz=_fmt(pos), rpy=_fmt(rpy(quat_wxyz)))
 
 
-def rpy(quat_wxyz) -> tuple:
-    """Return roll, pitch, yaw as URDF has them (fixed axes: R = Rz(yaw) Ry(pitch) Rx(roll))."""
-    r = np.zeros(9)
-    mujoco.mju_quat2Mat(r, np.asarray(quat_wxyz, dtype=float) / np.linalg.norm(quat_wxyz))
-    r = r.reshape(3, 3)
-    sp = -r[2, 0]
-    if abs(sp) < 1 - 1e-9:
-        return (math.atan2(r[2, 1], r[2, 2]), math.asin(sp), math.atan2(r[1, 0], r[0, 0]))
-    # Gimbal lock: pitch +-90 degrees; only yaw - roll (or yaw + roll) is defined.
-    return (0.0, math.copysign(math.pi / 2, sp), math.atan2(-r[0, 1], r[1, 1]))
-
-
-def _rotate(quat_wxyz, v) -> np.ndarray:
-    out = np.zeros(3)
-    mujoco.mju_rotVecQuat(out, np.asarray(v, dtype=float), np.asarray(quat_wxyz, dtype=float))
-    return out
-
-
-def _mul(a, b) -> np.ndarray:
-    out = np.zeros(4)
-    mujoco.mju_mulQuat(out, np.asarray(a, dtype=float), np.asarray(b, dtype=float))
-    return out
-
-
-def _axis_angle(axis, angle: float) -> np.ndarray:
-    out = np.zeros(4)
-    mujoco.mju_axisAngle2Quat(out, np.asarray(axis, dtype=float), angle)
-    return out
+#: Roll, pitch, yaw as URDF has them: :func:`sim_node.core.base.quat.to_rpy`.
+rpy = rotations.to_rpy

@@ -38,6 +38,7 @@ import numpy as np
 
 from . import inertias, urdf_declared
 from .ros2_control import read as read_ros2_control, Ros2Control
+from ..base import quat as rotations
 from ..base.errors import CapacityError, ResourceParseError
 
 log = logging.getLogger(__name__)
@@ -243,15 +244,8 @@ def _inverse_origin(origin: Optional[ET.Element]) -> tuple:
         values = [float(v) for v in text.split()] if text.strip() else [0.0] * 3
         return np.asarray(values[:3] + [0.0] * (3 - len(values[:3])), dtype=float)
     xyz, (roll, pitch, yaw) = vector('xyz'), vector('rpy')
-    quat = np.array([1.0, 0.0, 0.0, 0.0])
-    for axis, angle in (((0, 0, 1), yaw), ((0, 1, 0), pitch), ((1, 0, 0), roll)):
-        turn, out = np.zeros(4), np.zeros(4)  # URDF: R = Rz(yaw) Ry(pitch) Rx(roll)
-        mujoco.mju_axisAngle2Quat(turn, np.asarray(axis, dtype=float), angle)
-        mujoco.mju_mulQuat(out, quat, turn)
-        quat = out
-    inv = np.array([quat[0], -quat[1], -quat[2], -quat[3]])
-    back = np.zeros(3)
-    mujoco.mju_rotVecQuat(back, -xyz, inv)
+    inv = rotations.conj(rotations.from_rpy(roll, pitch, yaw))  # URDF: Rz(yaw) Ry(pitch) Rx(roll)
+    back = rotations.rotate(inv, -xyz)
     return tuple(back), tuple(inv)
 
 
@@ -278,17 +272,11 @@ def _start_inside_ranges(spec: mujoco.MjSpec) -> None:
             if j.type == mujoco.mjtJoint.mjJNT_SLIDE:
                 shift = axis * r
             else:
-                turn = np.zeros(4)
-                mujoco.mju_axisAngle2Quat(turn, axis, r)
-                anchor, turned = np.asarray(j.pos, dtype=float), np.zeros(3)
-                mujoco.mju_rotVecQuat(turned, anchor, turn)
-                shift = anchor - turned
-                new = np.zeros(4)
-                mujoco.mju_mulQuat(new, quat, turn)
-                body.quat = new
-            moved = np.zeros(3)
-            mujoco.mju_rotVecQuat(moved, shift, quat)
-            body.pos = np.asarray(body.pos, dtype=float) + moved
+                turn = rotations.from_axis_angle(axis, r)
+                anchor = np.asarray(j.pos, dtype=float)
+                shift = anchor - rotations.rotate(turn, anchor)
+                body.quat = rotations.mul(quat, turn)
+            body.pos = np.asarray(body.pos, dtype=float) + rotations.rotate(quat, shift)
             j.ref = r
 
 

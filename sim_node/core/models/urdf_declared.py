@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from . import sensor_tags
+from ..base import quat
 
 log = logging.getLogger(__name__)
 
@@ -106,7 +107,7 @@ def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
     kind = (sensor.get('type') or '').lower()
     name = _free_name(spec, sensor.get('name') or f'{body.name}_{kind}')
     pose = _floats(sensor.findtext('pose'), 6) or [0.0] * 6
-    pos, quat = np.array(pose[:3]), _rpy_quat(*pose[3:])
+    pos, orientation = np.array(pose[:3]), quat.from_rpy(*pose[3:])
     if kind in CAMERAS:
         width = _number(sensor, './/image/width', 640.0)
         height = _number(sensor, './/image/height', 480.0)
@@ -117,14 +118,13 @@ def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
             hfov, width, height = 1.047, 640.0, 480.0
         fovy = math.degrees(2 * math.atan(math.tan(hfov / 2) * height / width))
         # MuJoCo's camera looks along its -z with y up; Gazebo's along the link's x, z up.
-        turn = np.zeros(4)
-        mujoco.mju_mulQuat(turn, quat, _xyaxes_quat((0, -1, 0), (0, 0, 1)))
+        turn = quat.mul(orientation, quat.from_xyaxes((0, -1, 0), (0, 0, 1)))
         body.add_camera(name=name, pos=pos, quat=turn, fovy=fovy)
         declared.append(sensor_tags.camera(sensor, name, [b.name for b in spec.bodies
                                                           if b.name]))
         return f'camera {name!r} on {body.name!r}'
     if kind == 'imu':
-        site = body.add_site(name=f'{name}_imu', pos=pos, quat=quat)
+        site = body.add_site(name=f'{name}_imu', pos=pos, quat=orientation)
         for stype, suffix in ((mujoco.mjtSensor.mjSENS_FRAMEQUAT, 'orientation'),
                               (mujoco.mjtSensor.mjSENS_GYRO, 'gyro'),
                               (mujoco.mjtSensor.mjSENS_ACCELEROMETER, 'accel')):
@@ -134,7 +134,7 @@ def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
         declared.append(sensor_tags.imu(sensor, site.name, body.name, links))
         return f'IMU {name!r} on {body.name!r}'
     if kind in LASERS:
-        body.add_site(name=f'{name}_lidar', pos=pos, quat=quat)
+        body.add_site(name=f'{name}_lidar', pos=pos, quat=orientation)
         links = [b.name for b in spec.bodies if b.name]
         declared.append(sensor_tags.laser(sensor, f'{name}_lidar', body.name, links))
         return f'laser {name!r} on {body.name!r}'
@@ -154,7 +154,7 @@ def _force_torque(spec, joint: str, links: tuple, sensor: ET.Element, declared: 
     name = _free_name(spec, sensor.get('name') or f'{joint}_ft')
     frame = (sensor.findtext('force_torque/frame') or 'child').strip().lower()
     pose = (_floats(sensor.findtext('pose'), 6) if frame == 'sensor' else None) or [0.0] * 6
-    site = body.add_site(name=f'{name}_ft', pos=pose[:3], quat=_rpy_quat(*pose[3:]))
+    site = body.add_site(name=f'{name}_ft', pos=pose[:3], quat=quat.from_rpy(*pose[3:]))
     for stype, suffix in ((mujoco.mjtSensor.mjSENS_FORCE, 'force'),
                           (mujoco.mjtSensor.mjSENS_TORQUE, 'torque')):
         spec.add_sensor(name=f'{name}_{suffix}', type=stype, objtype=mujoco.mjtObj.mjOBJ_SITE,
@@ -195,24 +195,6 @@ def _number(el: ET.Element, path: str, default: float) -> float:
     except ValueError:
         return default
     return value if math.isfinite(value) else default
-
-
-def _rpy_quat(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    for axis, angle in (((0, 0, 1), yaw), ((0, 1, 0), pitch), ((1, 0, 0), roll)):
-        turn, out = np.zeros(4), np.zeros(4)
-        mujoco.mju_axisAngle2Quat(turn, np.asarray(axis, dtype=float), angle)
-        mujoco.mju_mulQuat(out, q, turn)
-        q = out
-    return q
-
-
-def _xyaxes_quat(x, y) -> np.ndarray:
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    mat = np.stack([x, y, np.cross(x, y)], axis=1).ravel()
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, mat)
-    return q
 
 
 def _interfaces(extensions: list) -> dict:

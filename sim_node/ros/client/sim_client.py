@@ -60,6 +60,11 @@ READ_ONLY_SERVICES = frozenset((
 READ_ONLY_SUFFIXES = ('/list_controllers', '/list_controller_types',
                       '/list_hardware_interfaces', '/list_hardware_components',
                       '/get_parameters', '/list_parameters', '/describe_parameters')
+#: Writes whose standard meaning makes a second request do what the first did ("reset to the
+#: initial state", "set this pose", "set this description"): asked again like reads. Every
+#: other write (spawn, delete, step, load, set a state, an action goal) is never repeated: a
+#: second spawn or delete is refused or acts twice, a second step steps twice.
+IDEMPOTENT_WRITES = frozenset(('reset_simulation', 'set_entity_state', 'set_entity_info'))
 READ_RETRY_SEC = 3.0
 
 #: The longest single wait of the client's executor (s): a deadline is checked at least as often.
@@ -134,13 +139,15 @@ class SimClient:
         future = client.call_async(request)
         while True:
             left = deadline - time.monotonic()
-            reads = service in READ_ONLY_SERVICES or service.endswith(READ_ONLY_SUFFIXES)
+            reads = service in READ_ONLY_SERVICES or service in IDEMPOTENT_WRITES or \
+                service.endswith(READ_ONLY_SUFFIXES)
             wait = min(left, READ_RETRY_SEC) if reads else left
             self._spin_until(future.done, max(0.1, wait))
             if future.done() or time.monotonic() >= deadline:
                 break
-            # A read changes nothing, so asking again is safe: its reply may have been dropped
-            # (a server that had not matched us yet, or the ghost of a node just stopped).
+            # A read changes nothing, and an idempotent write does again what it did, so
+            # asking again is safe: its reply may have been dropped (a server that had not
+            # matched us yet, or the ghost of a node just stopped).
             future = client.call_async(request)
         if not future.done():
             raise TimeoutError(f'{service} did not answer within {self._timeout} s')

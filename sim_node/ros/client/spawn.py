@@ -14,11 +14,12 @@ there is none: no answer; 2: a bad argument; 130: Ctrl-C, with one line)::
 """
 
 import argparse
-import math
 import os
 from pathlib import Path
 import sys
 from typing import Optional, Sequence
+
+from ...core.base import quat
 
 EXIT_FAILED = 1
 #: Ctrl-C (SIGINT): one line, as a shell reports 128 + 2.
@@ -45,11 +46,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def quaternion_xyzw(roll: float, pitch: float, yaw: float) -> tuple:
     """Return the quaternion (x, y, z, w) of fixed-axis roll, pitch, yaw (URDF's order)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+    w, x, y, z = quat.from_rpy(roll, pitch, yaw)
+    return float(x), float(y), float(z), float(w)
 
 
 def _from_topic(node, topic: str, timeout: float) -> Optional[str]:

@@ -142,7 +142,11 @@ class Perception:
     # ------------------------------------------------------------------ sensors
 
     def publish_sensors(self, snap: Snapshot) -> None:
-        """Publish the snapshot's sensors (publisher thread), once sync_sensors made theirs."""
+        """
+        Publish every sensor group of the snapshot's model (from the publisher thread).
+
+        Nothing until :meth:`sync_sensors` has made the publishers of that model generation.
+        """
         info = snap.info
         with self._sensor_lock:
             if info.generation != self._sensor_generation:
