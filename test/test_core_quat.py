@@ -52,7 +52,7 @@ def test_a_heading_and_an_axis_angle_are_the_same_turns():
 
 
 def test_xyaxes_give_the_frame_whose_axes_they_are():
-    """MuJoCo's camera (looking along -z, y up) on Gazebo's link (looking along x, z up)."""
+    """A MuJoCo camera (looking along -z, y up) on a Gazebo link (looking along x, z up)."""
     q = quat.from_xyaxes((0, -1, 0), (0, 0, 1))
     np.testing.assert_allclose(quat.rotate(q, X), -Y, atol=1e-12)
     np.testing.assert_allclose(quat.rotate(q, Y), Z, atol=1e-12)

@@ -342,7 +342,8 @@ class ControllerManagers:
         self._roots = tuple(roots) + tuple(shares)
         self.robots: dict = {}  # entity -> RobotControl
         self.topic_robots: dict = {}  # entity -> TopicHardware
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # the robots: held briefly, never while closing one
+        self._sync_lock = threading.Lock()  # syncs take turns (see sync)
 
     def readable(self, path) -> bool:
         return inside_roots(path, self._roots)
@@ -356,15 +357,33 @@ class ControllerManagers:
         self.sync(None if snap is None else snap.info)
 
     def sync(self, info: Optional[ModelInfo]) -> None:
+        """
+        Make and remove the robots' managers as the model `info` declares them.
+
+        The managers of robots that went are taken out under the lock and closed with it let
+        go (closing one takes its nodes out of the executor and waits a moment before it
+        destroys them, :meth:`SimNode._drop_node`: nobody waits on the lock meanwhile), and
+        before the new ones are made: a manager of the same name must never outlive its
+        successor (a client that found the old one's service waited for an answer for ever).
+        Syncs take turns on their own lock, so one never makes a manager while another still
+        closes its predecessor.
+        """
         declared = {} if info is None else info.ros2_control
         wanted = {e: c for e, c in declared.items() if c.simulated}
         topics = {e: c for e, c in declared.items() if c.topic_based and not c.simulated}
+        with self._sync_lock:
+            with self._lock:
+                gone = [self.robots.pop(e) for e, r in list(self.robots.items())
+                        if wanted.get(e) != r.control]
+                gone += [self.topic_robots.pop(e) for e, r in list(self.topic_robots.items())
+                         if topics.get(e) != r.control]
+            for robot in gone:
+                robot.close()
+            self._make(info, wanted, topics)
+
+    def _make(self, info: Optional[ModelInfo], wanted: dict, topics: dict) -> None:
+        """Make the managers of robots that came (the sync lock held)."""
         with self._lock:
-            for entity in [e for e, r in self.robots.items() if wanted.get(e) != r.control]:
-                self.robots.pop(entity).close()
-            for entity in [e for e, r in self.topic_robots.items()
-                           if topics.get(e) != r.control]:
-                self.topic_robots.pop(entity).close()
             for entity, control in wanted.items():
                 if entity not in self.robots:
                     self.robots[entity] = RobotControl(self, entity, control)

@@ -146,13 +146,23 @@ class Perception:
         Publish every sensor group of the snapshot's model (from the publisher thread).
 
         Nothing until :meth:`sync_sensors` has made the publishers of that model generation.
+        The joint samples the loop took go to the controllers after the sensor lock is let go:
+        a controller calls the world, and no node lock is held while calling the world.
         """
         info = snap.info
+        joints: list = []
+        try:
+            self._publish_locked(snap, info, joints)
+        finally:
+            self.joint_samples(joints)  # controllers'
+
+    def _publish_locked(self, snap: Snapshot, info: ModelInfo, joints: list) -> None:
+        """Publish the sensors under the sensor lock; put the joint samples into `joints`."""
         with self._sensor_lock:
             if info.generation != self._sensor_generation:
                 return
             data = snap.sensordata
-            self._publish_samples(info)
+            joints.extend(self._publish_samples(info))
             for sensor in info.sensors:
                 pub = self._sensor_pubs[(sensor.kind, sensor.name)]
                 frame = self._sensor_frames.get((sensor.kind, sensor.name), '')
@@ -176,13 +186,17 @@ class Perception:
                 else:
                     pub.publish(pm.generic(sensor, data))
 
-    def _publish_samples(self, info: ModelInfo) -> None:
-        """Publish the declared IMUs' samples the loop took, each with its simulated time."""
+    def _publish_samples(self, info: ModelInfo) -> list:
+        """
+        Publish the declared IMUs' samples the loop took, each with its simulated time.
+
+        Returns the joint samples among them, for the controllers (not run here: see
+        :meth:`publish_sensors`).
+        """
         sim = self._loaded
         if sim is None:
-            return
+            return []
         taken = sim.world.take_sensor_samples()
-        self.joint_samples([x for x in taken if isinstance(x, JointSample)])  # controllers'
         for sample in taken:
             if isinstance(sample, (ContactReport, JointSample)):
                 if isinstance(sample, ContactReport) and sample.generation == info.generation:
@@ -196,6 +210,7 @@ class Perception:
             if not decl.always_on and pub.get_subscription_count() == 0:
                 continue
             pub.publish(pm.imu_sample(q, gyro, acc, t, self._sensor_frames[('imu', site)]))
+        return [x for x in taken if isinstance(x, JointSample)]
 
     def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
         """
