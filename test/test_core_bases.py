@@ -14,6 +14,7 @@ import sys
 from conftest import SCENES
 import numpy as np
 import pytest
+from sim_node.core.base import quat
 from sim_node.core.control import bases
 from sim_node.core.errors import InvalidArgumentError, NotFoundError
 from sim_node.core.models import sources
@@ -43,7 +44,7 @@ def drive(w: World, entity: str, vx: float, vy: float, wz: float, seconds: float
 
 def planar(w: World, entity: str) -> tuple:
     s = w.get_entity_state(entity)
-    return np.array(s.position[:2]), bases.yaw_of(s.quat_wxyz)
+    return np.array(s.position[:2]), quat.yaw_of(s.quat_wxyz)
 
 
 def test_the_scenes_bases_are_found_and_measured_from_the_model(world):
@@ -72,8 +73,8 @@ def test_a_turn_in_place_turns_w_t_and_stays_put(world):
     (p0, yaw0), t0 = planar(world, 'rover'), world.time
     drive(world, 'rover', 0, 0, 1.0, 1.0)
     (p1, yaw1), t1 = planar(world, 'rover'), world.time
-    assert bases.yaw_of(np.array([math.cos((yaw1 - yaw0) / 2), 0, 0,
-                                  math.sin((yaw1 - yaw0) / 2)])) == pytest.approx(
+    assert quat.yaw_of(np.array([math.cos((yaw1 - yaw0) / 2), 0, 0,
+                                 math.sin((yaw1 - yaw0) / 2)])) == pytest.approx(
         1.0 * (t1 - t0), rel=0.05)
     assert np.linalg.norm(p1 - p0) < 0.1  # about the axle's middle, 5 cm ahead of the origin
 

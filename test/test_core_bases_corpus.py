@@ -13,6 +13,7 @@ from pathlib import Path
 import bases_corpus
 import numpy as np
 import pytest
+from sim_node.core.base import quat
 from sim_node.core.control import bases
 from sim_node.core.models import sources
 from sim_node.core.world import World
@@ -46,7 +47,7 @@ def drive(w: World, name: str, vx: float, vy: float, wz: float, seconds: float) 
 
 def planar(w: World, name: str) -> tuple:
     s = w.get_entity_state(name)
-    return np.array(s.position[:2]), bases.yaw_of(s.quat_wxyz)
+    return np.array(s.position[:2]), quat.yaw_of(s.quat_wxyz)
 
 
 def measured(w: World, name: str, vx, vy, wz, warm: float, seconds: float) -> tuple:

@@ -5,6 +5,7 @@ The one place rotations are written: the core uses it for reference frames, the 
 relative transforms.
 """
 
+import mujoco
 import numpy as np
 
 
@@ -66,32 +67,18 @@ def from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 
 def to_matrix(q) -> np.ndarray:
-    """Return the (3, 3) rotation matrix of a quaternion (normalised first)."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    """Return the (3, 3) rotation matrix of a quaternion (normalised first): MuJoCo's."""
+    q = np.asarray(q, dtype=float)
+    out = np.zeros(9)
+    mujoco.mju_quat2Mat(out, q / np.linalg.norm(q))
+    return out.reshape(3, 3)
 
 
 def from_matrix(r) -> np.ndarray:
-    """Return the unit (4,) quaternion (w >= 0) of a (3, 3) rotation matrix (Shepperd's way)."""
-    r = np.asarray(r, dtype=float).reshape(3, 3)
-    trace = r[0, 0] + r[1, 1] + r[2, 2]
-    if trace > 0:
-        s = 2.0 * np.sqrt(1.0 + trace)
-        q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
-    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
-        q = [(r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s]
-    elif r[1, 1] > r[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
-        q = [(r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s]
-    else:
-        s = 2.0 * np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
-        q = [(r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s]
-    q = np.asarray(q)
-    q = q / np.linalg.norm(q)
-    return -q if q[0] < 0 else q
+    """Return the unit (4,) quaternion of a (3, 3) rotation matrix: MuJoCo's."""
+    out = np.zeros(4)
+    mujoco.mju_mat2Quat(out, np.asarray(r, dtype=float).reshape(9))
+    return out
 
 
 def from_xyaxes(x, y) -> np.ndarray:

@@ -453,7 +453,7 @@ class Drive:
 
 
 def _body_yaw(data: mujoco.MjData, body: int) -> float:
-    return yaw_of(data.xquat[body])
+    return quat.yaw_of(data.xquat[body])
 
 
 def check_command(vx: float, vy: float, wz: float) -> tuple:
@@ -479,7 +479,3 @@ class Command:
     wz: float = 0.0
     time: float = -math.inf
     timeout: float = COMMAND_TIMEOUT
-
-
-#: The heading of a quaternion (rotation about z); :func:`sim_node.core.base.quat.yaw_of`.
-yaw_of = quat.yaw_of

@@ -466,8 +466,4 @@ def _fmt(values, digits: int = 12, sep: str = ' ') -> str:
 
 
 def _origin(el: ET.Element, pos, quat_wxyz) -> None:
-    ET.SubElement(el, 'origin', xyz=_fmt(pos), rpy=_fmt(rpy(quat_wxyz)))
-
-
-#: Roll, pitch, yaw as URDF has them: :func:`sim_node.core.base.quat.to_rpy`.
-rpy = rotations.to_rpy
+    ET.SubElement(el, 'origin', xyz=_fmt(pos), rpy=_fmt(rotations.to_rpy(quat_wxyz)))

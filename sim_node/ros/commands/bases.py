@@ -30,6 +30,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from tf2_msgs.msg import TFMessage
 
 from ..settings.params import Frames
+from ...core.base import quat
 from ...core.base.errors import SimError
 from ...core.base.records import Snapshot
 from ...core.control import bases
@@ -152,11 +153,11 @@ class BaseControllers:
             base.stamp = snap.time
             pos, q = snap.body_xpos[root], snap.body_xquat_wxyz[root]
             if base.start is None or (base.odometry.time or 0.0) > snap.time:  # a reset
-                base.start = (pos.copy(), bases.yaw_of(q))
+                base.start = (pos.copy(), quat.yaw_of(q))
                 base.odometry = bases.Odometry(base.spec)
             wheels = [joints.get(n) for n in base.spec.wheels]
             if truth or not wheels or None in wheels:
-                base.odometry.from_pose(snap.time, pos, bases.yaw_of(q))
+                base.odometry.from_pose(snap.time, pos, quat.yaw_of(q))
             else:
                 base.odometry.from_wheels(snap.time, snap.joint_position[wheels])
             odom_pos, odom_q = odometry.base_pose(base.odometry, base.start, pos, q)
