@@ -1,4 +1,4 @@
-"""The loop's status as diagnostic_msgs/DiagnosticArray, for /diagnostics (rqt_robot_monitor)."""
+"""The session's state and the loop's rate as diagnostic_msgs/DiagnosticArray, for /diagnostics."""
 
 from typing import Optional
 
