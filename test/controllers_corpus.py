@@ -243,13 +243,24 @@ diff_drive_base_controller:
     cmd_vel_timeout: 0.5
     enable_odom_tf: true
     pose_covariance_diagonal: [0.001, 0.001, 1000000.0, 1000000.0, 1000000.0, 0.01]
+    # The style of most published configs: the deprecated flags beside every limit, a jerk
+    # of 0.0 turned off by its flag (at d48b79a it was taken as a limit: the base never moved)
     linear:
       x:
+        has_velocity_limits: true
         max_velocity: 1.0
+        has_acceleration_limits: true
         max_acceleration: 0.5
+        has_jerk_limits: false
+        max_jerk: 0.0
     angular:
       z:
+        has_velocity_limits: true
         max_velocity: 1.0
+        has_acceleration_limits: false
+        max_acceleration: 0.0
+        has_jerk_limits: false
+        max_jerk: 0.0
 """
 
 

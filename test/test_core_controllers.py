@@ -184,6 +184,34 @@ def test_base_limits_ramp_clamp_and_keep_signs_as_the_controllers_limiters():
         limits.signed({'linear.x.max_velocity': 1.0, 'linear.x.min_velocity': 2.0}, 'linear.x')
 
 
+def test_a_limit_flag_set_false_turns_its_limit_off_as_jazzys_controllers_do():
+    """
+    The widely used YAML style: ``has_jerk_limits: false`` beside ``max_jerk: 0.0``.
+
+    At d48b79a the jerk of 0 was taken as a limit: the wheels never turned.
+    """
+    from sim_node.core.control import limits
+    dt = 0.01
+    style = {'linear.x.has_velocity_limits': True, 'linear.x.max_velocity': 1.0,
+             'linear.x.has_acceleration_limits': True, 'linear.x.max_acceleration': 1.0,
+             'linear.x.has_jerk_limits': False, 'linear.x.max_jerk': 0.0}
+    lin = limits.signed(style, 'linear.x')
+    assert lin.limit(0.5, 0.0, 0.0, dt) == pytest.approx(1.0 * dt)  # the acceleration limit
+    assert limits.signed({**style, 'linear.x.has_jerk_limits': True}, 'linear.x').limit(
+        0.5, 0.0, 0.0, dt) == 0.0  # a jerk limit of 0, asked for, is one
+    off = {'angular.z.has_velocity_limits': False, 'angular.z.max_velocity': 0.1,
+           'angular.z.has_acceleration_limits': False, 'angular.z.max_acceleration': 0.0}
+    assert not limits.signed(off, 'angular.z').limits
+    assert limits.signed({'angular.z.max_velocity': 0.1}, 'angular.z').limit(
+        5.0, 0.0, 0.0, dt) == pytest.approx(0.1)  # no flag: the limit given applies
+    traction = limits.traction({'traction.has_acceleration_limits': False,
+                                'traction.max_acceleration': 0.0,
+                                'traction.max_deceleration': 0.0})
+    assert traction.limit(3.0, 0.0, 0.0, dt) == 3.0 and traction.limit(0.0, 3.0, 3.0, dt) == 0.0
+    steer = limits.steering({'steering.has_position_limits': False, 'steering.max_position': 0.0})
+    assert steer.limit(0.4, 0.0, 0.0, dt) == 0.4
+
+
 def test_a_reset_of_state_is_counted_and_the_joint_samples_after_it_carry_the_count(tmp_path):
     """A controller tells a sample taken before a reset of state from one taken after."""
     from sim_node.core.models import sources

@@ -14,6 +14,12 @@ The readers take the limits from a controller's flattened YAML:
   ``max_position`` is signed, ``min_position`` defaulting to minus it. Traction slowing
   down uses the ``*_deceleration`` limits.
 
+Jazzy's controllers still honour the deprecated ``<prefix>.has_<x>_limits`` flags (Kilted
+removes them in favour of NaN limits): a flag set to false turns that limit off whatever
+``max_<x>`` and ``min_<x>`` say. Most published YAMLs carry both (``has_jerk_limits: false``
+beside ``max_jerk: 0.0``); read as a limit, a jerk of 0 held the wheels still for good. Absent
+or true, the limits given apply. ``has_acceleration_limits`` covers the deceleration limits too.
+
 ROS-free; :mod:`sim_node.ros.control.controllers` and :mod:`sim_node.ros.control.steering` use it.
 """
 
@@ -73,7 +79,15 @@ def _number(params: dict, key: str) -> float:
     return float(value)
 
 
+def _off(params: dict, prefix: str, name: str) -> bool:
+    """Say whether the YAML turns a limit off with its deprecated ``has_<x>_limits: false``."""
+    flag = 'acceleration' if name == 'deceleration' else name
+    return params.get(f'{prefix}.has_{flag}_limits') is False
+
+
 def _signed(params: dict, prefix: str, name: str) -> Optional[Bound]:
+    if _off(params, prefix, name):
+        return None
     hi, lo = _number(params, f'{prefix}.max_{name}'), _number(params, f'{prefix}.min_{name}')
     if math.isnan(hi) or math.isinf(hi):
         return None
@@ -85,6 +99,8 @@ def _signed(params: dict, prefix: str, name: str) -> Optional[Bound]:
 
 
 def _sizes(params: dict, prefix: str, name: str) -> Optional[Bound]:
+    if _off(params, prefix, name):
+        return None
     hi, lo = _number(params, f'{prefix}.max_{name}'), _number(params, f'{prefix}.min_{name}')
     if math.isnan(hi) and math.isnan(lo):
         return None
