@@ -560,8 +560,16 @@ tricycle_controller:
     odom_frame_id: odom
     base_frame_id: base_link
     cmd_vel_timeout: 500
+    # The flags as published configs write them: an acceleration of 0.0 turned off by its flag
     traction:
+      has_velocity_limits: true
       max_velocity: 4.0
+      has_acceleration_limits: false
+      max_acceleration: 0.0
+      max_deceleration: 0.0
+      has_jerk_limits: false
+      max_jerk: 0.0
     steering:
+      has_position_limits: true
       max_position: 0.15
 """

@@ -210,6 +210,8 @@ def test_a_limit_flag_set_false_turns_its_limit_off_as_jazzys_controllers_do():
     assert traction.limit(3.0, 0.0, 0.0, dt) == 3.0 and traction.limit(0.0, 3.0, 3.0, dt) == 0.0
     steer = limits.steering({'steering.has_position_limits': False, 'steering.max_position': 0.0})
     assert steer.limit(0.4, 0.0, 0.0, dt) == 0.4
+    with pytest.raises(ValueError, match="linear.x.has_jerk_limits is 'no': it must be true"):
+        limits.signed({'linear.x.has_jerk_limits': 'no'}, 'linear.x')
 
 
 def test_a_reset_of_state_is_counted_and_the_joint_samples_after_it_carry_the_count(tmp_path):

@@ -442,6 +442,14 @@ def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
     assert listed(sim)['tricycle_controller'].state == 'unconfigured'
     wait_for(lambda: 'traction.min_velocity and max_velocity (0, -4) cannot be negative'
              in node.output())
+    # a limit's flag that is not a bool: configure refuses it, naming it
+    sim.reset()
+    odd_flag = corpus.DIFF_DRIVE_YAML.replace('has_jerk_limits: false', 'has_jerk_limits: 1', 1)
+    sim.spawn('rover', resource_string=corpus.diff_drive(
+        corpus.write(folder, 'odd_flag.yaml', odd_flag)), position=(2.0, -2.0, 0.15))
+    failed, _ = corpus.spawner(sim, 'diff_drive_base_controller')
+    assert failed is not None and not failed.ok
+    wait_for(lambda: 'linear.x.has_jerk_limits is 1: it must be true or false' in node.output())
 
 
 def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):

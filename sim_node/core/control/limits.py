@@ -80,9 +80,17 @@ def _number(params: dict, key: str) -> float:
 
 
 def _off(params: dict, prefix: str, name: str) -> bool:
-    """Say whether the YAML turns a limit off with its deprecated ``has_<x>_limits: false``."""
-    flag = 'acceleration' if name == 'deceleration' else name
-    return params.get(f'{prefix}.has_{flag}_limits') is False
+    """
+    Say whether the YAML turns a limit off with its deprecated ``has_<x>_limits: false``.
+
+    :raises ValueError: the flag is there but not a bool (the real controller's parameter
+        library refuses it at configure).
+    """
+    key = f"{prefix}.has_{'acceleration' if name == 'deceleration' else name}_limits"
+    flag = params.get(key, True)
+    if not isinstance(flag, bool):
+        raise ValueError(f'{key} is {flag!r}: it must be true or false')
+    return not flag
 
 
 def _signed(params: dict, prefix: str, name: str) -> Optional[Bound]:
