@@ -98,10 +98,28 @@ def ensure_venv() -> Path:
         'gymnasium, PyOpenGL, Pillow, pytest, colcon from the package index (about 30 s)')
     # The ROS wheels re-exec the interpreter; the guard keeps pip's own process plain.
     run([str(python), '-m', 'pip', 'install', '--quiet', '--upgrade', 'pip'])
+    drop_mujoco_metapackage(python)
     run([str(python), '-m', 'pip', 'install', '--quiet', '-r', str(REQUIREMENTS)])
     patch_wheel_cmake_exports(python)
     stamp.write_text(key)
     return python
+
+
+def drop_mujoco_metapackage(python: Path) -> None:
+    """
+    Take away the `mujoco` metapackage (and mujoco-studio) a venv made before 4.0.1 holds.
+
+    It pins mujoco-core==4.0.0, the release whose sparse factorization 4.0.1 mends (see
+    requirements.txt). Both ship ``mujoco/__init__.py`` with mujoco-core, so uninstalling them
+    takes that file away too: mujoco-core is installed again over it.
+    """
+    check = [str(python), '-c', 'import importlib.metadata as m; m.version("mujoco")']
+    if subprocess.run(check, capture_output=True).returncode != 0:
+        return  # a fresh venv, or one already without it
+    say('replacing the mujoco 4.0.0 metapackage by mujoco-core 4.0.1 (a fix of its solver)')
+    run([str(python), '-m', 'pip', 'uninstall', '--quiet', '--yes', 'mujoco', 'mujoco-studio'])
+    run([str(python), '-m', 'pip', 'install', '--quiet', '--force-reinstall', '--no-deps',
+         'mujoco-core>=4.0.1,<4.1'])
 
 
 def patch_wheel_cmake_exports(python: Path) -> None:

@@ -30,15 +30,43 @@ def _log_mujoco_warning(message: str) -> None:
         _MUJOCO_LOG.warning('MuJoCo: %s', message)
 
 
+#: MuJoCo releases with a known fault in what this simulator relies on: release -> the fault.
+#: ros_env/requirements.txt excludes them; a ROS machine's pip (rosdep's python3-mujoco-pip
+#: key) may still bring one, so the first world made says so.
+FAULTY_RELEASES = {
+    '4.0.0': ('its sparse Cholesky factorization gives the Newton solver a wrong Hessian '
+              'factor when the constraint Jacobian is sparse (slow convergence, wrong '
+              'accelerations, divergence: MuJoCo issue 3767); pip install '
+              '"mujoco-core>=4.0.1" glfw (the mujoco 4.0.0 metapackage pins the faulty core: '
+              'uninstall it first)'),
+}
+
+
+def release_warning(version: str) -> str:
+    """Return what is wrong with MuJoCo release `version` and what to do, or ''."""
+    fault = FAULTY_RELEASES.get(version)
+    return f'MuJoCo {version} is known to be faulty: {fault}' if fault else ''
+
+
 def route_mujoco_warnings() -> None:
     """
     Send MuJoCo's warning text to logging instead of stderr and a MUJOCO_LOG.TXT.
 
     The node forwards it to the ROS log. Nothing changes if the application has installed a
-    MuJoCo warning handler of its own (the handler is process-wide).
+    MuJoCo warning handler of its own (the handler is process-wide). The first call also says,
+    once, if the MuJoCo in use is a release of :data:`FAULTY_RELEASES`.
     """
+    global _release_checked
+    if not _release_checked:
+        _release_checked = True
+        note = release_warning(mujoco.mj_versionString())
+        if note:
+            _MUJOCO_LOG.warning(note)
     if mujoco.get_mju_user_warning() is None:
         mujoco.set_mju_user_warning(_log_mujoco_warning)
+
+
+_release_checked = False
 
 
 _BAD_WARNINGS = [int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQVEL),
