@@ -65,6 +65,20 @@ def caster_mesh() -> str:
                   _caster('<mesh filename="omni_wheel.stl"/>', link='rear_support'))
 
 
+def mobile_mast() -> str:
+    """Return a mobile manipulator's base with a mast: its origin below the axles, mesh high."""
+    mast = ('<link name="link_mast"><inertial><mass value="3.0"/>'
+            f'<origin xyz="0 0 0.6"/>{INERTIA.format(i=0.1)}</inertial>'
+            '<visual><origin xyz="0 0 0.6"/><geometry><mesh filename="omni_wheel.stl" '
+            'scale="2 2 12"/></geometry></visual>'
+            '<collision><origin xyz="0 0 0.6"/><geometry><mesh filename="omni_wheel.stl" '
+            'scale="2 2 12"/></geometry></collision></link>'
+            '<joint name="mast_joint" type="fixed"><parent link="base_link"/>'
+            '<child link="link_mast"/><origin xyz="0.1 0 -0.05"/></joint>')
+    return _robot('mobile_mast', _base(), _wheel('left', SEPARATION / 2),
+                  _wheel('right', -SEPARATION / 2), _caster('<sphere radius="0.035"/>'), mast)
+
+
 def skid_steer() -> str:
     return _robot('skid', _base(30.0, com_x=0.0),  # four wheels carry it: its middle
                   *(_wheel(side, y, x, prefix)
@@ -120,7 +134,8 @@ def write(folder: Path) -> dict:
              'caster_mesh': ('caster_mesh.urdf', caster_mesh()),
              'skid_steer': ('skid_steer.urdf', skid_steer()),
              'holonomic': ('holonomic.xml', HOLONOMIC),
-             'gazebo_plugin': ('gazebo_plugin.urdf', gazebo_plugin())}
+             'gazebo_plugin': ('gazebo_plugin.urdf', gazebo_plugin()),
+             'mobile_mast': ('mobile_mast.urdf', mobile_mast())}
     out = {}
     for name, (file, text) in files.items():
         (folder / file).write_text(text)

@@ -129,6 +129,25 @@ def test_fixed_casters_roll_and_the_rule_can_be_turned_off(files):
     assert rolling == []
 
 
+def test_a_link_that_cannot_reach_the_floor_is_never_a_caster(files):
+    """
+    A mast is not a caster, whatever its shape and wherever its origin (issue 53).
+
+    At d48b79a a fixed link hung from the base with a mesh and its origin below the axles was
+    taken for one: a mobile manipulator's spawn said "caster_link, link_mast roll as casters".
+    """
+    w = spawned(files, 'mobile_mast')
+
+    def condims(body):
+        return w.read(lambda m, d: {int(m.geom_condim[g]) for g in range(m.ngeom)
+                                    if m.body(m.geom_bodyid[g]).name == f'mobile_mast/{body}'
+                                    and m.geom_contype[g]})
+    assert condims('caster_link') == {1}  # on the floor with the wheels: it rolls
+    assert condims('link_mast') == {3}  # 0.4 m above it: as written
+    along, _, _, _ = measured(w, 'mobile_mast', 0.3, 0, 0, 1.0, 2.0)
+    assert along == pytest.approx(0.3, rel=0.1)
+
+
 def test_wheels_without_actuators_get_velocity_actuators_held_by_mujoco(files):
     """The wheels' speed is held by MuJoCo (no torque computed before every step)."""
     w = spawned(files, 'caster_mesh')

@@ -6,19 +6,25 @@ rules :mod:`.bases` uses to find a differential drive: a Gazebo drive plugin's j
 hinges whose names say wheel and left or right.
 """
 
+import logging
 import math
 from typing import Optional
 
 import mujoco
+import numpy as np
 
 from .bases import DIFF_DRIVE
+
+log = logging.getLogger(__name__)
 
 #: Seconds in which a spawned wheel's velocity actuator brings the robot to speed.
 WHEEL_TAU = 0.05
 #: What :func:`add_wheel_actuators` assumes when a model gives no masses or no wheel radius.
 FALLBACK_MASS, FALLBACK_RADIUS = 20.0, 0.1
-#: Words in a fixed body's name that make it a caster (:func:`roll_casters`).
-CASTER_WORDS = ('caster', 'castor', 'ball', 'omni', 'swivel')
+#: How far above the wheels' lowest point a fixed body's collision may end and still be a
+#: caster (:func:`roll_casters`): this share of the wheels' radius, at least CASTER_REACH_MIN
+#: metres (a caster written a few millimetres short of the floor the robot then tips onto).
+CASTER_REACH, CASTER_REACH_MIN = 0.25, 0.005
 #: Above a user's own contact settings (``editor.OWN_CONTACT_PRIORITY``, 1) and the world's.
 CASTER_PRIORITY = 2
 
@@ -90,45 +96,79 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     return added
 
 
-def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
+def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
+                 assets: Optional[dict] = None) -> list:
     """
     Make the fixed casters of a wheeled model roll: their contacts carry weight, not friction.
 
     A caster, ball or omni wheel that a URDF fixes to the base (no joint to turn on) would drag
     along the floor with the friction of a block; Gazebo users give such links zero friction
-    (``<mu1>0</mu1>``), and so does this, to the same end. A caster is a body of a model with
-    wheels (:func:`wheel_joints`) that has no joint and either a name that says so
-    (:data:`CASTER_WORDS`), or, hung from the wheels' own parent, only spheres to collide with,
-    or only spheres and meshes below the wheels' axles.
+    (``<mu1>0</mu1>``), and so does this, to the same end. A caster is known by what it does:
+    a body of a model with wheels (:func:`wheel_joints`), with no joint of its own, not a wheel
+    and not the wheels' parent, whose colliding geometry reaches down to the floor the wheels
+    stand on (its lowest point within :data:`CASTER_REACH` of the wheels' radius above their
+    lowest point, the model as it is written, at rest). Its name does not matter: a mast, an
+    arm's base or a sensor mount that cannot reach the floor is never one, whatever its
+    shape or where its origin is.
     Its colliding geoms get ``condim`` 1 (a frictionless contact) with priority
     :data:`CASTER_PRIORITY`: MuJoCo mixes two geoms' condim by their maximum, and a contact
     takes the settings of the geom with the higher priority. ``WorldConfig.casters_roll``
     (the node's ``casters_roll``) turns the rule off.
 
+    :param assets: meshes given in memory (a spec built in code), to measure the geometry.
     :returns: the names of the bodies made casters.
     """
     wheels = wheel_joints(spec, plugin)
     if not wheels:
         return []
-    base = wheels[0].parent.parent
+    low = _lowest_points(spec, assets)
+    wheel_bodies = {w.parent.name for w in wheels}
+    floor = min((low[b] for b in wheel_bodies if b in low), default=None)
+    if floor is None:
+        return []
+    radius = max(_spec_wheel_radius(w.parent) for w in wheels) or FALLBACK_RADIUS
+    reach = floor + max(CASTER_REACH * radius, CASTER_REACH_MIN)
+    base = wheels[0].parent.parent.name
     found = []
     for body in spec.bodies:
-        if body.joints or body.name == 'world' or any(body.name == w.parent.name
-                                                      for w in wheels):
+        if body.joints or body.name in ('world', base) or body.name in wheel_bodies:
             continue
         solid = [g for g in body.geoms if g.contype or g.conaffinity]
-        named = any(w in body.name.lower() for w in CASTER_WORDS)
-        under = body.parent.name == base.name and body.name != base.name
-        kinds = {g.type for g in solid}
-        ball = under and kinds == {mujoco.mjtGeom.mjGEOM_SPHERE}
-        # a sphere or mesh hung below the wheels' axles: what else touches the floor there
-        low = under and kinds <= {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_MESH} \
-            and float(body.pos[2]) < min(float(w.parent.pos[2]) for w in wheels)
-        if solid and (named or ball or low):
+        if solid and low.get(body.name, math.inf) <= reach:
             for g in solid:  # a contact takes the condim of its higher-priority geom
                 g.condim, g.priority = 1, CASTER_PRIORITY
             found.append(body.name)
     return found
+
+
+def _lowest_points(spec: mujoco.MjSpec, assets: Optional[dict]) -> dict:
+    """
+    Return body name -> the lowest point (z) of its colliding geoms, the model at rest.
+
+    From a compiled copy of the spec (a mesh's extent is known only once compiled): each geom's
+    bounding box in its frame, turned into the world's. {} when the copy does not compile.
+    """
+    probe = spec.copy()
+    if assets:
+        probe.assets = {**probe.assets, **assets}
+    try:
+        model = probe.compile()
+    except ValueError as exc:
+        log.info('casters: the model does not compile alone (%s); none made to roll', exc)
+        return {}
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    low: dict = {}
+    for g in range(model.ngeom):
+        if not (model.geom_contype[g] or model.geom_conaffinity[g]) or \
+                model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE:
+            continue
+        rot = data.geom_xmat[g].reshape(3, 3)
+        centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+        z = float(data.geom_xpos[g][2] + rot[2] @ centre - np.abs(rot[2]) @ half)
+        name = model.body(int(model.geom_bodyid[g])).name
+        low[name] = min(low.get(name, math.inf), z)
+    return low
 
 
 def _spec_wheel_radius(body) -> float:

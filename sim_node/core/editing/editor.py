@@ -138,7 +138,7 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     if added:
         log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
                  name, ', '.join(added))
-    casters = wheels.roll_casters(child, plugin) if casters_roll else []
+    casters = wheels.roll_casters(child, plugin, source.assets) if casters_roll else []
     if casters:
         log.info('spawning %r: %s roll as casters (frictionless contacts; the node parameter '
                  'casters_roll turns this off)', name, ', '.join(casters))

@@ -116,10 +116,10 @@ PARAMETERS = (
          "stops, as diff_drive_controller does; 0: never (Gazebo's DiffDrive system)",
          limits=(0.0, 1e6)),
     Spec('casters_roll', _W.casters_roll, "a spawned wheeled base's fixed casters (a body "
-         "without a joint named caster, ball, omni or swivel, or under the wheels' parent "
-         'holding only spheres, or spheres and meshes below the axles) get frictionless '
-         'contacts and roll, as Gazebo users set mu 0; false: they drag as the URDF has them',
-         **RO),
+         'without a joint, not a wheel, whose collision reaches the floor the wheels stand on, '
+         "within a quarter of their radius; whatever its name: a mast never is one) get "
+         'frictionless contacts and roll, as Gazebo users set mu 0; false: they drag as the '
+         'URDF has them', **RO),
     Spec('contact_entities', STRING_ARRAY, 'entities whose contacts are published on '
          'contacts/<entity> (ros_gz_interfaces/Contacts: what touches what, where, how hard), '
          'from spawn on; an entity not there yet is reported once it spawns'),
