@@ -1,23 +1,27 @@
 """
 A mobile base's odometry as nav2 reads it: nav_msgs/Odometry and the odom TF (pure: no rclpy).
 
+The one Odometry builder: the node's own bases (``<entity>/odom``) and the base controllers
+(diff_drive_controller's ``~/odom``, the steering controllers') both send :func:`message`.
+
 REP 105: ``<entity>/odom`` is where the base started (its pose then, turned about z only); the
 odometry is the base's pose in it, twist in the base's own frame. The TF tree stays a tree: the
 world -> odom transform absorbs what the odometry gets wrong (its drift), and odom -> the
 entity's frame replaces the world -> entity transform /tf otherwise carries.
 """
 
+import math
 from typing import Sequence
 
 from nav_msgs.msg import Odometry
 import numpy as np
 from sim_node.core.base import quat
-from sim_node.core.control.bases import Odometry as Integrator
+from sim_node.core.control.odometry import PlanarOdometry
 
 from . import convert
 
 
-def base_pose(odo: Integrator, start: tuple, position: np.ndarray,
+def base_pose(odo: PlanarOdometry, start: tuple, position: np.ndarray,
               quat_wxyz: np.ndarray) -> tuple:
     """
     Return the base's pose in its odom frame: (position (3,), quaternion wxyz (4,)).
@@ -39,7 +43,16 @@ def odom_frame_in_world(position: np.ndarray, quat_wxyz: np.ndarray, pos_odom: n
     return position - quat.rotate(q, pos_odom), q
 
 
-def message(odo: Integrator, stamp: float, frame: str, child: str, pos: np.ndarray,
+def diagonal(values) -> tuple:
+    """Return a YAML's covariance diagonal as six floats: six finite numbers, else zeros."""
+    if isinstance(values, (list, tuple)) and len(values) == 6 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            for x in values):
+        return tuple(float(x) for x in values)
+    return (0.0,) * 6
+
+
+def message(odo: PlanarOdometry, stamp: float, frame: str, child: str, pos: np.ndarray,
             quat_wxyz: np.ndarray, pose_covariance: Sequence[float],
             twist_covariance: Sequence[float]) -> Odometry:
     """Return nav_msgs/Odometry: pose in `frame`, twist in `child` (covariance diagonals)."""

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from sim_node.core.base import quat
 from sim_node.core.control import bases
+from sim_node.core.control.odometry import BaseOdometry
 from sim_node.core.errors import InvalidArgumentError, NotFoundError
 from sim_node.core.models import sources
 from sim_node.core.world import World
@@ -81,7 +82,7 @@ def test_a_turn_in_place_turns_w_t_and_stays_put(world):
 
 def test_wheel_odometry_of_a_square_ends_near_the_truth(world):
     spec = world.bases()['rover']
-    odo = bases.Odometry(spec)
+    odo = BaseOdometry(spec)
     start, yaw0 = planar(world, 'rover')
     path = [0.0, start]
 
@@ -103,7 +104,7 @@ def test_wheel_odometry_of_a_square_ends_near_the_truth(world):
 
 
 def test_ground_truth_odometry_is_the_simulations_pose(world):
-    odo = bases.Odometry(world.bases()['rover'])
+    odo = BaseOdometry(world.bases()['rover'])
     (p0, yaw0) = planar(world, 'rover')
     odo.from_pose(world.time, *planar(world, 'rover'))
     drive(world, 'rover', 0.4, 0, 0.5, 2.0,

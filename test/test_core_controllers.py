@@ -79,6 +79,49 @@ def test_the_lifecycle_goes_as_the_real_managers_does(tmp_path):
     assert not m.unload('forward_position_controller')[0]
 
 
+def test_a_controllers_schema_fills_defaults_and_refuses_wrong_types_naming_them(tmp_path):
+    """
+    Parameters are read once, by the type's schema: defaults filled, wrong types refused.
+
+    At d48b79a a covariance of five values or a tolerance given as a string fell back to a
+    default without a word, and each runtime wrote its own defaults again.
+    """
+    yaml = corpus.DIFF_DRIVE_YAML
+    wheels = ('left_wheel_joint', 'right_wheel_joint')
+    m = _manager(yaml, tmp_path, joints=wheels, interfaces=('velocity',))
+    assert m.load('diff_drive_base_controller')[0]
+    assert m.configure('diff_drive_base_controller')[0]
+    params = m.controllers['diff_drive_base_controller'].params
+    assert params['cmd_vel_timeout'] == 0.5 and params['publish_rate'] == 50.0  # the YAML's
+    assert params['use_stamped_vel'] is True and params['wheel_separation_multiplier'] == 1.0
+    assert params['twist_covariance_diagonal'] == (0.0,) * 6  # defaults, filled in
+    assert params['linear.x.max_velocity'] == 1.0  # a family the limits read, kept
+    for old, new, why in (
+            ('cmd_vel_timeout: 0.5', "cmd_vel_timeout: 'soon'",
+             "'cmd_vel_timeout' is 'soon': it must be a double"),
+            ('pose_covariance_diagonal: [0.001, 0.001, 1000000.0, 1000000.0, 1000000.0, 0.01]',
+             'pose_covariance_diagonal: [1, 2, 3, 4, 5]',
+             "'pose_covariance_diagonal' is [1, 2, 3, 4, 5]: it must be a double_array of 6"),
+            ('enable_odom_tf: true', 'enable_odom_tf: 1', "'enable_odom_tf' is 1: it must be"),
+            ('wheel_radius: 0.1', 'wheel_radius: -0.1', "'wheel_radius' is -0.1: it must be a "
+             'positive number'),
+            ('left_wheel_names: [left_wheel_joint]', 'left_wheel_names: []',
+             "'left_wheel_names' is []: it must not be empty")):
+        assert old in yaml
+        folder = tmp_path / str(len(why))
+        folder.mkdir(exist_ok=True)
+        bad = _manager(yaml.replace(old, new), folder, joints=wheels, interfaces=('velocity',))
+        assert bad.load('diff_drive_base_controller')[0]
+        ok, message = bad.configure('diff_drive_base_controller')
+        assert not ok and why in message, message
+    (tmp_path / 'r').mkdir()
+    gone = _manager(yaml.replace('    wheel_radius: 0.1\n', ''), tmp_path / 'r',
+                    joints=wheels, interfaces=('velocity',))
+    assert gone.load('diff_drive_base_controller')[0]
+    ok, message = gone.configure('diff_drive_base_controller')
+    assert not ok and "'wheel_radius' is not set" in message
+
+
 def test_a_switch_is_all_or_nothing_unless_best_effort(tmp_path):
     m = _manager(corpus.cart_yaml('position'), tmp_path)
     for name in ('forward_position_controller', 'group_position_controller'):
@@ -118,14 +161,44 @@ def test_diff_drive_kinematics_and_odometry_agree_with_the_geometry():
     g = diff_drive.Geometry.of({'wheel_separation': 0.4, 'wheel_radius': 0.1})
     assert diff_drive.wheel_speeds(g, 0.3, 0.0) == pytest.approx((3.0, 3.0))
     assert diff_drive.wheel_speeds(g, 0.0, 1.0) == pytest.approx((-2.0, 2.0))
-    odo = diff_drive.WheelOdometry(g)
+    odo = diff_drive.odometry(g)
     # a quarter circle of radius 1 m at 0.5 rad/s: left and right wheels on radii 0.8 and 1.2
     for k in range(0, 3142):
         t = k * 0.001
         odo.update(t, 0.8 * 0.5 * t / 0.1, 1.2 * 0.5 * t / 0.1)
-    assert (odo.x, odo.y, odo.yaw) == pytest.approx((math.sin(1.571), 1 - math.cos(1.571),
-                                                     1.571), abs=2e-3)
-    assert (odo.v, odo.w) == pytest.approx((0.5, 0.5))
+    turned = 0.5 * 3.141
+    assert (odo.x, odo.y, odo.yaw) == pytest.approx((math.sin(turned), 1 - math.cos(turned),
+                                                     turned), abs=1e-9)  # exact arcs
+    assert (odo.vx, odo.wz) == pytest.approx((0.5, 0.5))
+
+
+def test_one_planar_odometry_integrates_arcs_exactly_for_every_kind_of_base():
+    """
+    The diff drive's, the steering controllers' and the node bases' odometry are one integrator.
+
+    At d48b79a there were three, two of them by Runge-Kutta only: half a circle of 1 m driven
+    in five updates ended 3.3 cm off (now exact, as ros2_controllers' odometries integrate arcs).
+    """
+    from sim_node.core.control.odometry import (BaseOdometry, PlanarOdometry,
+                                                SteeringOdometry)
+    diff = diff_drive.odometry(diff_drive.Geometry.of({'wheel_separation': 0.4,
+                                                       'wheel_radius': 0.1}))
+    # half a circle of radius 1 m in five updates of 0.2 pi rad: left on 0.8 m, right on 1.2 m
+    car = SteeringOdometry(length=1.0, radius=0.1, steered_traction=False)
+    steer = math.atan(1.0 / 1.0)  # a bicycle of 1 m wheelbase on a circle of 1 m
+    for k in range(6):
+        turned = k * 0.2 * math.pi
+        diff.update(k * 0.1, 0.8 * turned / 0.1, 1.2 * turned / 0.1)
+        car.update(k * 0.1, turned / 0.1, steer)
+    for odo in (diff, car):
+        assert (odo.x, odo.y, abs(odo.yaw)) == pytest.approx((0.0, 2.0, math.pi), abs=1e-9)
+        assert (odo.vx, odo.wz) == pytest.approx((2 * math.pi, 2 * math.pi))
+        assert isinstance(odo, PlanarOdometry)
+    assert issubclass(BaseOdometry, PlanarOdometry)
+    straight = PlanarOdometry()
+    straight.advance(0.0, 0.0, 0.0)
+    straight.advance(1.0, 1.0, 1e-9)  # hardly turning: Runge-Kutta, no division by ~0
+    assert (straight.x, straight.y) == pytest.approx((1.0, 5e-10), abs=1e-12)
 
 
 def test_only_simulated_or_topic_based_hardware_takes_a_robots_joints_over(tmp_path):

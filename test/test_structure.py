@@ -387,6 +387,28 @@ def test_rotations_are_written_only_in_quat():
     assert ROTATION_CODE.search('np.array([math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)])')
 
 
+#: Planar odometry integrated (a heading advanced by a turn, a position by the mean heading or
+#: an arc), or an Odometry message built field by field.
+ODOMETRY_CODE = re.compile(r'\byaw\s*\+\s*d(yaw|th)\b|\bOdometry\(\)')
+
+
+def test_odometry_is_integrated_and_built_in_one_place_each():
+    """
+    One planar odometry (core/control/odometry.py) and one Odometry builder (issue 51).
+
+    At d48b79a three integrators (the node's bases, diff_drive_controller's, the steering
+    controllers') and two message builders (msg_adapters/odometry.py, ros/control) did it.
+    """
+    one = {ROOT / 'sim_node' / 'core' / 'control' / 'odometry.py',
+           ROOT / 'msg_adapters' / 'odometry.py'}
+    found = [f'{p.relative_to(ROOT)}:{n}' for p in modules() if p not in one
+             for n, line in enumerate(p.read_text().splitlines(), 1)
+             if ODOMETRY_CODE.search(line)]
+    assert found == [], found
+    assert ODOMETRY_CODE.search('mid = self.yaw + dyaw / 2.0')  # the check itself
+    assert ODOMETRY_CODE.search('    msg = Odometry()')
+
+
 def test_the_ros_layer_is_rooms_by_job():
     """A new engineer finds where a controller ticks: ros/ holds rooms, not flat files."""
     ros = ROOT / 'sim_node' / 'ros'
@@ -401,6 +423,34 @@ def test_the_map_check_sees_a_module_left_out_and_one_that_is_gone(tmp_path):
     (tmp_path / 'new.py').write_text('')
     assert docstring_map(tmp_path) == {'loop', 'gone'}
     assert children(tmp_path) == {'loop', 'new'}
+
+
+def test_each_controller_type_is_one_class_in_one_registry_with_its_schema_in_the_docs():
+    """
+    A controller type is written once (issue 51): its class, schema and checks in the core.
+
+    At d48b79a each type was written in three places (TYPES, an if-chain in configure, an
+    if-chain in the ROS layer's runtime_for) and its parameters were read twice with separate
+    defaults. Now the registry names every type, the ROS layer maps each class to a runtime,
+    and docs/controllers.md holds the tables the schemas print.
+    """
+    from sim_node.core.control import controller_types as types
+    from sim_node.ros.control.controller_manager import RUNTIMES
+    assert set(RUNTIMES) == set(types.REGISTRY.values())
+    assert types.TYPES == {name: cls.base for name, cls in types.REGISTRY.items()}
+    text = (ROOT / 'docs' / 'controllers.md').read_text()
+    block = re.search(r'<!-- controller parameters:[^\n]*-->\n(.*?)'
+                      r'<!-- /controller parameters -->', text, re.S)
+    assert block and block.group(1) == types.markdown(), \
+        'docs/controllers.md is out of date: python -m sim_node.core.control.controller_types'
+    for cls in types.REGISTRY.values():
+        assert cls.summary and all(p.description for p in cls.parameters), cls
+    # No type name is written as a value (compared, a key) outside the registry's module.
+    found = [f'{p.relative_to(ROOT)}:{node.lineno}' for p in modules()
+             if p.name != 'controller_types.py'
+             for node in ast.walk(ast.parse(p.read_text()))
+             if isinstance(node, ast.Constant) and node.value in types.REGISTRY]
+    assert found == [], found
 
 
 def test_the_parameter_reference_is_the_table_the_node_declares_from():

@@ -26,7 +26,7 @@ command. Wheel speed and acceleration are limited; no command for :data:`COMMAND
 simulated seconds stops the base, as diff_drive_controller does, on time even inside a batch
 of steps. It is physics: the base pushes, slips and stops at walls.
 
-:class:`.odometry.Odometry` integrates a base's pose from its wheel angles (it drifts with
+:class:`.odometry.BaseOdometry` integrates a base's pose from its wheel angles (it drifts with
 slip, as a real robot's does) or takes the simulation's ground truth; ROS-free, used by the
 node's ``<entity>/odom``. What a spawn adds to a wheeled model (wheel actuators, rolling
 casters) is :mod:`.wheels`.
@@ -39,7 +39,7 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
-from .odometry import Odometry  # noqa: F401 (where it was, for its users)
+from .odometry import BaseOdometry as Odometry  # noqa: F401 (the name older code imports)
 from ..base import quat
 
 DIFF_DRIVE, PLANAR_JOINTS, PLANAR_FREE = 'diff_drive', 'planar_joints', 'planar_free'

@@ -105,7 +105,7 @@ class Manager:
             except ValueError as exc:
                 c.state = UNCONFIGURED
                 return False, f"controller '{name}' ({c.kind}) cannot be configured: {exc}"
-            c.params, c.claims, c.joints = params, spec.claims, spec.joints
+            c.params, c.claims, c.joints = spec.params, spec.claims, spec.joints
             rate = params.get('update_rate', self.update_rate)
             c.update_rate = int(rate) if isinstance(rate, (int, float)) and 0 < rate <= \
                 self.update_rate else self.update_rate

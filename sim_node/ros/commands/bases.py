@@ -34,6 +34,7 @@ from ...core.base import quat
 from ...core.base.errors import SimError
 from ...core.base.records import Snapshot
 from ...core.control import bases
+from ...core.control.odometry import BaseOdometry
 from ...session import Loaded, Session
 
 
@@ -42,7 +43,7 @@ class _Base:
 
     def __init__(self, spec: bases.BaseSpec, topic_base: str, sub, pub):
         self.spec, self.topic_base, self.sub, self.pub = spec, topic_base, sub, pub
-        self.odometry = bases.Odometry(spec)
+        self.odometry = BaseOdometry(spec)
         self.start: Optional[tuple] = None  # (position, yaw) where its odom frame is
         self.stamp: Optional[float] = None  # the last one sent (never the same twice)
         self.said: set = set()  # notes on its commands said on /diagnostics, still true
@@ -154,7 +155,7 @@ class BaseControllers:
             pos, q = snap.body_xpos[root], snap.body_xquat_wxyz[root]
             if base.start is None or (base.odometry.time or 0.0) > snap.time:  # a reset
                 base.start = (pos.copy(), quat.yaw_of(q))
-                base.odometry = bases.Odometry(base.spec)
+                base.odometry = BaseOdometry(base.spec)
             wheels = [joints.get(n) for n in base.spec.wheels]
             if truth or not wheels or None in wheels:
                 base.odometry.from_pose(snap.time, pos, quat.yaw_of(q))

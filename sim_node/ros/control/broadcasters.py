@@ -29,7 +29,7 @@ class _Broadcaster(Runtime):
 
     def make(self) -> None:
         self.sensor = self.params['sensor_name']
-        self.frame = str(self.params.get('frame_id') or '')
+        self.frame = self.params['frame_id']
         self.site = f'{self.host.entity}/{self.sensor}{self.suffix}'
         self.adr = None
         self.adr_generation = None
@@ -56,7 +56,7 @@ class ImuBroadcaster(_Broadcaster):
 
     def make(self) -> None:
         super().make()
-        self.covariance = {k: _nine(self.params.get(f'static_covariance_{k}'))
+        self.covariance = {k: list(self.params[f'static_covariance_{k}'])
                            for k in ('orientation', 'angular_velocity', 'linear_acceleration')}
         self.pub = self.node.create_publisher(Imu, '~/imu', 10, **NO_EVENTS)
 
@@ -100,10 +100,3 @@ class ForceTorqueBroadcaster(_Broadcaster):
         if 'torque' in parts:
             msg.wrench.torque = convert.vec(sign * parts['torque'])
         self.pub.publish(msg)
-
-
-def _nine(values) -> list:
-    if isinstance(values, (list, tuple)) and len(values) == 9 and \
-            all(isinstance(v, (int, float)) for v in values):
-        return [float(v) for v in values]
-    return [0.0] * 9

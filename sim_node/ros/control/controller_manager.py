@@ -40,7 +40,7 @@ from .steering import Steering
 from .topic_hardware import TopicHardware
 from ...core.base.errors import SimError
 from ...core.base.records import ModelInfo, Snapshot
-from ...core.control import controller_types, manager as core
+from ...core.control import controller_types as types, manager as core
 from ...core.models import controller_yaml
 from ...core.models.paths import inside_roots
 from ...session import Loaded, Session
@@ -149,8 +149,8 @@ class RobotControl:
         return response
 
     def _types(self, request, response):
-        response.types = list(controller_types.TYPES)
-        response.base_classes = list(controller_types.TYPES.values())
+        response.types = list(types.TYPES)
+        response.base_classes = list(types.TYPES.values())
         return response
 
     def _answer(self, response, ok: bool, message: str, what: str):
@@ -302,27 +302,25 @@ class RobotControl:
         self.command(joints, values, interface)
 
 
+#: Each controller type's runtime: its ROS side (topics, services, actions) over its class.
+RUNTIMES = {
+    types.JointStateBroadcaster: controllers.JointStateBroadcaster,
+    types.ForwardCommand: controllers.ForwardCommand,
+    types.JointTrajectory: TrajectoryController,
+    types.DiffDrive: controllers.DiffDrive,
+    types.Gripper: GripperAction,
+    types.Ackermann: Steering, types.Bicycle: Steering, types.Tricycle: Steering,
+    types.ImuBroadcaster: broadcasters.ImuBroadcaster,
+    types.ForceTorqueBroadcaster: broadcasters.ForceTorqueBroadcaster,
+}
+
+
 def runtime_for(host, controller) -> controllers.Runtime:
     """Return the runtime of a loaded controller's type."""
-    kind = controller.kind
-    if kind == controller_types.JSB:
-        return controllers.JointStateBroadcaster(host, controller)
-    if kind == controller_types.FORWARD or kind in controller_types.GROUPS:
-        return controllers.ForwardCommand(host, controller)
-    if kind == controller_types.JTC:
-        return TrajectoryController(host, controller)
-    if kind == controller_types.DIFF_DRIVE:
-        return controllers.DiffDrive(host, controller)
-    if kind in controller_types.GRIPPERS:
-        return GripperAction(host, controller)
-    if kind in (controller_types.ACKERMANN, controller_types.BICYCLE,
-                controller_types.TRICYCLE):
-        return Steering(host, controller)
-    if kind == controller_types.IMU:
-        return broadcasters.ImuBroadcaster(host, controller)
-    if kind == controller_types.FORCE_TORQUE:
-        return broadcasters.ForceTorqueBroadcaster(host, controller)
-    raise SimError(f'no runtime for {kind}')
+    runtime = RUNTIMES.get(types.type_of(controller.kind))
+    if runtime is None:
+        raise SimError(f'no runtime for {controller.kind}')
+    return runtime(host, controller)
 
 
 class ControllerManagers:

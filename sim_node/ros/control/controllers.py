@@ -27,7 +27,7 @@ import math
 from typing import Optional
 
 from geometry_msgs.msg import Twist, TwistStamped
-from msg_adapters import convert
+from msg_adapters import convert, odometry
 from nav_msgs.msg import Odometry
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from sensor_msgs.msg import JointState
@@ -109,7 +109,7 @@ class JointStateBroadcaster(Runtime):
 
     def make(self) -> None:
         self.joints = tuple(self.controller.joints)
-        self.extra = tuple(self.params.get('extra_joints') or ())
+        self.extra = self.params['extra_joints']
         self.pub = self.node.create_publisher(JointState, self.host.topic('joint_states'), 10,
                                               **NO_EVENTS)
 
@@ -227,21 +227,18 @@ class DiffDrive(BaseController):
 
     def make(self) -> None:
         p = self.params
-        self.left = tuple(p['left_wheel_names'])
-        self.right = tuple(p['right_wheel_names'])
+        self.left, self.right = p['left_wheel_names'], p['right_wheel_names']
         self.geometry = diff_drive.Geometry.of(p)
-        self.odometry = diff_drive.WheelOdometry(self.geometry)
+        self.odometry = diff_drive.odometry(self.geometry)
         self.limiters = (limits.signed(p, 'linear.x'), limits.signed(p, 'angular.z'))
-        self.timeout = float(p.get('cmd_vel_timeout', 0.5))
-        self.odom_frame = str(p.get('odom_frame_id', 'odom'))
-        self.base_frame = str(p.get('base_frame_id', 'base_link'))
-        rate = p.get('publish_rate', 50.0)
-        self.period = 1.0 / float(rate) if isinstance(rate, (int, float)) and rate > 0 else 0.02
+        self.timeout = p['cmd_vel_timeout']
+        self.odom_frame, self.base_frame = p['odom_frame_id'], p['base_frame_id']
+        self.period = 1.0 / p['publish_rate']
         self.next_publish = -math.inf
-        self.subscribe(p.get('use_stamped_vel', True) is not False, 'cmd_vel')
+        self.subscribe(p['use_stamped_vel'], 'cmd_vel')
         self.odom_pub = self.node.create_publisher(Odometry, '~/odom', 10, **NO_EVENTS)
         self.tf_pub = (self.node.create_publisher(TFMessage, '/tf', 100, **NO_EVENTS)
-                       if p.get('enable_odom_tf', True) is not False else None)
+                       if p['enable_odom_tf'] else None)
 
     def activate(self, sample) -> None:
         super().activate(sample)
@@ -271,28 +268,17 @@ class DiffDrive(BaseController):
 
 def publish_odometry(ctl, t: float) -> None:
     """
-    Publish a base controller's odometry (``ctl.odometry``: x, y, yaw, v, w) at time `t`.
+    Publish a base controller's odometry (``ctl.odometry``, planar) at time `t`.
 
     On ``ctl.odom_pub`` from ``ctl.odom_frame`` to ``ctl.base_frame``, with the YAML's
     ``pose_covariance_diagonal`` and ``twist_covariance_diagonal`` (six finite values each,
     else zeros), and that transform on ``ctl.tf_pub`` when it has one.
     """
     o = ctl.odometry
-    stamp = convert.stamp(t)
-    msg = Odometry()
-    msg.header.stamp, msg.header.frame_id = stamp, ctl.odom_frame
-    msg.child_frame_id = ctl.base_frame
-    msg.pose.pose.position.x, msg.pose.pose.position.y = o.x, o.y
-    msg.pose.pose.orientation = convert.quat_to_msg(o.quat_wxyz())
-    msg.twist.twist.linear.x, msg.twist.twist.angular.z = o.v, o.w
-    for field, key in ((msg.pose, 'pose_covariance_diagonal'),
-                       (msg.twist, 'twist_covariance_diagonal')):
-        diagonal = ctl.params.get(key)
-        if isinstance(diagonal, (list, tuple)) and len(diagonal) == 6 and all(
-                isinstance(x, (int, float)) and math.isfinite(x) for x in diagonal):
-            for i, x in enumerate(diagonal):
-                field.covariance[7 * i] = float(x)
-    ctl.odom_pub.publish(msg)
+    where = (o.x, o.y, 0.0)
+    ctl.odom_pub.publish(odometry.message(
+        o, t, ctl.odom_frame, ctl.base_frame, where, o.quat_wxyz(),
+        ctl.params['pose_covariance_diagonal'], ctl.params['twist_covariance_diagonal']))
     if ctl.tf_pub is not None:
         ctl.tf_pub.publish(TFMessage(transforms=[convert.transform(
-            ctl.odom_frame, ctl.base_frame, (o.x, o.y, 0.0), o.quat_wxyz(), stamp)]))
+            ctl.odom_frame, ctl.base_frame, where, o.quat_wxyz(), convert.stamp(t))]))

@@ -31,11 +31,11 @@ class GripperAction(Runtime):
         p = self.params
         self.joint = p['joint']
         self.parallel = self.controller.kind == types.PARALLEL_GRIPPER
-        self.tolerance = _positive(p.get('goal_tolerance'), 0.01)
-        self.stall_speed = _positive(p.get('stall_velocity_threshold'), 0.001)
-        self.stall_time = _positive(p.get('stall_timeout'), 1.0)
-        self.allow_stalling = p.get('allow_stalling', False) is True
-        self.period = 1.0 / _positive(p.get('action_monitor_rate'), 20.0)
+        self.tolerance = p['goal_tolerance']
+        self.stall_speed = p['stall_velocity_threshold']
+        self.stall_time = p['stall_timeout']
+        self.allow_stalling = p['allow_stalling']
+        self.period = 1.0 / p['action_monitor_rate']
         self.goal_id = 0
         self._lock = threading.Lock()
         self.server = LeavableActionServer(
@@ -109,8 +109,3 @@ class GripperAction(Runtime):
         else:
             goal_handle.abort()
         return result
-
-
-def _positive(value, default: float) -> float:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0
-    return float(value) if ok else default

@@ -39,13 +39,11 @@ class TrajectoryController(Runtime):
     def make(self) -> None:
         p = self.params
         self.joints = tuple(self.controller.joints)
-        self.partial = p.get('allow_partial_joints_goal', False) is True
-        self.end_velocity = p.get('allow_nonzero_velocity_at_trajectory_end', False) is True
-        self.open_loop = p.get('open_loop_control', False) is True
-        goal_time = p.get('constraints.goal_time', 0.0)
-        self.goal_time = float(goal_time) if isinstance(goal_time, (int, float)) else 0.0
-        stopped = p.get('constraints.stopped_velocity_tolerance', 0.01)
-        self.stopped = float(stopped) if isinstance(stopped, (int, float)) else 0.01
+        self.partial = p['allow_partial_joints_goal']
+        self.end_velocity = p['allow_nonzero_velocity_at_trajectory_end']
+        self.open_loop = p['open_loop_control']
+        self.goal_time = p['constraints.goal_time']
+        self.stopped = p['constraints.stopped_velocity_tolerance']
         self.path = {j: _number(p.get(f'constraints.{j}.trajectory')) for j in self.joints}
         self.goal = {j: _number(p.get(f'constraints.{j}.goal')) for j in self.joints}
         self.handle = None

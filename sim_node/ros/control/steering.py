@@ -28,33 +28,30 @@ from tf2_msgs.msg import TFMessage
 from .controllers import BaseController, NO_EVENTS, publish_odometry
 from ...core.control import controller_types as types
 from ...core.control import limits, steering
+from ...core.control.odometry import SteeringOdometry
 
 
 class Steering(BaseController):
     """A car-like base's controller (see the module docstring)."""
 
     def make(self) -> None:
-        p, kind = self.params, self.controller.kind
-        tricycle = kind == types.TRICYCLE
-        self.traction, self.steering = types.steering_joints(kind, p)
-        self.length = float(p['wheelbase'])
-        radius = {types.ACKERMANN: 'rear_wheels_radius', types.BICYCLE: 'rear_wheel_radius',
-                  types.TRICYCLE: 'wheel_radius'}[kind]
-        self.radius = float(p[radius])
-        self.track_width = float(p.get('rear_wheel_track') or p.get('front_wheel_track') or 0.0)
-        self.odometry = steering.SteeringOdometry(self.length, self.radius, tricycle)
+        p, self.type = self.params, types.REGISTRY[self.controller.kind]
+        tricycle = self.type is types.Tricycle
+        self.traction, self.steering = self.type.joints(p)
+        self.length = p['wheelbase']
+        self.radius = p[self.type.radius]
+        self.track_width = p.get('rear_wheel_track') or p.get('front_wheel_track') or 0.0
+        self.odometry = SteeringOdometry(self.length, self.radius, tricycle)
         self.limiters = (limits.traction(p), limits.steering(p)) if tricycle else None
-        timeout = p.get('cmd_vel_timeout', 500) if tricycle else p.get('reference_timeout', 1.0)
-        self.timeout = float(timeout) / (1000.0 if tricycle else 1.0)
-        self.odom_frame = str(p.get('odom_frame_id', 'odom'))
-        self.base_frame = str(p.get('base_frame_id', 'base_link'))
-        stamped = p.get('use_stamped_vel', True) is not False
+        self.timeout = p['cmd_vel_timeout'] / 1000.0 if tricycle else p['reference_timeout']
+        self.odom_frame, self.base_frame = p['odom_frame_id'], p['base_frame_id']
+        stamped = p['use_stamped_vel']
         self.subscribe(stamped or tricycle, 'cmd_vel' if tricycle else (
             'reference' if stamped else 'reference_unstamped'))
         self.odom_pub = self.node.create_publisher(
             Odometry, '~/odom' if tricycle else '~/odometry', 10, **NO_EVENTS)
         self.tf_pub = None
-        if p.get('enable_odom_tf', not tricycle) is True:  # the tricycle's default is false
+        if p['enable_odom_tf']:  # the tricycle's default is false
             self.tf_pub = self.node.create_publisher(
                 TFMessage, '/tf' if tricycle else '~/tf_odometry', 100, **NO_EVENTS)
 
@@ -63,10 +60,9 @@ class Steering(BaseController):
         self.history = [(0.0, 0.0), (0.0, 0.0)]  # (speed, angle) sent last, and before
 
     def _outputs(self, v: float, w: float) -> steering.Steered:
-        kind = self.controller.kind
-        if kind == types.ACKERMANN:
+        if self.type is types.Ackermann:
             return steering.ackermann(self.length, self.track_width, self.radius, v, w)
-        if kind == types.BICYCLE:
+        if self.type is types.Bicycle:
             return steering.bicycle(self.length, self.radius, v, w)
         return steering.tricycle(self.length, self.radius, v, w)
 
