@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-sensors bench-controllers snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-respawn bench-sensors bench-controllers snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -77,6 +77,10 @@ bench-bases: setup
 # Large and malformed meshes over the wire: decided/refused in bounds, memory back, ~1 min
 bench-meshes: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/mesh_limits.py
+
+# A robot spawned again after its delete: first and second spawn against MuJoCo's compile
+bench-respawn: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/respawn.py
 
 # Declared sensors of a mobile manipulator: their rates kept, their cost in steps/s, ~1 min
 bench-sensors: setup

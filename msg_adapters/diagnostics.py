@@ -9,14 +9,16 @@ from .convert import stamp
 
 
 def diagnostics(status: LoopStatus, name: str, state: str, reason: str = '',
-                divergence: Optional[dict] = None) -> DiagnosticArray:
+                divergence: Optional[dict] = None,
+                extra: Optional[dict] = None) -> DiagnosticArray:
     """
     Return one status named `name`, with the culprit entity of a divergence as a value.
 
     `state` (``'playing'``, ``'paused'``, ``'stopped'``), `reason` and `divergence` are the
     session's (its state event); `status` is the loop's (step, time, the factors, lag).
     OK; WARN when lagging, or after a divergence handled by playing on; ERROR when paused or
-    stopped by a divergence or a failure.
+    stopped by a divergence or a failure. `extra`: more values, after the loop's (the mesh
+    cache's size).
     """
     level, message = DiagnosticStatus.OK, state
     if status.lag and state == 'playing':
@@ -31,6 +33,7 @@ def diagnostics(status: LoopStatus, name: str, state: str, reason: str = '',
     values = {'state': state, 'step': status.step, 'time': f'{status.time:.6f}',
               'real_time_factor': status.real_time_factor,
               'achieved_real_time_factor': f'{status.achieved_real_time_factor:.3f}'}
+    values.update(extra or {})
     if div is not None:
         values.update({'divergence_' + k: div.get(k, '') for k in (
             'entity', 'body', 'step', 'time', 'warnings', 'action')})

@@ -544,6 +544,9 @@ class Session:
                 with self._lock:
                     self._take_reports_locked()
                 self._dispatch_model()
+                loaded = self._loaded
+                if loaded is not None:  # at least every IDLE_SEC: deleted robots' meshes
+                    loaded.world.release_meshes()
             except Exception:  # noqa: B902 (never die silently: say why, go on)
                 log.exception('the session thread failed; it goes on')
                 self._closing.wait(0.5)

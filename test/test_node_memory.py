@@ -30,9 +30,14 @@ def rss_mib(pid: int) -> float:
 
 @pytest.fixture
 def warm(start_node, rclpy_context, tmp_path):
-    """Return (node, client, RSS in MiB) once every path below has run once; tmp_path readable."""
+    """
+    Return (node, client, RSS in MiB) once every path below has run once; tmp_path readable.
+
+    A deleted robot's meshes are kept a second here (``mesh_cache_keep_sec``; 120 s by
+    default): after that the robot is gone for good and its memory must come back.
+    """
     from sim_node.ros.client import SimClient
-    node = start_node(f'resource_paths:=["{tmp_path}"]')
+    node = start_node(f'resource_paths:=["{tmp_path}"]', 'mesh_cache_keep_sec:=1.0')
     client = SimClient(timeout_sec=60)
     try:
         client.entities()
@@ -119,6 +124,26 @@ def test_a_run_of_large_and_malformed_meshes_leaves_at_most_50_mib(warm, tmp_pat
             client.spawn(name, uri=path.as_uri(), position=(4, 4, 2))
     assert client.entities()  # and the node still answers
     assert grown(node, before) <= 50.0
+
+
+def test_diagnostics_show_the_mesh_cache_and_what_a_deleted_robot_keeps_in_it(warm, tmp_path):
+    """The cache's size and a deleted robot's kept meshes are on /diagnostics, then gone."""
+    import mesh_limits as bench
+    from conftest import wait_for
+    from test_node_conventions import DiagnosticsWatcher
+    node, client, _ = warm
+    watch = DiagnosticsWatcher()
+    try:
+        path = next(iter(bench.large_files(tmp_path).values()))
+        client.spawn('kept', uri=path.as_uri(), position=(4, 4, 2))
+        wait_for(lambda: watch.latest and float(watch.latest[2]['mesh_cache_mib']) > 1.0,
+                 timeout=10)
+        client.delete('kept')
+        wait_for(lambda: float(watch.latest[2]['mesh_cache_kept_mib']) > 1.0, timeout=10)
+        # a second later (this node's mesh_cache_keep_sec) it is gone for good
+        wait_for(lambda: float(watch.latest[2]['mesh_cache_kept_mib']) == 0.0, timeout=10)
+    finally:
+        watch.close()
 
 
 @pytest.mark.parametrize('given', [{}, {'FASTRTPS_DEFAULT_PROFILES_FILE': '/theirs.xml'},

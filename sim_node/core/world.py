@@ -13,6 +13,7 @@ writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
 """
 
 import contextlib
+import time
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
 
 import mujoco
@@ -504,8 +505,26 @@ class World:
                                     joint, axis, rgba)
 
     def delete(self, name: str) -> None:
-        """Remove a spawned entity and everything that came with it; all else keeps its state."""
+        """
+        Remove a spawned entity and everything that came with it; all else keeps its state.
+
+        Its processed meshes stay in MuJoCo's cache a while (``mesh_cache_keep_sec``, at most
+        ``mesh_cache_keep_mb``): spawned again meanwhile, it is quick. :meth:`release_meshes`
+        gives them back when that is over.
+        """
         self._edits.delete(name)
+
+    def release_meshes(self) -> bool:
+        """
+        Evict the kept meshes of deleted entities whose time is over (a periodic call).
+
+        Skipped, returning False, while an edit is being made (it does this when it ends).
+        """
+        return self._transaction.release_meshes(time.monotonic())
+
+    def kept_mesh_bytes(self) -> int:
+        """Return the bytes of deleted entities' meshes kept in MuJoCo's cache now."""
+        return self._transaction.kept_mesh_bytes()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
         self._edits.set_gravity(gravity)

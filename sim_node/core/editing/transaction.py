@@ -10,8 +10,10 @@ on: the live state carried over by element names (:mod:`.transfer`), the check, 
 Compaction of the spec goes the same way.
 """
 
+from dataclasses import replace
 import logging
 import threading
+import time
 from typing import Callable, Optional, Sequence
 
 import mujoco
@@ -46,7 +48,6 @@ class Transaction:
         self.edit_lock = threading.Lock()  # structural edits take turns
         self._queue_lock = threading.Lock()  # a leaf: the edits waiting for edit_lock
         self._queued: list = []
-        self._evicted = 0  # of the design's uncached_bytes, what was evicted already
 
     def change(self, plan_locked: Callable[[], Edit]):
         """
@@ -87,7 +88,7 @@ class Transaction:
                         if not p.done:
                             p.finish(error=RuntimeError('the edit was not made'))
                 self._compact_if_due()
-                self._evict_unused_meshes()
+                self._release_meshes_locked(time.monotonic())
         return pending.outcome()
 
     def edit_locked(self, edit: Edit) -> None:
@@ -201,21 +202,50 @@ class Transaction:
             check(model, data, nxt.spec)
         live.switch_locked(nxt, model, data, index)
 
-    def _evict_unused_meshes(self) -> None:
+    def release_meshes(self, now: float) -> bool:
         """
-        Drop from MuJoCo's mesh cache what removed entities brought and nothing uses now.
+        Evict the kept meshes of removed entities that are due at `now` (time.monotonic()).
 
-        Right after the commit: its compile used every live mesh, so the cache's least recently
-        used entries are the removed ones. Called with ``edit_lock``.
+        For a periodic caller (the session's thread): skipped while an edit is being made,
+        which does it itself when it ends. Returns whether it ran.
         """
+        if not self.edit_lock.acquire(blocking=False):
+            return False
+        try:
+            self._release_meshes_locked(now)
+        finally:
+            self.edit_lock.release()
+        return True
+
+    def _release_meshes_locked(self, now: float) -> None:
+        """
+        Drop from MuJoCo's mesh cache what removed entities brought, once it is not kept.
+
+        A removed entity's meshes stay cached ``mesh_cache_keep_sec`` seconds, and the kept
+        ones at most ``mesh_cache_keep_mb`` MiB, oldest out first: the same robot spawned
+        again meanwhile finds them processed (its spawn inherits them). The cache's least
+        recently used entries are the removed ones: the last compile of the world used every
+        live mesh, and the oldest removals are the least recent. Called with ``edit_lock``.
+        """
+        config = self.live.config
         with self.live.lock:
-            total = self.live.design.uncached_bytes
-        if total < self._evicted:  # a design started anew (a world loaded)
-            self._evicted = 0
-        if total > self._evicted:
-            asset_store.evict_meshes(total - self._evicted)
-            self._evicted = total
+            design = self.live.design
+            released = list(design.released)
+            budget = config.mesh_cache_keep_mb * 2 ** 20
+            gone = []
+            while released and (now - released[0].at >= config.mesh_cache_keep_sec
+                                or sum(r.nbytes for r in released) > budget):
+                gone.append(released.pop(0))
+            if gone:
+                self.live.design = replace(design, released=tuple(released))
+        if gone:
+            asset_store.evict_meshes(sum(r.nbytes for r in gone))
             release_free_memory(at_least=TRIM_AFTER_COMPACTION_BYTES)
+
+    def kept_mesh_bytes(self) -> int:
+        """Return the bytes of removed entities' meshes kept in the cache now."""
+        with self.live.lock:
+            return sum(r.nbytes for r in self.live.design.released)
 
     def _compact_if_due(self) -> None:
         """

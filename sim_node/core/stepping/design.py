@@ -16,8 +16,9 @@ No locks here and no live state (MjData): a design is built outside the world lo
 
 from dataclasses import dataclass, field, replace
 import logging
+import time
 from types import MappingProxyType
-from typing import Any, Callable, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Mapping, NamedTuple, Optional, Sequence, Tuple
 import warnings
 
 import mujoco
@@ -134,6 +135,14 @@ class Edit:
 NOTHING = Edit(None)
 
 
+class Released(NamedTuple):
+    """A removed entity's meshes kept in MuJoCo's cache: its description, bytes, when (s)."""
+
+    description: str
+    nbytes: int
+    at: float  # time.monotonic() of the removal
+
+
 @dataclass(frozen=True)
 class Design:
     """
@@ -148,9 +157,11 @@ class Design:
     :param default_contact: the world's, for every geom without its own.
     :param removals: spawned entities removed since the spec was last compacted.
     :param removed_mesh_bytes: the bytes of their meshes in the model (:attr:`Spawned.mesh_bytes`).
-    :param uncached_bytes: the mesh cache's bytes that removed entities brought and no entity
-        left uses, summed since load (it only grows): the transaction evicts them
-        (:func:`.asset_store.evict_meshes`). An entity spawned from the same description as a
+    :param released: the mesh cache's bytes that removed entities brought and no entity left
+        uses (:class:`Released`, oldest first): kept for a while so that the same robot
+        spawned again finds its meshes processed, then evicted by the transaction
+        (:meth:`Transaction.release_meshes <sim_node.core.editing.transaction.Transaction>`,
+        :func:`.asset_store.evict_meshes`). An entity spawned from the same description as a
         removed one inherits its bytes instead: its meshes are the ones cached.
     :param baked: textures MuJoCo generates (``builtin``) held as their pixels in `spec`:
         (name, (builtin, width, height, nchannel)) to write them out as they were given.
@@ -165,7 +176,7 @@ class Design:
     default_contact: Contact = Contact()
     removals: int = 0
     removed_mesh_bytes: int = 0
-    uncached_bytes: int = 0
+    released: Tuple['Released', ...] = ()
     baked: Tuple[tuple, ...] = ()
 
     @classmethod
@@ -222,21 +233,21 @@ class Design:
         doomed = set(names)
         gone = [self.spawned[n] for n in doomed if n in self.spawned]
         kept = {k: v for k, v in self.spawned.items() if k not in doomed}
-        uncached = 0
+        released = list(self.released)
         for rec in gone:  # its cached meshes stay if an entity of the same source stays
             heir = next((k for k, v in kept.items() if v.description == rec.description
                          and v.cached_bytes < rec.cached_bytes), None)
-            if heir is None:
-                uncached += rec.cached_bytes
-            else:
+            if heir is not None:
                 kept[heir] = replace(kept[heir], cached_bytes=rec.cached_bytes)
+            elif rec.cached_bytes > 0:
+                released.append(Released(rec.description, rec.cached_bytes, time.monotonic()))
         return replace(
             self, spawned=MappingProxyType(kept),
             contacts=MappingProxyType({k: v for k, v in self.contacts.items()
                                        if k not in doomed}),
             removals=self.removals + len(gone),
             removed_mesh_bytes=self.removed_mesh_bytes + sum(r.mesh_bytes for r in gone),
-            uncached_bytes=self.uncached_bytes + uncached)
+            released=tuple(released))
 
     def with_contact(self, name: str, contact: Contact) -> 'Design':
         return replace(self, contacts=MappingProxyType({**self.contacts, name: contact}))
@@ -275,9 +286,20 @@ class Design:
             new = [n for n in nxt.spawned if n not in self.spawned]
             if new:  # what they weigh: only this build knows
                 share = max(0, asset_store.mesh_cache_bytes() - cached) // len(new)
-                nxt = replace(nxt, spawned=MappingProxyType({**nxt.spawned, **{
-                    n: replace(nxt.spawned[n], mesh_bytes=mesh_bytes(model, n),
-                               cached_bytes=share) for n in new}}))
+                released = list(nxt.released)
+                weighed = {}
+                for n in new:
+                    mine = share
+                    # Spawned again while a removed one's meshes were kept: they are its own.
+                    again = next((r for r in released
+                                  if r.description == nxt.spawned[n].description), None)
+                    if again is not None and share == 0:
+                        released.remove(again)
+                        mine = again.nbytes
+                    weighed[n] = replace(nxt.spawned[n], mesh_bytes=mesh_bytes(model, n),
+                                         cached_bytes=mine)
+                nxt = replace(nxt, spawned=MappingProxyType({**nxt.spawned, **weighed}),
+                              released=tuple(released))
         return nxt, model
 
     def compacted(self, model: mujoco.MjModel) -> Optional[Tuple['Design', mujoco.MjModel]]:

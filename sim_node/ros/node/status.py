@@ -7,7 +7,8 @@ follows it, whoever changed it (a service, the parameter, a limit, a divergence,
 Nothing here asks the session for its state in a loop. The node's housekeeping timer (every
 0.2 s, on the executor) drains the core's log lines (its threads never call rclpy) into the ROS
 logger and sends /diagnostics again once a second, as diagnostic_updater does, with the last
-state received and the loop's rate; a refused joint command or goal goes out at once too.
+state received, the loop's rate and the mesh cache's size (and what deleted robots keep in
+it); a refused joint command or goal goes out at once too.
 """
 
 import collections
@@ -21,6 +22,7 @@ from msg_adapters import diagnostics
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ...core.models import asset_store
 from ...session import LOADING_WORLD, NO_WORLD, PLAYING, Session, StateEvent
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
@@ -104,8 +106,10 @@ class Status:
                 return
             self._last_sent = now
             event = self._event
+            cache = {'mesh_cache_mib': f'{asset_store.mesh_cache_bytes() / 2 ** 20:.1f}',
+                     'mesh_cache_kept_mib': f'{loaded.world.kept_mesh_bytes() / 2 ** 20:.1f}'}
             msg = diagnostics.diagnostics(loaded.loop.status(), self._name, event.state,
-                                          event.reason, event.divergence)
+                                          event.reason, event.divergence, cache)
             for topic, (what, why, names, when, verdict) in list(self._refused.items()):
                 if now - when < REFUSAL_SHOWN_SEC:
                     msg.status.append(diagnostics.refused_command(

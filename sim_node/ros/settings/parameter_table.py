@@ -117,7 +117,7 @@ PARAMETERS = (
          limits=(0.0, 1e6)),
     Spec('casters_roll', _W.casters_roll, "a spawned wheeled base's fixed casters (a body "
          'without a joint, not a wheel, whose collision reaches the floor the wheels stand on, '
-         "within a quarter of their radius; whatever its name: a mast never is one) get "
+         'within a quarter of their radius; whatever its name: a mast never is one) get '
          'frictionless contacts and roll, as Gazebo users set mu 0; false: they drag as the '
          'URDF has them', **RO),
     Spec('contact_entities', STRING_ARRAY, 'entities whose contacts are published on '
@@ -148,8 +148,15 @@ PARAMETERS = (
          "(MiB; MuJoCo's default is 512): a second spawn of a robot, and edits of a world "
          "holding robots, reuse their meshes from it (GR1's take 158 MiB; a full cache stops "
          "keeping new meshes; memory is taken only as meshes load; a deleted robot's "
-         'meshes leave it unless a robot spawned from the same description stays); 0 turns '
-         'it off',
+         'meshes leave it once mesh_cache_keep_sec is over, unless a robot spawned from the '
+         'same description stays); 0 turns it off; its size is on /diagnostics',
+         limits=(0, 1_000_000), **RO),
+    Spec('mesh_cache_keep_sec', _W.mesh_cache_keep_sec, "how long a deleted robot's processed "
+         'meshes stay in that cache (wall seconds): the same robot spawned again meanwhile is '
+         'quick (g1: 0.12 s instead of 0.73 s); then they are evicted and the memory given '
+         'back; 0: at once', limits=(0.0, 86400.0), **RO),
+    Spec('mesh_cache_keep_mb', _W.mesh_cache_keep_mb, "the most deleted robots' meshes kept "
+         'in that cache may hold (MiB; the oldest go first); kept MiB are on /diagnostics',
          limits=(0, 1_000_000), **RO),
     Spec('allow_second_simulator', False, 'start even when another simulator serves the same '
          'services in this namespace (they would answer calls at random; by default the newer '
