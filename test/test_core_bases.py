@@ -15,7 +15,7 @@ from conftest import SCENES
 import numpy as np
 import pytest
 from sim_node.core.base import quat
-from sim_node.core.control import bases
+from sim_node.core.control import bases, drives
 from sim_node.core.control.odometry import BaseOdometry
 from sim_node.core.errors import InvalidArgumentError, NotFoundError
 from sim_node.core.models import sources
@@ -119,7 +119,7 @@ def test_ground_truth_odometry_is_the_simulations_pose(world):
 
 def test_without_commands_for_half_a_second_the_base_stops(world):
     drive(world, 'rover', 0.5, 0, 0, 1.0)
-    world.step(int(bases.COMMAND_TIMEOUT / world.timestep))  # no command since
+    world.step(int(drives.COMMAND_TIMEOUT / world.timestep))  # no command since
     world.step(500)
     assert np.linalg.norm(world.get_entity_state('rover').linear_velocity) < 0.01
 

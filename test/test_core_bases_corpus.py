@@ -14,7 +14,7 @@ import bases_corpus
 import numpy as np
 import pytest
 from sim_node.core.base import quat
-from sim_node.core.control import bases
+from sim_node.core.control import drives
 from sim_node.core.models import sources
 from sim_node.core.world import World
 
@@ -183,7 +183,7 @@ def test_wheels_in_the_air_spin_bounded_and_the_base_drives_once_down(files):
     notes = drive(w, 'caster_sphere', 0.3, 0, 0, 0.3)  # falling, wheels in the air
     speeds = [abs(v[1]) for n, v in w.get_joint_states().items() if 'wheel' in n
               and n.startswith('caster_sphere/')]
-    assert max(speeds) <= (1 + bases.TRACK_LIMIT) * 0.3 / bases_corpus.RADIUS + 1e-6
+    assert max(speeds) <= (1 + drives.TRACK_LIMIT) * 0.3 / bases_corpus.RADIUS + 1e-6
     drive(w, 'caster_sphere', 0.3, 0, 0, 3.0)  # down again
     along, _, _, _ = measured(w, 'caster_sphere', 0.3, 0, 0, 0.5, 1.0)
     assert along == pytest.approx(0.3, rel=0.1)

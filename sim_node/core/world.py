@@ -25,7 +25,7 @@ from .base.records import (Clock, EntityRecord, EntityState, ModelInfo, PhysicsS
                            RESET_SPAWNED, RESET_STATE, RESET_TIME, Snapshot)
 from .compiled import state
 from .compiled.index import STATE_SPEC
-from .control.bases import COMMAND_TIMEOUT
+from .control.drives import COMMAND_TIMEOUT
 from .control.motion import Motion
 from .control.trajectory import TrajectoryHandle
 from .editing import editor
@@ -407,11 +407,11 @@ class World:
 
         :returns: what the base could not take, in words (empty: all of it): `vy` on a
             differential drive; the command before this one needing more than the model's
-            actuators give (:data:`.control.bases.NOTE_BEYOND`).
+            actuators give (:data:`.control.drives.NOTE_BEYOND`).
 
         :raises NotFoundError: no such entity.
         :raises InvalidArgumentError: it has no base; a value not finite or beyond
-            :data:`.bases.MAX_SPEED` / :data:`.bases.MAX_TURN`.
+            :data:`.control.drives.MAX_SPEED` / :data:`.control.drives.MAX_TURN`.
         """
         return self._motion.drive(entity, vx, vy, wz, timeout)
 

@@ -14,7 +14,7 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
-from . import bases
+from . import bases, drives
 from .actuation import Outputs, times_mass
 from .trajectory import INVALID_GOAL, SUCCESSFUL, Tracker
 from ..base.checks import check_finite
@@ -54,7 +54,7 @@ class Control:
         self._pd_out = Outputs.empty()  # where the current binding's PD torques go
         self.per_step = False  # True when PD torques or servo targets change every step
         self._runs: dict = {}  # entity -> _Run: trajectories being followed
-        self._drives: dict = {}  # entity -> bases.Drive: mobile bases
+        self._drives: dict = {}  # entity -> drives.Drive: mobile bases
         self._driving: set = set()  # the drives that need every step now
         self._batched: set = set()  # the drives that need a look between batches of steps
 
@@ -132,7 +132,7 @@ class Control:
         for run in list(self._runs.values()):
             self._end_run(run, INVALID_GOAL, ERR_RESET, data, hold=False)
         for drive in self._drives.values():  # bases stop
-            drive.command = bases.Command()
+            drive.command = drives.Command()
             drive.speeds[:] = 0
             drive.integral = None
         self._driving.clear()
@@ -204,7 +204,7 @@ class Control:
                      timeout: float, index: ModelIndex, model: mujoco.MjModel,
                      data: mujoco.MjData) -> bool:
         """
-        Drive a base at (vx, vy, wz) in its frame from now (see :mod:`.bases`).
+        Drive a base at (vx, vy, wz) in its frame from now (see :mod:`.drives`).
 
         :returns: whether controls changed (the same command again changes none).
         """
@@ -212,15 +212,15 @@ class Control:
         if drive is None or drive.spec != spec:
             if drive is not None:
                 drive.release(data)
-            drive = bases.Drive(spec)
+            drive = drives.Drive(spec)
             if not drive.bind(index, model):
                 raise InvalidArgumentError(f'the base of {spec.entity!r} lost its joints')
             self._drives[spec.entity] = drive
-        drive.command = bases.Command(vx, vy, wz, float(data.time), timeout)
+        drive.command = drives.Command(vx, vy, wz, float(data.time), timeout)
         need = drive.apply(model, data, self.kd)
         self._place(spec.entity, need)
         self._update_per_step()
-        return drive.changed or need == bases.EVERY_STEP
+        return drive.changed or need == drives.EVERY_STEP
 
     @property
     def batched(self) -> bool:
@@ -249,15 +249,15 @@ class Control:
         return min(due, default=math.inf)
 
     def _place(self, entity: str, need: Optional[str]) -> None:
-        """File a drive under what it needs next (:meth:`bases.Drive.apply`)."""
+        """File a drive under what it needs next (:meth:`drives.Drive.apply`)."""
         self._driving.discard(entity)
         self._batched.discard(entity)
-        if need == bases.EVERY_STEP:
+        if need == drives.EVERY_STEP:
             self._driving.add(entity)
-        elif need == bases.EVERY_BATCH:
+        elif need == drives.EVERY_BATCH:
             self._batched.add(entity)
 
-    def drive_of(self, entity: str) -> Optional[bases.Drive]:
+    def drive_of(self, entity: str) -> Optional[drives.Drive]:
         return self._drives.get(entity)
 
     # ---------------------------------------------------------------- trajectories

@@ -12,7 +12,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import bases, trajectory
+from . import bases, drives, trajectory
 from ..base.checks import check_finite
 from ..base.errors import InvalidArgumentError
 
@@ -75,7 +75,7 @@ class Motion:
 
     def drive(self, entity: str, vx: float, vy: float, wz: float, timeout: float) -> list:
         """Drive an entity's base (see World.drive); return what it could not take."""
-        vx, vy, wz = bases.check_command(vx, vy, wz)
+        vx, vy, wz = drives.check_command(vx, vy, wz)
         live = self.live
         with live.lock:
             live.index.entity(entity)
@@ -85,9 +85,9 @@ class Motion:
             before = live.control.drive_of(entity)
             notes = []
             if vy and spec.kind == bases.DIFF_DRIVE:
-                notes.append(bases.NOTE_SIDEWAYS.format(entity=entity, vy=vy))
+                notes.append(drives.NOTE_SIDEWAYS.format(entity=entity, vy=vy))
             if before is not None and before.saturated:
-                notes.append(bases.NOTE_BEYOND.format(entity=entity))
+                notes.append(drives.NOTE_BEYOND.format(entity=entity))
             if live.control.command_base(spec, vx, vy, wz, max(0.0, float(timeout)),
                                          live.index, live.model, live.data):
                 live.cached = None  # the controls changed: the last batch's state is stale
