@@ -254,6 +254,39 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 TF_SENDS_KEPT = 20_000
 
 
+def action_client(node, action_type, name: str, **kwargs):
+    """
+    Return an rclpy ActionClient on `node` whose requests cannot lose their responses.
+
+    Jazzy's ``ActionClient.send_goal_async`` sends the request, then files the future its
+    response will complete. A node spun on another thread (a :class:`Watcher`'s) can take the
+    response in between: rclpy logs "Ignoring unexpected goal response" and the future never
+    completes (test_node_trajectory, in CI; the node answers within a millisecond). The
+    result and cancel requests are made the same way. Here each request is made while the
+    node's spinning thread waits (its Watcher's ``spin_lock``, at most one spin of 50 ms).
+    A node spun on the calling thread, as SimClient's, has no such race.
+    """
+    from rclpy.action import ActionClient
+
+    guard = getattr(node, 'sim_test_spin_lock', None)
+
+    class Guarded(ActionClient):
+
+        def send_goal_async(self, *args, **kw):
+            with guard:
+                return super().send_goal_async(*args, **kw)
+
+        def _get_result_async(self, *args, **kw):
+            with guard:
+                return super()._get_result_async(*args, **kw)
+
+        def _cancel_goal_async(self, *args, **kw):
+            with guard:
+                return super()._cancel_goal_async(*args, **kw)
+
+    return (ActionClient if guard is None else Guarded)(node, action_type, name, **kwargs)
+
+
 class Watcher:
     """Subscribes, in the test process, to what the node publishes; spins on its own thread."""
 
@@ -298,6 +331,7 @@ class Watcher:
         # spin had already taken was lost with it: an action goal's response once never came
         # (test_node_trajectory, in CI). Destroying waits for the spin to end (<= 50 ms).
         self.spin_lock = threading.Lock()
+        n.sim_test_spin_lock = self.spin_lock  # for action_client's requests
         for name in ('destroy_subscription', 'destroy_publisher', 'destroy_client'):
             setattr(n, name, self._between_spins(getattr(n, name)))
         self._stop = False

@@ -10,7 +10,7 @@ what the real ones do.
 import math
 import time
 
-from conftest import serve_node, wait_for, Watcher
+from conftest import action_client, serve_node, wait_for, Watcher
 import controllers_corpus as corpus
 import pytest
 
@@ -238,7 +238,6 @@ def test_hardware_components_are_listed_and_auto_switches_as_strict(sim, watch):
 
 def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim, watch):
     from control_msgs.action import FollowJointTrajectory
-    from rclpy.action import ActionClient
     from trajectory_msgs.msg import JointTrajectoryPoint
     jtc_file = spawn_arm(sim)
     time.sleep(1.0)  # limp: gravity bends it
@@ -253,8 +252,8 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     assert list(later.name) == ['finger_joint'] + list(corpus.ARM_JOINTS)
     # held where it was when activated (limp, it sagged)
     assert max(abs(a - b) for a, b in zip(held.position, later.position)) < 0.02
-    client = ActionClient(watch.node, FollowJointTrajectory,
-                          '/arm_controller/follow_joint_trajectory')
+    client = action_client(watch.node, FollowJointTrajectory,
+                           '/arm_controller/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=10)
     target = [0.3, -0.2, 0.2, 0.1, 0.1, 0.1]
     goal = FollowJointTrajectory.Goal()
@@ -283,7 +282,7 @@ def test_an_arms_trajectory_controller_holds_on_activation_and_follows_goals(sim
     # its gripper action opens the fingers to where it is asked
     from control_msgs.action import GripperCommand
     assert corpus.spawner(sim, 'gripper_controller')[0] is None
-    gripper = ActionClient(watch.node, GripperCommand, '/gripper_controller/gripper_cmd')
+    gripper = action_client(watch.node, GripperCommand, '/gripper_controller/gripper_cmd')
     assert gripper.wait_for_server(timeout_sec=10)
     opened = GripperCommand.Goal()
     opened.command.position = 0.03
@@ -466,13 +465,12 @@ def test_a_second_robot_needs_a_namespace_of_its_own(sim, watch):
 
 def test_a_mimic_gripper_closes_on_a_block_and_stalls_and_closes_on_nothing(sim, watch):
     from control_msgs.action import GripperCommand, ParallelGripperCommand
-    from rclpy.action import ActionClient
     path = corpus.write(FOLDER['path'], 'gripper.yaml', corpus.GRIPPER_YAML)
     sim.spawn('gripper', resource_string=corpus.gripper(path), position=(-2.0, 2.0, 0.0))
     sim.spawn('block', resource_string=corpus.BLOCK, position=(-2.0, 2.0, 0.02))
     for name in ('joint_state_broadcaster', 'gripper_controller'):
         assert corpus.spawner(sim, name)[0] is None
-    client = ActionClient(watch.node, GripperCommand, '/gripper_controller/gripper_cmd')
+    client = action_client(watch.node, GripperCommand, '/gripper_controller/gripper_cmd')
     assert client.wait_for_server(timeout_sec=10)
     goal = GripperCommand.Goal()
     goal.command.position = 0.05
@@ -488,8 +486,8 @@ def test_a_mimic_gripper_closes_on_a_block_and_stalls_and_closes_on_nothing(sim,
                                    strictness=SwitchController.Request.STRICT)
     assert corpus.spawner(sim, 'parallel_gripper_controller', activate=False)[0] is None
     assert sim.call('/controller_manager/switch_controller', SwitchController, req).ok
-    client = ActionClient(watch.node, ParallelGripperCommand,
-                          '/parallel_gripper_controller/gripper_cmd')
+    client = action_client(watch.node, ParallelGripperCommand,
+                           '/parallel_gripper_controller/gripper_cmd')
     assert client.wait_for_server(timeout_sec=10)
     goal = ParallelGripperCommand.Goal()
     goal.command.name, goal.command.position = ['left_finger_joint'], [0.05]
@@ -584,7 +582,6 @@ def test_a_trajectory_controller_preempts_checks_its_constraints_and_reports_its
     """Preemption aborts the running goal; the YAML's path tolerance aborts a goal too fast."""
     from control_msgs.action import FollowJointTrajectory
     from control_msgs.msg import JointTrajectoryControllerState
-    from rclpy.action import ActionClient
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
     jtc_file = spawn_arm(sim)
     assert corpus.spawner(sim, 'arm_controller', param_file=jtc_file)[0] is None
@@ -593,8 +590,8 @@ def test_a_trajectory_controller_preempts_checks_its_constraints_and_reports_its
     assert list(got[-1].joint_names) == list(corpus.ARM_JOINTS)
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got]
     assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(100.0, rel=0.05)
-    client = ActionClient(watch.node, FollowJointTrajectory,
-                          '/arm_controller/follow_joint_trajectory')
+    client = action_client(watch.node, FollowJointTrajectory,
+                           '/arm_controller/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=10)
 
     def goal(target, seconds):
@@ -729,7 +726,6 @@ def test_after_a_reset_of_state_a_robots_controllers_start_again_from_it(sim, wa
     from control_msgs.action import FollowJointTrajectory
     from geometry_msgs.msg import TwistStamped
     from nav_msgs.msg import Odometry
-    from rclpy.action import ActionClient
     from simulation_interfaces.srv import ResetSimulation
     from trajectory_msgs.msg import JointTrajectoryPoint
     folder = FOLDER['path']
@@ -739,8 +735,8 @@ def test_after_a_reset_of_state_a_robots_controllers_start_again_from_it(sim, wa
     assert corpus.spawner(sim, 'joint_state_broadcaster')[0] is None
     jtc_file = corpus.write(folder, 'arm_jtc.yaml', corpus.ARM_JTC_YAML)
     assert corpus.spawner(sim, 'arm_controller', param_file=jtc_file)[0] is None
-    client = ActionClient(watch.node, FollowJointTrajectory,
-                          '/arm_controller/follow_joint_trajectory')
+    client = action_client(watch.node, FollowJointTrajectory,
+                           '/arm_controller/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=10)
     goal = FollowJointTrajectory.Goal()
     goal.trajectory.joint_names = list(corpus.ARM_JOINTS)

@@ -14,7 +14,7 @@ from pathlib import Path
 import signal
 import time
 
-from conftest import DEFAULT_SCENE, mcap_records_until_cut, NodeProcess, wait_for
+from conftest import action_client, DEFAULT_SCENE, mcap_records_until_cut, NodeProcess, wait_for
 
 
 def listed_files(bag: Path) -> list:
@@ -39,7 +39,6 @@ def mcap_messages(bag: Path) -> list:
 
 def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_context, tmp_path):
     from control_msgs.action import FollowJointTrajectory
-    from rclpy.action import ActionClient
     from rosbags.rosbag2 import Reader
     from sim_node.ros.client import SimClient
     from sim_node.ros.commands.trajectories import duration
@@ -50,8 +49,8 @@ def test_a_recorded_run_reads_back_with_its_topics_types_and_sim_time(rclpy_cont
     sim = SimClient(namespace='/rec', timeout_sec=30)
     try:
         sim.spawn('crate', uri='box', position=(0.75, 0.3, 1.0))
-        client = ActionClient(sim.node, FollowJointTrajectory,
-                              '/rec/robot/follow_joint_trajectory')
+        client = action_client(sim.node, FollowJointTrajectory,
+                               '/rec/robot/follow_joint_trajectory')
         assert client.wait_for_server(timeout_sec=15)
         goal = FollowJointTrajectory.Goal()
         goal.trajectory.joint_names = ['left_elbow']

@@ -9,11 +9,10 @@ controller state, and the action server coming and going with its entity.
 
 import time
 
-from conftest import serve_node, TWO_JOINT_ARM, wait_for, Watcher
+from conftest import action_client, serve_node, TWO_JOINT_ARM, wait_for, Watcher
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance, JointTrajectoryControllerState
 import pytest
-from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from sim_node.ros.commands.trajectories import duration
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -48,7 +47,7 @@ def arm(sim, watch):
     wait_for(lambda: pub.get_subscription_count() > 0, timeout=10)
     t0 = wait_for(lambda: arm_stamp(watch), timeout=10)  # the arm is in the world
     pub.publish(JointState(name=JOINTS, position=[0.0, 0.0]))
-    client = ActionClient(watch.node, FollowJointTrajectory, 'arm/follow_joint_trajectory')
+    client = action_client(watch.node, FollowJointTrajectory, 'arm/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=15)
     wait_for(lambda: arm_stamp(watch) > t0 + 0.5 and abs(joint(watch, 'arm/j1')) < 0.01
              and abs(watch.joint_states.velocity[list(watch.joint_states.name).index(

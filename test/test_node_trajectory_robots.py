@@ -16,12 +16,11 @@ import sys
 import threading
 import time
 
-from conftest import serve_node, wait_for, Watcher
+from conftest import action_client, serve_node, wait_for, Watcher
 from control_msgs.action import FollowJointTrajectory
 import gymnasium
 import numpy as np
 import pytest
-from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from sim_node.ros.commands.trajectories import duration
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -86,7 +85,7 @@ def robot(sim, watch, request):
             return False
         return max(abs(last[j][0] - before[-1][j][0]) for j in joints) < 1e-3
     wait_for(at_rest, timeout=20, interval=0.0)
-    client = ActionClient(watch.node, FollowJointTrajectory, f'{name}/follow_joint_trajectory')
+    client = action_client(watch.node, FollowJointTrajectory, f'{name}/follow_joint_trajectory')
     assert client.wait_for_server(timeout_sec=15)
     yield sim, client, joints
     client.destroy()
