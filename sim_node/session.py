@@ -248,6 +248,7 @@ class Session:
             old.world.remove_model_watcher(self._wake.set)
             if old.loop is not None:
                 old.loop.stop()
+            old.world.release_meshes(every=True)  # its deleted robots' kept meshes
         if new is not None:
             new.world.add_model_watcher(self._wake.set)
         self._wake.set()

@@ -694,3 +694,23 @@ def test_a_joint_whose_range_leaves_out_zero_starts_at_its_nearest_limit(world, 
     world.step(500)
     assert np.isfinite(world.read(lambda m, d: d.qvel)).all()
     assert check_description_matches_mujoco(world, 'r', np.random.default_rng(3)) == 3
+
+
+def test_a_world_dropped_gives_back_the_meshes_its_deleted_robots_kept(tmp_path):
+    """
+    A new world loaded evicts the meshes the old one's deleted robots kept.
+
+    Nobody would evict them later: the old world is gone and MuJoCo's cache is the process's.
+    """
+    from sim_node.session import Session
+    binary_stl(tmp_path / 'part.stl', 20_000)
+    text = robot(link('base', mesh_part('collision', 'part.stl')))
+    empty = asset_store.mesh_cache_bytes()
+    with Session(trim_memory=False) as session:
+        first = session.load(World.from_file(str(DEFAULT_SCENE), WorldConfig()), 'first')
+        spawn_file(first.world, tmp_path, text, name='kept')
+        first.world.delete('kept')
+        assert first.world.kept_mesh_bytes() > 500_000  # kept for its next spawn
+        session.load(World.from_file(str(DEFAULT_SCENE), WorldConfig()), 'second')
+        assert asset_store.mesh_cache_bytes() <= empty
+        assert first.world.kept_mesh_bytes() == 0

@@ -13,6 +13,7 @@ writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
 """
 
 import contextlib
+import math
 import time
 from typing import Callable, Iterator, Optional, Sequence, TypeVar
 
@@ -514,13 +515,15 @@ class World:
         """
         self._edits.delete(name)
 
-    def release_meshes(self) -> bool:
+    def release_meshes(self, every: bool = False) -> bool:
         """
         Evict the kept meshes of deleted entities whose time is over (a periodic call).
 
         Skipped, returning False, while an edit is being made (it does this when it ends).
+        :param every: all of them, whatever their time (the world is being dropped: nobody
+            would evict them later, and MuJoCo's cache is the process's).
         """
-        return self._transaction.release_meshes(time.monotonic())
+        return self._transaction.release_meshes(math.inf if every else time.monotonic())
 
     def kept_mesh_bytes(self) -> int:
         """Return the bytes of deleted entities' meshes kept in MuJoCo's cache now."""
