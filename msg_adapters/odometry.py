@@ -10,7 +10,6 @@ world -> odom transform absorbs what the odometry gets wrong (its drift), and od
 entity's frame replaces the world -> entity transform /tf otherwise carries.
 """
 
-import math
 from typing import Sequence
 
 from nav_msgs.msg import Odometry
@@ -41,15 +40,6 @@ def odom_frame_in_world(position: np.ndarray, quat_wxyz: np.ndarray, pos_odom: n
     inv = quat.conj(quat_odom)
     q = quat.mul(quat_wxyz, inv)
     return position - quat.rotate(q, pos_odom), q
-
-
-def diagonal(values) -> tuple:
-    """Return a YAML's covariance diagonal as six floats: six finite numbers, else zeros."""
-    if isinstance(values, (list, tuple)) and len(values) == 6 and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-            for x in values):
-        return tuple(float(x) for x in values)
-    return (0.0,) * 6
 
 
 def message(odo: PlanarOdometry, stamp: float, frame: str, child: str, pos: np.ndarray,

@@ -474,10 +474,5 @@ def _shown(default) -> str:
     return f'`{default!r}`' if isinstance(default, str) else f'`{default}`'
 
 
-def type_of(kind: str) -> Optional[type]:
-    """Return the class of a type name, or None if this simulator does not provide it."""
-    return REGISTRY.get(kind)
-
-
 if __name__ == '__main__':
     sys.stdout.write(markdown())

@@ -151,6 +151,8 @@ def _lowest_points(spec: mujoco.MjSpec, assets: Optional[dict]) -> dict:
     probe = spec.copy()
     if assets:
         probe.assets = {**probe.assets, **assets}
+    # One thread, as the world's own compile (Design.built): the world steps meanwhile.
+    probe.compiler.usethread = False
     try:
         model = probe.compile()
     except ValueError as exc:

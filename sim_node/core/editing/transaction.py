@@ -232,14 +232,15 @@ class Transaction:
             design = self.live.design
             released = list(design.released)
             budget = config.mesh_cache_keep_mb * 2 ** 20
-            gone = []
+            kept, evicted = sum(r.nbytes for r in released), 0
             while released and (now - released[0].at >= config.mesh_cache_keep_sec
-                                or sum(r.nbytes for r in released) > budget):
-                gone.append(released.pop(0))
-            if gone:
+                                or kept > budget):
+                oldest = released.pop(0)
+                kept, evicted = kept - oldest.nbytes, evicted + oldest.nbytes
+            if evicted:
                 self.live.design = replace(design, released=tuple(released))
-        if gone:
-            asset_store.evict_meshes(sum(r.nbytes for r in gone))
+        if evicted:
+            asset_store.evict_meshes(evicted)
             release_free_memory(at_least=TRIM_AFTER_COMPACTION_BYTES)
 
     def kept_mesh_bytes(self) -> int:

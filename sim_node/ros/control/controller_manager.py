@@ -317,7 +317,7 @@ RUNTIMES = {
 
 def runtime_for(host, controller) -> controllers.Runtime:
     """Return the runtime of a loaded controller's type."""
-    runtime = RUNTIMES.get(types.type_of(controller.kind))
+    runtime = RUNTIMES.get(types.REGISTRY.get(controller.kind))
     if runtime is None:
         raise SimError(f'no runtime for {controller.kind}')
     return runtime(host, controller)
