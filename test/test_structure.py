@@ -409,6 +409,25 @@ def test_odometry_is_integrated_and_built_in_one_place_each():
     assert ODOMETRY_CODE.search('    msg = Odometry()')
 
 
+def test_the_controllers_laws_are_in_the_core_and_their_ros_side_is_topics():
+    """
+    The ROS side of the controllers imports none of the law's parts (issue 51, item 2).
+
+    At fdc47ee the bases' timeouts, limiters, kinematics and odometry ran in ros/control, on
+    the joint_states publisher's thread; now :mod:`sim_node.core.control.laws` runs them on
+    the stepping side and ros/control keeps the topics, services and actions.
+    """
+    law_parts = {'limits', 'diff_drive', 'steering', 'odometry', 'wheels', 'drives'}
+    found = []
+    for path in sorted((ROOT / 'sim_node' / 'ros' / 'control').glob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('core.control'):
+                tail = node.module.split('.')[2:3]
+                names = set(tail) if tail else {a.name for a in node.names}
+                found += [f'{path.name}:{node.lineno} {n}' for n in names & law_parts]
+    assert found == [], found
+
+
 def test_the_ros_layer_is_rooms_by_job():
     """A new engineer finds where a controller ticks: ros/ holds rooms, not flat files."""
     ros = ROOT / 'sim_node' / 'ros'

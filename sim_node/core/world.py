@@ -188,12 +188,18 @@ class World:
             self._live.contact_request = request
 
     def sample_joints(self, key: str, joints: Sequence[str], rate_hz: float = 0.0,
-                      sensors: bool = False) -> None:
-        """Sample joints `rate_hz` times per simulated second (0: stop): JointSample."""
+                      sensors: bool = False, tick: Optional[Callable] = None) -> None:
+        """
+        Sample joints `rate_hz` times per simulated second (0: stop): JointSample.
+
+        `tick`, if given, takes every sample due on the stepping thread and returns joint
+        commands the world applies before the next step (a robot's controllers' laws,
+        :class:`~.control.laws.Laws`; see :func:`.stepping.sampling.joint_requests`).
+        """
         with self._live.lock:
             live = self._live
             live.joint_requests = sampling.joint_requests(live.joint_requests, key, joints,
-                                                          rate_hz, sensors)
+                                                          rate_hz, sensors, tick)
 
     @property
     def timestep(self) -> float:

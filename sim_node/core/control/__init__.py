@@ -14,5 +14,6 @@ started and cancelled, bases found and driven, pushes and gains, each under the 
 :mod:`.controller_types` (each controller type's class: its parameter schema, what it needs
 and claims), :mod:`.diff_drive` and :mod:`.steering` (diff_drive_controller's and the
 steering controllers' kinematics), :mod:`.limits` (their speed and angle limits per update
-period).
+period), :mod:`.laws` (the controllers' laws, run on the stepping side at their update rate of
+simulated time).
 """

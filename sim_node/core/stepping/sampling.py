@@ -14,9 +14,10 @@ whose contacts were asked for, :class:`ContactRequest`) are sampled the same way
 """
 
 from collections import deque
+import logging
 import math
 import time
-from typing import NamedTuple, Optional
+from typing import Callable, NamedTuple, Optional
 import zlib
 
 import mujoco
@@ -24,6 +25,8 @@ import numpy as np
 
 from ..base.errors import InvalidArgumentError
 from ..devices import contacts
+
+log = logging.getLogger(__name__)
 
 #: Samples kept for the node between two drains (a slow consumer loses the oldest).
 SAMPLES_KEPT = 10_000
@@ -75,12 +78,12 @@ class JointSample(NamedTuple):
 
 
 class _Joints:
-    __slots__ = ('name', 'period', 'qpos', 'dof', 'sensors', 'next', 'tokens', 'wall')
+    __slots__ = ('name', 'period', 'qpos', 'dof', 'sensors', 'tick', 'next', 'tokens', 'wall')
 
     def __init__(self, name: str, period: float, qpos: np.ndarray, dof: np.ndarray,
-                 sensors: bool):
+                 sensors: bool, tick: Optional[Callable]):
         self.name, self.period, self.qpos, self.dof = name, period, qpos, dof
-        self.sensors = sensors
+        self.sensors, self.tick = sensors, tick
         self.next = math.nan
         self.tokens, self.wall = float(JOINT_BURST), time.perf_counter()  # a token bucket
 
@@ -112,8 +115,12 @@ class Sampler:
         sensor groups they are, its ``contacts`` and ``geom_scoped``).
     :param request: the entities whose contacts were asked for (their reports are named as
         the entity), and the rate of those and of contact sensors that declare none.
-    :param joints: (key, joint names, rate Hz, with sensor values) of each set of joints
-        sampled as a :class:`JointSample` (a controller manager's, at its update rate).
+    :param joints: (key, joint names, rate Hz, with sensor values, tick) of each set of joints
+        sampled as a :class:`JointSample` (a controller manager's, at its update rate); a
+        tick (None, or a callable) takes every sample due, those the queue leaves out
+        included, and returns joint commands ((names, values, mode) each): they are in
+        :attr:`writes` after :meth:`collect`, for the stepping side to apply before the next
+        step.
     """
 
     def __init__(self, index, samples: deque, request: ContactRequest = ContactRequest(),
@@ -135,11 +142,12 @@ class Sampler:
                       info.body_root[info.geom_body] == roots[name], None)
             for name in request.entities if name in roots and name not in info.contacts]
         self._joints = []
-        for key, names, rate, sensors in joints:
+        for key, names, rate, sensors, tick in joints:
             idx = [index.joint_index[n] for n in names if n in index.joint_index]
             if idx and len(idx) == len(names):
                 self._joints.append(_Joints(key, 1.0 / rate, index.joint_qposadr[idx],
-                                            index.joint_dofadr[idx], sensors))
+                                            index.joint_dofadr[idx], sensors, tick))
+        self.writes: list = []  # the ticks' joint commands of the last collect
         self._all = self._entries + self._contacts + self._joints
         self._samples = samples
         self._last = -math.inf
@@ -178,12 +186,21 @@ class Sampler:
             j.tokens = min(JOINT_BURST, j.tokens + (now - j.wall) * MAX_JOINT_WALL_HZ)
             j.wall = now
             j.next = (math.floor(t / j.period + DUE_TOLERANCE) + 1) * j.period
-            if j.tokens < 1.0:  # faster than real time: left out
+            queued = j.tokens >= 1.0  # else faster than real time: left out of the queue
+            if not queued and j.tick is None:
                 continue
-            j.tokens -= 1.0
-            self._samples.append(JointSample(
+            sample = JointSample(
                 j.name, t, d.qpos[j.qpos], d.qvel[j.dof], d.qfrc_actuator[j.dof],
-                self.generation, d.sensordata.copy() if j.sensors else None, self.resets))
+                self.generation, d.sensordata.copy() if j.sensors and queued else None,
+                self.resets)
+            if j.tick is not None:
+                try:
+                    self.writes += j.tick(sample)
+                except Exception:  # noqa: B902 (the world steps on; the tick's owner reports)
+                    log.exception('joint sample tick %s failed', j.name)
+            if queued:
+                j.tokens -= 1.0
+                self._samples.append(sample)
         for c in self._contacts:
             if t < c.next - DUE_TOLERANCE * c.period:  # (NaN: due now)
                 continue
@@ -224,11 +241,14 @@ def request(entities, rate_hz: float = 50.0) -> ContactRequest:
 
 
 def joint_requests(requests: tuple, key: str, joints, rate_hz: float,
-                   sensors: bool = False) -> tuple:
+                   sensors: bool = False, tick: Optional[Callable] = None) -> tuple:
     """
     Return `requests` with `key`'s joints sampled at `rate_hz` (0: not at all any more).
 
-    With `sensors`, each sample carries MuJoCo's sensor values too.
+    With `sensors`, each sample carries MuJoCo's sensor values too. A `tick` takes every
+    sample due on the stepping thread, with the world lock held, and returns joint commands
+    ((names, values, mode) each) that the next step applies (:class:`Sampler`); it must not
+    block nor call the world.
 
     Each sample is a :class:`JointSample` named `key`, taken with
     :meth:`~sim_node.core.world.World.take_sensor_samples`; joints the model lacks (an entity
@@ -241,8 +261,8 @@ def joint_requests(requests: tuple, key: str, joints, rate_hz: float,
         raise InvalidArgumentError(
             f'joint sampling rate {rate_hz!r} Hz is not in [0, {MAX_JOINT_RATE_HZ:g}]')
     kept = tuple(r for r in requests if r[0] != key)
-    return kept + ((key, tuple(joints), float(rate_hz), bool(sensors)),) if rate_hz > 0 \
-        else kept
+    return kept + ((key, tuple(joints), float(rate_hz), bool(sensors), tick),) \
+        if rate_hz > 0 else kept
 
 
 def new_queue() -> deque:

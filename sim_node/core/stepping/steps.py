@@ -18,7 +18,7 @@ from . import sampling
 from .guard import clean
 from .live import Live
 from ..base.checks import check_finite
-from ..base.errors import DivergenceError, InvalidArgumentError
+from ..base.errors import DivergenceError, InvalidArgumentError, SimError
 from ..base.records import Clock, Snapshot
 from ..compiled import state
 from ..compiled.index import STATE_SPEC
@@ -154,9 +154,11 @@ class Stepping:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep - 1e-6)))
                 mujoco.mj_step(m, d, k)
                 left -= k
+                ticked = False
                 if sampler:
                     sampler.collect(m, d)
-                if left and control.batched and control.before_batch(m, d) \
+                    ticked = self._apply_ticks(sampler)
+                if left and ((control.batched and control.before_batch(m, d)) or ticked) \
                         and control.per_step:
                     self._step_each(m, d, left, sampler)
                     left = 0
@@ -186,6 +188,27 @@ class Stepping:
             mujoco.mj_step(m, d)
             if sampler:
                 sampler.collect(m, d)
+                self._apply_ticks(sampler)
+
+    def _apply_ticks(self, sampler) -> bool:
+        """
+        Apply the joint commands the samples' ticks returned (controllers' laws) at once.
+
+        A command for a joint gone meanwhile is left out. Divergence's replay
+        (:meth:`_diverged_locked`) does not write them again: it names the step, as before.
+        Return whether there were any.
+        """
+        writes, sampler.writes = sampler.writes, []
+        if not writes:
+            return False
+        live = self.live
+        for names, values, mode in writes:
+            try:
+                live.control.stage(live.index, names, values, mode)
+            except SimError:
+                continue
+        live.control.apply_staged(live.index, live.model, live.data)
+        return True
 
     def _diverged_locked(self, before: np.ndarray, n: int, ctrl: Optional[np.ndarray]) -> None:
         live = self.live

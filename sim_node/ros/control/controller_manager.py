@@ -14,8 +14,9 @@ bookkeeping is :mod:`sim_node.core.control.manager`; the controllers :mod:`.cont
 
 Joints go by the URDF's names here (the world's are ``<entity>/<joint>``); the loop samples
 them at the manager's ``update_rate`` of simulated time and each active controller runs at
-its own. Parameter files are read from the node's resource folders and installed packages'
-share folders only.
+its own: its law (:mod:`sim_node.core.control.laws`) on the stepping side at every sample due,
+its publishers on the node's side with the samples it is sent. Parameter files are read from
+the node's resource folders and installed packages' share folders only.
 """
 
 import os
@@ -40,7 +41,7 @@ from .steering import Steering
 from .topic_hardware import TopicHardware
 from ...core.base.errors import SimError
 from ...core.base.records import ModelInfo, Snapshot
-from ...core.control import controller_types as types, manager as core
+from ...core.control import controller_types as types, laws, manager as core
 from ...core.models import controller_yaml
 from ...core.models.paths import inside_roots
 from ...session import Loaded, Session
@@ -110,8 +111,12 @@ class RobotControl:
                 (ListHardwareComponents, 'list_hardware_components', self._components)):
             self.node.create_service(srv, f'~/{name}', call, callback_group=group)
         host.add_node(self.node)
+        self.laws = laws.Laws(list(self.hardware),
+                              lambda j, interface, v: self.hardware[j].within(interface, v),
+                              self.internal)
+        self.failure_said = None  # the laws' latest failure logged
         host.sample(self.key, [self.internal(j) for j in self.hardware],
-                    self.manager.update_rate, self.sensors)
+                    self.manager.update_rate, self.sensors, self.laws.tick)
 
     def internal(self, joint: str) -> str:
         return f'{self.entity}/{joint}'
@@ -243,7 +248,17 @@ class RobotControl:
     # ------------------------------------------------------------------ for the runtimes
 
     def on_sample(self, sample) -> None:
-        """Run the active controllers due at a joint sample's simulated time."""
+        """
+        Publish for the active controllers due at a joint sample's simulated time.
+
+        Their laws ran on the stepping side already (:attr:`laws`); a law's failure is logged
+        here.
+        """
+        failures = self.laws.failures
+        if failures and failures[-1] is not self.failure_said:
+            self.failure_said = failures[-1]
+            self.node.get_logger().error(f'{failures[-1][0]} update failed: {failures[-1][1]}',
+                                         throttle_duration_sec=5.0)
         if sample.resets < self.resets:
             return  # taken before a reset of state the controllers have started again from
         self.latest = sample
@@ -291,6 +306,15 @@ class RobotControl:
             self.world().command([self.internal(j) for j in joints], out, interface)
         except SimError as exc:
             self.refused(self.topic(self.control.manager), 'command', str(exc), list(joints))
+
+    def write(self, writes) -> None:
+        """Command what a law returned (:class:`~sim_node.core.control.laws.Write` each)."""
+        for w in writes:
+            self.command(w.joints, w.values, w.interface)
+
+    def put_law(self, name: str, law) -> None:
+        """Run a controller's law on the stepping side from now on (None: no longer)."""
+        self.laws.put(name, law)
 
     def hold(self, joints, interface: str) -> None:
         """Hold joints: where they are (position), or at zero (velocity, effort)."""
@@ -346,10 +370,11 @@ class ControllerManagers:
     def readable(self, path) -> bool:
         return inside_roots(path, self._roots)
 
-    def sample(self, key: str, joints: list, rate: float, sensors: bool = False) -> None:
+    def sample(self, key: str, joints: list, rate: float, sensors: bool = False,
+               tick=None) -> None:
         loaded = self.session.loaded
         if loaded is not None:
-            loaded.world.sample_joints(key, joints, rate, sensors)
+            loaded.world.sample_joints(key, joints, rate, sensors, tick)
 
     def on_model(self, loaded: Optional[Loaded], snap: Optional[Snapshot]) -> None:
         self.sync(None if snap is None else snap.info)

@@ -16,7 +16,9 @@ the real controller has relative to that name:
   one; ``~/odom`` (nav_msgs/Odometry, ``odom_frame_id`` -> ``base_frame_id``, from the
   wheels) and, with ``enable_odom_tf``, that transform on ``/tf``, at ``publish_rate``; the
   twist is limited once per update by the ``linear.x`` and ``angular.z`` velocity,
-  acceleration and jerk limits (:mod:`sim_node.core.control.limits`).
+  acceleration and jerk limits (:mod:`sim_node.core.control.limits`). Its law (the timeout,
+  the limits, the wheels' speeds, the odometry) runs on the stepping side at its update rate
+  of simulated time (:mod:`sim_node.core.control.laws`), this its topics only.
 * ``joint_trajectory_controller``: :mod:`.jtc`.
 
 A command that cannot be taken (a wrong length, a value not finite) is refused with its reason
@@ -24,7 +26,6 @@ logged and put on /diagnostics; the world steps on.
 """
 
 import math
-from typing import Optional
 
 from geometry_msgs.msg import Twist, TwistStamped
 from msg_adapters import convert, odometry
@@ -34,8 +35,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
-from ...core.control import controller_types as types
-from ...core.control import diff_drive, limits
+from ...core.control import controller_types as types, laws
 
 NO_EVENTS = {'event_callbacks': PublisherEventCallbacks(use_default_callbacks=False)}
 NO_SUB_EVENTS = {'event_callbacks': SubscriptionEventCallbacks(use_default_callbacks=False)}
@@ -52,6 +52,7 @@ class Runtime:
     def __init__(self, host, controller):
         self.host, self.controller = host, controller
         self.node = None
+        self.law = None  # its law on the stepping side, if its type has one
         self.active = False
         self.next_update = -math.inf
 
@@ -66,7 +67,10 @@ class Runtime:
     def configure(self) -> None:
         self.destroy()
         self.node = self.host.make_node(self.name, self.params)
+        self.law = laws.law_for(types.REGISTRY.get(self.controller.kind), self.params,
+                                self.controller.update_rate)
         self.make()
+        self.host.put_law(self.name, self.law)
 
     def make(self) -> None:
         """Make the controller's publishers and subscriptions on :attr:`node`."""
@@ -96,6 +100,9 @@ class Runtime:
         server = getattr(self, 'server', None)
         if server is not None and self.node is not None:
             server.destroy()
+        if self.law is not None:
+            self.host.put_law(self.name, None)
+            self.law.deactivate()
         self.active = False
         self.node = None
 
@@ -160,16 +167,16 @@ class ForwardCommand(Runtime):
 
 class BaseController(Runtime):
     """
-    What the base controllers share: a twist held until it is stale, sent once per update.
+    What the base controllers' ROS sides share: a twist taken, odometry published.
 
-    The last twist taken on :attr:`topic` is held until it is older than ``timeout``
-    (simulated s; 0: never), then the base stops; each update turns it into wheel commands
-    (:meth:`steer`, through the subclass's limits and kinematics) and tracks the odometry
-    (:meth:`track`). A subclass has ``odometry`` and ``timeout`` and makes its topics in
-    :meth:`make`; :meth:`subscribe` takes the twist.
+    The law (:class:`~sim_node.core.control.laws.BaseLaw`: the timeout, the limits, the
+    kinematics, the odometry) runs on the stepping side; this takes the twists on
+    :attr:`topic` (:meth:`subscribe`) and publishes the law's odometry every ``period`` of
+    simulated time (0: at every update). A subclass makes its topics in :meth:`make`.
     """
 
     topic = 'cmd_vel'
+    period = 0.0
 
     def subscribe(self, stamped: bool, topic: str) -> None:
         self.topic = topic
@@ -178,13 +185,12 @@ class BaseController(Runtime):
 
     def activate(self, sample) -> None:
         super().activate(sample)
-        self.odometry.reset()
-        self.command: Optional[tuple] = None  # (v, w, simulated time it came)
-        self.last_update: Optional[float] = None
+        self.next_publish = -math.inf
+        self.host.write(self.law.activate())
 
     def deactivate(self) -> None:
         super().deactivate()
-        self._drive(0.0, 0.0)
+        self.host.write(self.law.deactivate())
 
     def _on_twist(self, msg) -> None:
         twist = msg.twist if isinstance(msg, TwistStamped) else msg
@@ -193,33 +199,13 @@ class BaseController(Runtime):
             self.refuse(self.topic, f'a twist that is not finite: ({v}, {w})')
             return
         if self.active:
-            self.command = (v, w, self.host.sim_time())
+            self.law.take(v, w)
 
     def update(self, sample, index: dict) -> None:
-        t = sample.time
-        period = 1.0 / self.controller.update_rate
-        dt = t - self.last_update if self.last_update is not None else period
-        self.last_update = t
-        if self.command is not None and self.timeout > 0 and t - self.command[2] > self.timeout:
-            self.command = None  # stale: the base stops
-        v, w = self.command[:2] if self.command is not None else (0.0, 0.0)
-        self.steer(v, w, dt, sample, index)
-        self.track(t, sample, index)
-
-    def send(self, joints: tuple, values: list, interface: str) -> None:
-        """Command `joints` through `interface` (every update, as the real ones write)."""
-        self.host.command(joints, values, interface)
-
-    def steer(self, v: float, w: float, dt: float, sample, index: dict) -> None:
-        """Send the wheel commands for the twist (v, w), `dt` after the last update."""
-        self._drive(v, w)
-
-    def track(self, t: float, sample, index: dict) -> None:
-        """Take the wheels' sample into the odometry and publish it when due."""
-        raise NotImplementedError
-
-    def _drive(self, v: float, w: float) -> None:
-        raise NotImplementedError
+        if sample.time < self.next_publish:
+            return
+        self.next_publish = sample.time + self.period - 1e-9
+        publish_odometry(self, self.law.snapshot(), sample.time)
 
 
 class DiffDrive(BaseController):
@@ -227,54 +213,24 @@ class DiffDrive(BaseController):
 
     def make(self) -> None:
         p = self.params
-        self.left, self.right = p['left_wheel_names'], p['right_wheel_names']
-        self.geometry = diff_drive.Geometry.of(p)
-        self.odometry = diff_drive.odometry(self.geometry)
-        self.limiters = (limits.signed(p, 'linear.x'), limits.signed(p, 'angular.z'))
-        self.timeout = p['cmd_vel_timeout']
         self.odom_frame, self.base_frame = p['odom_frame_id'], p['base_frame_id']
         self.period = 1.0 / p['publish_rate']
-        self.next_publish = -math.inf
         self.subscribe(p['use_stamped_vel'], 'cmd_vel')
         self.odom_pub = self.node.create_publisher(Odometry, '~/odom', 10, **NO_EVENTS)
         self.tf_pub = (self.node.create_publisher(TFMessage, '/tf', 100, **NO_EVENTS)
                        if p['enable_odom_tf'] else None)
 
-    def activate(self, sample) -> None:
-        super().activate(sample)
-        self.history = [(0.0, 0.0), (0.0, 0.0)]  # (v, w) sent last, and the time before
 
-    def steer(self, v: float, w: float, dt: float, sample, index: dict) -> None:
-        (v0, w0), (v1, w1) = self.history
-        v = self.limiters[0].limit(v, v0, v1, dt)
-        w = self.limiters[1].limit(w, w0, w1, dt)
-        self.history = [(v, w), (v0, w0)]
-        self._drive(v, w)
-
-    def _drive(self, v: float, w: float) -> None:
-        left, right = diff_drive.wheel_speeds(self.geometry, v, w)
-        self.send(self.left + self.right, [left] * len(self.left) + [right] * len(self.right),
-                  'velocity')
-
-    def track(self, t: float, sample, index: dict) -> None:
-        left = sum(sample.position[index[j]] for j in self.left) / len(self.left)
-        right = sum(sample.position[index[j]] for j in self.right) / len(self.right)
-        self.odometry.update(t, left, right)
-        if t < self.next_publish:
-            return
-        self.next_publish = t + self.period - 1e-9
-        publish_odometry(self, t)
-
-
-def publish_odometry(ctl, t: float) -> None:
+def publish_odometry(ctl, o, t: float) -> None:
     """
-    Publish a base controller's odometry (``ctl.odometry``, planar) at time `t`.
+    Publish a base controller's odometry `o` (planar, its law's) of simulated time `t`.
 
     On ``ctl.odom_pub`` from ``ctl.odom_frame`` to ``ctl.base_frame``, with the YAML's
     ``pose_covariance_diagonal`` and ``twist_covariance_diagonal`` (six finite values each,
-    else zeros), and that transform on ``ctl.tf_pub`` when it has one.
+    else zeros), and that transform on ``ctl.tf_pub`` when it has one. The stamp is the
+    odometry's own time (its last update, on the stepping side) once it has one.
     """
-    o = ctl.odometry
+    t = o.time if o.time is not None else t
     where = (o.x, o.y, 0.0)
     ctl.odom_pub.publish(odometry.message(
         o, t, ctl.odom_frame, ctl.base_frame, where, o.quat_wxyz(),

@@ -4,15 +4,17 @@ Gripper action controllers as ros2_controllers' have them: ``~/gripper_cmd``.
 ``position_controllers/GripperActionController`` and ``effort_controllers/...`` take
 control_msgs/GripperCommand (a position, a max effort), ``parallel_gripper_action_controller``
 control_msgs/ParallelGripperCommand (a JointState with the joint's position). Each drives its
-``joint`` to the position (within the interface's min and max) and watches it at
-``action_monitor_rate`` (wall time): it succeeds with ``reached_goal`` once within
+``joint`` to the position (within the interface's min and max), and its law
+(:class:`~sim_node.core.control.laws.GripperLaw`, on the stepping side at the controller's
+update rate of simulated time) decides the goal: it succeeds with ``reached_goal`` once within
 ``goal_tolerance``; a finger that stops short (slower than ``stall_velocity_threshold`` for
 ``stall_timeout`` simulated seconds: it holds something) succeeds with ``stalled`` when
-``allow_stalling``, else aborts; a new goal preempts the running one.
+``allow_stalling``, else aborts; a new goal preempts the running one, and a reset of the world
+or the controller's deactivation aborts it. The action's thread waits for the law's decision,
+looking at ``action_monitor_rate`` (wall time) for a cancel.
 """
 
 import math
-import threading
 
 from control_msgs.action import GripperCommand, ParallelGripperCommand
 from rclpy.action import CancelResponse, GoalResponse
@@ -31,13 +33,8 @@ class GripperAction(Runtime):
         p = self.params
         self.joint = p['joint']
         self.parallel = self.controller.kind == types.PARALLEL_GRIPPER
-        self.tolerance = p['goal_tolerance']
-        self.stall_speed = p['stall_velocity_threshold']
-        self.stall_time = p['stall_timeout']
         self.allow_stalling = p['allow_stalling']
         self.period = 1.0 / p['action_monitor_rate']
-        self.goal_id = 0
-        self._lock = threading.Lock()
         self.server = LeavableActionServer(
             self.node, ParallelGripperCommand if self.parallel else GripperCommand,
             '~/gripper_cmd', execute_callback=self._execute, goal_callback=self._check,
@@ -46,7 +43,12 @@ class GripperAction(Runtime):
 
     def activate(self, sample) -> None:
         super().activate(sample)
+        self.law.activate()  # a goal running ends (a reset, a second activation)
         self.host.hold((self.joint,), 'position')
+
+    def deactivate(self) -> None:
+        super().deactivate()
+        self.law.deactivate()
 
     def _target(self, goal):
         if not self.parallel:
@@ -65,34 +67,27 @@ class GripperAction(Runtime):
         return GoalResponse.ACCEPT
 
     def _execute(self, goal_handle):
-        target = self._target(goal_handle.request)
-        with self._lock:
-            self.goal_id += 1
-            mine = self.goal_id
-        self.host.command((self.joint,), (target,), 'position')
-        slow_since = None
-        while True:
-            sample = self.host.latest
-            q, v, effort, t = self._state(sample)
-            reached = abs(q - target) <= self.tolerance
-            slow_since = (slow_since if slow_since is not None else t) \
-                if abs(v) < self.stall_speed and not reached else None
-            stalled = slow_since is not None and t - slow_since >= self.stall_time
-            if mine != self.goal_id or not self.active or goal_handle.is_cancel_requested:
-                return self._end(goal_handle, q, effort, False, False,
-                                 'canceled' if goal_handle.is_cancel_requested else 'aborted')
-            if reached or stalled:
-                ok = reached or self.allow_stalling
-                return self._end(goal_handle, q, effort, stalled, reached,
-                                 'succeed' if ok else 'aborted')
-            threading.Event().wait(self.period)
+        goal, writes = self.law.start(self._target(goal_handle.request))
+        self.host.write(writes)
+        while not goal.done.wait(self.period):
+            if goal_handle.is_cancel_requested or not self.active:
+                self.law.drop(goal)
+                break
+        q, effort = goal.position, goal.effort
+        if math.isnan(q):
+            q, effort = self._state(self.host.latest)
+        if goal_handle.is_cancel_requested:
+            return self._end(goal_handle, q, effort, False, False, 'canceled')
+        reached, stalled = goal.how == 'reached', goal.how == 'stalled'
+        ok = reached or (stalled and self.allow_stalling)
+        return self._end(goal_handle, q, effort, stalled, reached,
+                         'succeed' if ok else 'aborted')
 
     def _state(self, sample) -> tuple:
         if sample is None:
-            return math.nan, 0.0, 0.0, 0.0
+            return math.nan, 0.0
         i = list(self.host.hardware).index(self.joint)
-        return (float(sample.position[i]), float(sample.velocity[i]),
-                float(sample.effort[i]), sample.time)
+        return float(sample.position[i]), float(sample.effort[i])
 
     def _end(self, goal_handle, q: float, effort: float, stalled: bool, reached: bool,
              how: str):
