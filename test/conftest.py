@@ -79,8 +79,10 @@ def _end_with_parent() -> None:
 class NodeProcess:
     """The installed node executable running as a subprocess."""
 
-    def __init__(self, *params: str, namespace: str = '', remaps: tuple = ()):
-        args = [str(node_executable()), '--ros-args']
+    def __init__(self, *params: str, namespace: str = '', remaps: tuple = (),
+                 program: tuple = ()):
+        """`program`: what to run instead of the node executable (a script that wraps it)."""
+        args = [*(program or (str(node_executable()),)), '--ros-args']
         for p in params:
             args += ['-p', p]
         if namespace:
@@ -141,8 +143,8 @@ def start_node():
     """Start node processes (parameters as 'name:=value' strings); all stopped at the end."""
     procs = []
 
-    def start(*params, namespace='', remaps=()):
-        p = NodeProcess(*params, namespace=namespace, remaps=remaps)
+    def start(*params, namespace='', remaps=(), program=()):
+        p = NodeProcess(*params, namespace=namespace, remaps=remaps, program=program)
         procs.append(p)
         return p
     yield start

@@ -195,9 +195,11 @@ class World:
         `tick`, if given, takes every sample due on the stepping thread and returns joint
         commands the world applies before the next step (a robot's controllers' laws,
         :class:`~.control.laws.Laws`; see :func:`.stepping.sampling.joint_requests`).
+        Takes no world lock (only a leaf lock of the requests): a caller holding a lock of
+        its own (a controller manager's, as robots come and go) waits for no step.
         """
-        with self._live.lock:
-            live = self._live
+        live = self._live
+        with live.requests_lock:
             live.joint_requests = sampling.joint_requests(live.joint_requests, key, joints,
                                                           rate_hz, sensors, tick)
 

@@ -72,8 +72,11 @@ class Live:
         #: The entities whose contacts are reported (:meth:`World.report_contacts`).
         self.contact_request = sampling.request(config.contact_entities,
                                                 config.contact_rate_hz)
-        #: Joints sampled at a rate ((key, names, Hz), :meth:`World.sample_joints`).
+        #: Joints sampled at a rate ((key, names, Hz, sensors, tick),
+        #: :meth:`World.sample_joints`): replaced whole under :attr:`requests_lock` (a leaf),
+        #: without the world lock; the stepping side reads it once per batch.
         self.joint_requests: tuple = ()
+        self.requests_lock = threading.Lock()
         self.adopt_locked(model, mujoco.MjData(model))
         self.reset_state_locked(keep_time=False)
 

@@ -100,6 +100,7 @@ class Status:
         loaded = self._session.loaded
         if loaded is None or loaded.loop is None:
             return
+        kept = loaded.world.kept_mesh_bytes()  # the world lock: never inside a node lock
         with self._publish_lock:
             now = time.monotonic()
             if now - self._last_sent < (at_most_every if force else 1.0):
@@ -107,7 +108,7 @@ class Status:
             self._last_sent = now
             event = self._event
             cache = {'mesh_cache_mib': f'{asset_store.mesh_cache_bytes() / 2 ** 20:.1f}',
-                     'mesh_cache_kept_mib': f'{loaded.world.kept_mesh_bytes() / 2 ** 20:.1f}'}
+                     'mesh_cache_kept_mib': f'{kept / 2 ** 20:.1f}'}
             msg = diagnostics.diagnostics(loaded.loop.status(), self._name, event.state,
                                           event.reason, event.divergence, cache)
             for topic, (what, why, names, when, verdict) in list(self._refused.items()):
