@@ -409,6 +409,81 @@ def test_odometry_is_integrated_and_built_in_one_place_each():
     assert ODOMETRY_CODE.search('    msg = Odometry()')
 
 
+def code_md_modules(text: str) -> set:
+    """
+    Return each module docs/code.md names, as a path from the root, with the folder it says.
+
+    A section ``## `sim_node/x/`...`` sets the folder; a table's header ``| `sub/` |`` or a
+    row's first cell ``| `room/` |`` (the ROS layer's rooms), or a paragraph opening with the
+    folder in backquotes and a colon, a sub-folder of it (a folder from the root where one is
+    there, as ``msg_adapters``); every backquoted ``name.py`` after is a module there, until
+    the table or the paragraph ends.
+    """
+    named, section, folder = set(), None, None
+    for line in text.splitlines():
+        heading = re.match(r'## `(sim_node/[\w/]*?)/?`', line)
+        if line.startswith('## '):
+            section = folder = heading.group(1) if heading else None
+            continue
+        if section is None:
+            continue
+        if not line.strip():
+            folder = section  # a table or a paragraph ended
+            continue
+        cells = [c.strip() for c in line.strip().strip('|').split('|')] if '|' in line else []
+        if cells and cells[0].startswith('---'):
+            continue
+        sub = re.fullmatch(r'`([\w/]+?)/`', cells[0]) if cells \
+            else re.match(r'`([\w/]+?)/`:', line)
+        where = folder
+        if sub:
+            where = sub.group(1) if (ROOT / sub.group(1)).is_dir() \
+                else f'{section}/{sub.group(1)}'
+            if not cells or (len(cells) == 2 and '.py' not in cells[1]):
+                folder = where  # a table's header or a paragraph's opening: until it ends
+        for name in re.findall(r'`(\w+\.py)`', line):
+            if not (ROOT / 'test' / name).is_file():  # a test named in passing
+                named.add(f'{where}/{name}')
+    return named
+
+
+def test_docs_code_md_names_every_module_where_it_is():
+    """
+    docs/code.md's map, claim by claim: each module it names is where it says (issue 51).
+
+    And each module of the folders it maps is named; its size rule is the one tested here.
+    """
+    text = (ROOT / 'docs' / 'code.md').read_text()
+    named = code_md_modules(text)
+    missing = sorted(p for p in named if not (ROOT / p).is_file())
+    assert missing == [], missing
+    folders = {p.rsplit('/', 1)[0] for p in named}
+    unnamed = sorted(p.relative_to(ROOT).as_posix() for f in folders
+                     for p in (ROOT / f).glob('*.py')
+                     if p.name != '__init__.py' and p.relative_to(ROOT).as_posix() not in named)
+    assert unnamed == [], unnamed
+    assert f'{MAX_CODE_LINES} lines of code' in text and f'at most {MAX_NODE_CODE_LINES}' in text
+    assert 'sim_node/core/control/laws.py' in named and 'sim_node/ros/node/status.py' in named
+
+
+def test_docs_threading_md_lists_every_thread_and_every_lock():
+    """
+    Every thread the package names and every lock it keeps is in docs/threading.md (issue 51).
+
+    At fdc47ee the mesh converters', xacro's and the vector env's threads were missing.
+    """
+    text = (ROOT / 'docs' / 'threading.md').read_text()
+    threads, locks = set(), set()
+    for path in modules():
+        source = path.read_text()
+        threads.update(re.findall(r"name=f?'(sim-[a-z-]+)", source))
+        locks.update(re.findall(r'(?:self\.)?(\w+) = threading\.(?:R?Lock|Condition)\(',
+                                source))
+    assert {'sim-loop', 'sim-meshes', '_stage_lock', 'requests_lock'} <= threads | locks
+    assert sorted(t for t in threads if f'`{t}' not in text) == []
+    assert sorted(n for n in locks if n not in text) == []
+
+
 def test_the_controllers_laws_are_in_the_core_and_their_ros_side_is_topics():
     """
     The ROS side of the controllers imports none of the law's parts (issue 51, item 2).
