@@ -4,8 +4,9 @@ What drives a world's joints between steps: commands, torques, trajectories and 
 :mod:`.commands` (joint commands staged by any thread, applied by name before each step),
 :mod:`.actuation` (joint torques through a joint's motor or ``qfrc_applied``),
 :mod:`.trajectory` (joint trajectories in simulated time, as joint_trajectory_controller runs
-them), :mod:`.bases` (which entities are differential-drive or holonomic bases, and their
-wheels), :mod:`.drives` (a base's velocity command, tracked on its own motion),
+them), :mod:`.runs` (the trajectories being followed, driven before every step),
+:mod:`.bases` (which entities are differential-drive or holonomic bases, and their wheels),
+:mod:`.drives` (a base's velocity command, tracked on its own motion; the bases driven),
 :mod:`.wheels` (what a spawn gives a wheeled model: wheel actuators, rolling casters),
 :mod:`.odometry` (the one planar odometry: every base's pose from its wheels, a diff drive's
 or a car's, or the ground truth), :mod:`.motion` (the world's control part: trajectories

@@ -7,7 +7,6 @@ those whose joint no longer exists, while the others stay in force. The world ca
 method except :meth:`Control.stage` with its lock held.
 """
 
-import math
 import threading
 from typing import Optional, Sequence
 
@@ -16,6 +15,7 @@ import numpy as np
 
 from . import bases, drives
 from .actuation import Outputs, times_mass
+from .runs import Run, Runs
 from .trajectory import INVALID_GOAL, SUCCESSFUL, Tracker
 from ..base.checks import check_finite
 from ..base.errors import InvalidArgumentError
@@ -53,10 +53,8 @@ class Control:
         self.kp, self.kd = float(kp), float(kd)
         self._pd_out = Outputs.empty()  # where the current binding's PD torques go
         self.per_step = False  # True when PD torques or servo targets change every step
-        self._runs: dict = {}  # entity -> _Run: trajectories being followed
-        self._drives: dict = {}  # entity -> drives.Drive: mobile bases
-        self._driving: set = set()  # the drives that need every step now
-        self._batched: set = set()  # the drives that need a look between batches of steps
+        self.runs = Runs()  # trajectories being followed
+        self.drives = drives.Drives()  # mobile bases driven
 
     # ---------------------------------------------------------------- any thread
 
@@ -111,7 +109,7 @@ class Control:
             i = index.joint_index.get(name)
             if i is None:
                 continue  # the joint was deleted after the command was staged
-            for run in [r for r in self._runs.values() if name in r.tracker.trajectory.joints]:
+            for run in self.runs.claiming(name):
                 self._end_run(run, INVALID_GOAL, ERR_CLAIMED.format(name=name), data,
                               hold=False)
             act = index.joint_actuators[i].get(mode)
@@ -129,14 +127,9 @@ class Control:
         with self._stage_lock:
             self._staged.clear()
         self._held.clear()
-        for run in list(self._runs.values()):
+        for run in self.runs.every():
             self._end_run(run, INVALID_GOAL, ERR_RESET, data, hold=False)
-        for drive in self._drives.values():  # bases stop
-            drive.command = drives.Command()
-            drive.speeds[:] = 0
-            drive.integral = None
-        self._driving.clear()
-        self._batched.clear()
+        self.drives.stop_all()  # bases stop
         self.bind(index, model, data)
 
     def bind(self, index: ModelIndex, model: mujoco.MjModel, data: mujoco.MjData,
@@ -182,21 +175,18 @@ class Control:
         self._pd_kp = np.where(is_pos, self.kp, 0.0)
         self._pd_kd = np.where(is_eff, 0.0, self.kd)
         self._pd_is_eff = is_eff
-        for run in list(self._runs.values()):
+        for run in self.runs.every():
             if not run.bind(index, model):
                 # Its addresses were the old model's: in `data` they are other joints' and
                 # actuators' now (or out of range). Its joints are gone; nothing to hold.
                 run.qadr = None
                 self._end_run(run, INVALID_GOAL, ERR_GONE, data, hold=False, rebind=False)
-        for entity, drive in list(self._drives.items()):
-            if not drive.bind(index, model):
-                del self._drives[entity]  # gone (its old addresses mean nothing now)
-                self._place(entity, None)
+        self.drives.bind(index, model)
         self._update_per_step()
 
     def _update_per_step(self) -> None:
-        self.per_step = bool(len(self._pd_out) or len(self._servo_act) or self._runs
-                             or self._driving)
+        self.per_step = bool(len(self._pd_out) or len(self._servo_act) or self.runs
+                             or self.drives.driving)
 
     # ---------------------------------------------------------------- mobile bases
 
@@ -208,23 +198,13 @@ class Control:
 
         :returns: whether controls changed (the same command again changes none).
         """
-        drive = self._drives.get(spec.entity)
-        if drive is None or drive.spec != spec:
-            if drive is not None:
-                drive.release(data)
-            drive = drives.Drive(spec)
-            if not drive.bind(index, model):
-                raise InvalidArgumentError(f'the base of {spec.entity!r} lost its joints')
-            self._drives[spec.entity] = drive
-        drive.command = drives.Command(vx, vy, wz, float(data.time), timeout)
-        need = drive.apply(model, data, self.kd)
-        self._place(spec.entity, need)
+        changed = self.drives.command(spec, vx, vy, wz, timeout, index, model, data, self.kd)
         self._update_per_step()
-        return drive.changed or need == drives.EVERY_STEP
+        return changed
 
     @property
     def batched(self) -> bool:
-        return bool(self._batched)
+        return self.drives.batched
 
     def before_batch(self, model: mujoco.MjModel, data: mujoco.MjData) -> bool:
         """
@@ -232,33 +212,16 @@ class Control:
 
         :returns: whether a control changed (a base stopped).
         """
-        changed = False
-        for entity in list(self._batched):
-            drive = self._drives[entity]
-            if not drive.due(float(data.time)):
-                continue
-            self._place(entity, drive.apply(model, data, self.kd))
-            changed = changed or drive.changed
+        changed = self.drives.before_batch(model, data, self.kd)
         self._update_per_step()
         return changed
 
     def batch_deadline(self, now: float) -> float:
         """Return the earliest simulated time after `now` at which a batched base times out."""
-        due = [d.command.time + d.command.timeout for d in map(self._drives.get, self._batched)
-               if d.command.timeout > 0 and d.command.time + d.command.timeout >= now]
-        return min(due, default=math.inf)
-
-    def _place(self, entity: str, need: Optional[str]) -> None:
-        """File a drive under what it needs next (:meth:`drives.Drive.apply`)."""
-        self._driving.discard(entity)
-        self._batched.discard(entity)
-        if need == drives.EVERY_STEP:
-            self._driving.add(entity)
-        elif need == drives.EVERY_BATCH:
-            self._batched.add(entity)
+        return self.drives.deadline(now)
 
     def drive_of(self, entity: str) -> Optional[drives.Drive]:
-        return self._drives.get(entity)
+        return self.drives.of(entity)
 
     # ---------------------------------------------------------------- trajectories
 
@@ -270,26 +233,25 @@ class Control:
         It takes its joints from held commands and from a trajectory already running on the
         entity, which ends canceled (a new goal preempts the old one, as the controller does).
         """
-        old = self._runs.get(entity)
+        old = self.runs.of(entity)
         if old is not None:
             self._end_run(old, INVALID_GOAL, ERR_PREEMPTED, data, hold=False, canceled=True,
                           rebind=False)
         joints = tracker.trajectory.joints
         self._held = {n: c for n, c in self._held.items() if n not in joints}
-        run = _Run(entity, tracker)
-        self._runs[entity] = run
+        self.runs.add(Run(entity, tracker))
         self.bind(index, model, data)
 
-    def cancel_run(self, entity: str, run: '_Run', data: mujoco.MjData,
+    def cancel_run(self, entity: str, run: Run, data: mujoco.MjData,
                    index: ModelIndex, model: mujoco.MjModel) -> None:
         """End a running trajectory as canceled: its joints hold where they are now."""
-        if self._runs.get(entity) is run:
+        if self.runs.of(entity) is run:
             self._end_run(run, SUCCESSFUL, ERR_CANCELED, data, hold=False, canceled=True,
                           rebind=False)
             self.bind(index, model, data)
 
-    def run_of(self, entity: str) -> Optional['_Run']:
-        return self._runs.get(entity)
+    def run_of(self, entity: str) -> Optional[Run]:
+        return self.runs.of(entity)
 
     def commanded(self, entity: str, names: Sequence[str], index: ModelIndex,
                   data: mujoco.MjData) -> tuple:
@@ -304,7 +266,7 @@ class Control:
         idx = index.joints(names)
         q = data.qpos[index.joint_qposadr[idx]].astype(float)
         v = np.zeros(len(idx))
-        run = self._runs.get(entity)
+        run = self.runs.of(entity)
         desired = run.tracker.status.desired if run is not None else None
         ran = list(run.tracker.trajectory.joints) if desired else []
         with self._stage_lock:
@@ -321,70 +283,31 @@ class Control:
                 q[k] = data.ctrl[servo]
         return q, v
 
-    def _end_run(self, run: '_Run', code: int, message: str, data: mujoco.MjData,
+    def _end_run(self, run: Run, code: int, message: str, data: mujoco.MjData,
                  hold: bool, canceled: bool = False, rebind: bool = True) -> None:
         """
         Take a trajectory off its joints; they hold a position from the next step on.
 
         :param hold: hold the trajectory's last point (it succeeded); else where they are.
         """
-        if self._runs.get(run.entity) is run:
-            del self._runs[run.entity]
-        tracker = run.tracker
-        if tracker.status.code is None:
-            tracker.status.code, tracker.status.message = code, message
-        tracker.status.canceled = canceled
-        joints = tracker.trajectory.joints
-        if run.qadr is not None:
-            run.out.release(data)
-            where = np.array(tracker.trajectory.positions[-1] if hold
-                             else data.qpos[run.qadr], dtype=float)
-            for name, q, act in zip(joints, where, run.act):
-                if act < 0:  # PD, held like a position command; a servo just keeps its target
-                    self._held.setdefault(name, (POSITION, float(q)))
-            acts = run.act >= 0
-            data.ctrl[run.act[acts]] = where[acts]
-            data.ctrl[run.vact[run.vact >= 0]] = 0  # velocity interfaces stop; PD holds
-        run.done.set()
+        self._hold(self.runs.end(run, code, message, data, hold, canceled))
         if rebind and run.index is not None:
             self.bind(run.index, run.model, data)
 
-    def _drive_runs(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """Before one step: every trajectory's targets at this time, and its judgement."""
-        t = data.time
-        for run in list(self._runs.values()):
-            q, v = data.qpos[run.qadr], data.qvel[run.dof]
-            status = run.tracker.status
-            status.effort = data.qfrc_actuator[run.dof] + data.qfrc_applied[run.dof]
-            code = run.tracker.judge(t, q, v)
-            if code is not None:
-                if code != SUCCESSFUL:
-                    status.message += run.saturation_note()
-                self._end_run(run, code, status.message, data, hold=code == SUCCESSFUL)
-                continue
-            qd, vd, ad = status.desired
-            servo = run.act >= 0
-            data.ctrl[run.act[servo]] = qd[servo]
-            vel = run.vact >= 0  # a velocity interface: its velocity, corrected toward q*
-            if vel.any():
-                want = run.vgear * (vd[vel] + math.sqrt(self.kp) * (qd[vel] - q[vel]))
-                lo, hi = model.actuator_ctrlrange[run.vact[vel]].T
-                limited = model.actuator_ctrllimited[run.vact[vel]].astype(bool)
-                data.ctrl[run.vact[vel]] = np.where(limited, np.clip(want, lo, hi), want)
-            pd = ~servo & ~vel
-            if pd.any():
-                u = ad[pd] + self.kp * (qd[pd] - q[pd]) + self.kd * (vd[pd] - v[pd])
-                tau = times_mass(model, data, run.out.dof, u) + data.qfrc_bias[run.out.dof]
-                run.count(run.out.write(data, tau))
+    def _hold(self, holds: dict) -> None:
+        """Hold PD joints a trajectory let go of where it left them (unless commanded since)."""
+        for name, q in holds.items():
+            self._held.setdefault(name, (POSITION, q))
 
     def apply(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Before one step: PD torques and moving servo targets from the current state."""
-        if self._runs:
-            self._drive_runs(model, data)
-        if self._driving:
-            for entity in list(self._driving):
-                self._place(entity, self._drives[entity].apply(model, data, self.kd))
-            if not self._driving:
+        if self.runs:
+            for run, holds in self.runs.drive(model, data, self.kp, self.kd):
+                self._hold(holds)
+                self.bind(run.index, run.model, data)
+        if self.drives.driving:
+            self.drives.every_step(model, data, self.kd)
+            if not self.drives.driving:
                 self._update_per_step()
         out = self._pd_out
         if len(out):
@@ -402,52 +325,3 @@ class Control:
             lo, hi = self._servo_range[:, 0], self._servo_range[:, 1]
             data.ctrl[self._servo_act] = np.where(self._servo_limited,
                                                   np.clip(target, lo, hi), target)
-
-
-class _Run:
-    """A trajectory being followed, bound to one model's addresses (world lock held)."""
-
-    def __init__(self, entity: str, tracker: Tracker):
-        self.entity, self.tracker = entity, tracker
-        self.done = threading.Event()
-        self.qadr = self.dof = self.act = self.vact = self.vgear = self.out = None
-        self.index = self.model = None
-        self.steps = 0
-        self.saturated = None  # per PD joint: steps its motor spent at its limit
-
-    def count(self, at_limit: np.ndarray) -> None:
-        self.steps += 1
-        if self.saturated is None or len(self.saturated) != len(at_limit):
-            self.saturated = np.zeros(len(at_limit), int)
-        self.saturated += at_limit
-
-    def saturation_note(self) -> str:
-        """Which motors spent much of the run at their limit ('' if none did)."""
-        if self.saturated is None or not self.steps or self.out is None:
-            return ''
-        names = [n for n, a, va in zip(self.tracker.trajectory.joints, self.act, self.vact)
-                 if a < 0 and va < 0]
-        notes = [f'{names[k]!r} ({self.saturated[k] / self.steps:.0%} of the steps at '
-                 f'{max(abs(self.out.lo[k]), abs(self.out.hi[k])):.4g} N·m or N)'
-                 for k in np.nonzero(self.saturated > self.steps // 10)[0]]
-        if not notes:
-            return ''
-        return ('; the motors of ' + ', '.join(notes) + ' were at the limit their file gives '
-                'them: the trajectory asks more than the actuators can give')
-
-    def bind(self, index: ModelIndex, model: mujoco.MjModel) -> bool:
-        """Take the addresses of its joints in `index`; False if one is gone."""
-        joints = self.tracker.trajectory.joints
-        if any(n not in index.joint_index for n in joints):
-            return False
-        idx = np.array([index.joint_index[n] for n in joints], dtype=int)
-        self.qadr, self.dof = index.joint_qposadr[idx], index.joint_dofadr[idx]
-        self.act = np.array([index.joint_actuators[i].get(POSITION, -1) for i in idx],
-                            dtype=int)
-        self.vact = np.array([index.joint_actuators[i].get(VELOCITY, -1) if a < 0 else -1
-                              for i, a in zip(idx, self.act)], dtype=int)
-        v = np.maximum(self.vact[self.vact >= 0], 0)
-        self.vgear = model.actuator_gear[v, 0] if len(v) else np.zeros(0)
-        self.out = Outputs(index, model, idx[(self.act < 0) & (self.vact < 0)])
-        self.index, self.model = index, model
-        return True

@@ -12,7 +12,9 @@ every :data:`TRACK_PERIOD` of simulated time) adds what casters, slip and fricti
 within :data:`TRACK_LIMIT` times the command. Wheel speed and acceleration are limited; no
 command for :data:`COMMAND_TIMEOUT` simulated seconds stops the base, as
 diff_drive_controller does, on time even inside a batch of steps. It is physics: the base
-pushes, slips and stops at walls. ROS-free; the world lock is held around every call.
+pushes, slips and stops at walls. :class:`Drives` is the world's set of driven bases, each
+filed by what it needs next (every step, or a look between batches for its timeout). ROS-free;
+the world lock is held around every call.
 """
 
 from dataclasses import dataclass
@@ -24,6 +26,7 @@ import numpy as np
 
 from .bases import BaseSpec, DIFF_DRIVE, PLANAR_FREE
 from ..base import quat
+from ..base.errors import InvalidArgumentError
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 #: Seconds of simulated time without a command after which a base stops.
@@ -277,3 +280,96 @@ class Command:
     wz: float = 0.0
     time: float = -math.inf
     timeout: float = COMMAND_TIMEOUT
+
+
+class Drives:
+    """The world's driven bases, by entity, filed by what each needs next (world lock held)."""
+
+    def __init__(self):
+        self._drives: dict = {}  # entity -> Drive
+        self._driving: set = set()  # the drives that need every step now
+        self._batched: set = set()  # the drives that need a look between batches of steps
+
+    def of(self, entity: str) -> Optional[Drive]:
+        return self._drives.get(entity)
+
+    @property
+    def driving(self) -> bool:
+        """Say whether a drive needs every step now (a ramp, a velocity loop)."""
+        return bool(self._driving)
+
+    @property
+    def batched(self) -> bool:
+        return bool(self._batched)
+
+    def command(self, spec: BaseSpec, vx: float, vy: float, wz: float, timeout: float,
+                index, model: mujoco.MjModel, data: mujoco.MjData, kd: float) -> bool:
+        """
+        Drive a base at (vx, vy, wz) in its frame from now.
+
+        :returns: whether controls changed (the same command again changes none).
+        :raises InvalidArgumentError: the base's joints are gone from `index`.
+        """
+        drive = self._drives.get(spec.entity)
+        if drive is None or drive.spec != spec:
+            if drive is not None:
+                drive.release(data)
+            drive = Drive(spec)
+            if not drive.bind(index, model):
+                raise InvalidArgumentError(f'the base of {spec.entity!r} lost its joints')
+            self._drives[spec.entity] = drive
+        drive.command = Command(vx, vy, wz, float(data.time), timeout)
+        need = drive.apply(model, data, kd)
+        self._place(spec.entity, need)
+        return drive.changed or need == EVERY_STEP
+
+    def every_step(self, model: mujoco.MjModel, data: mujoco.MjData, kd: float) -> None:
+        """Before one step: the drives that need it."""
+        for entity in list(self._driving):
+            self._place(entity, self._drives[entity].apply(model, data, kd))
+
+    def before_batch(self, model: mujoco.MjModel, data: mujoco.MjData, kd: float) -> bool:
+        """
+        Between batches of steps: the drives held by velocity actuators (their timeout).
+
+        :returns: whether a control changed (a base stopped).
+        """
+        changed = False
+        for entity in list(self._batched):
+            drive = self._drives[entity]
+            if not drive.due(float(data.time)):
+                continue
+            self._place(entity, drive.apply(model, data, kd))
+            changed = changed or drive.changed
+        return changed
+
+    def deadline(self, now: float) -> float:
+        """Return the earliest simulated time after `now` at which a batched base times out."""
+        due = [d.command.time + d.command.timeout for d in map(self._drives.get, self._batched)
+               if d.command.timeout > 0 and d.command.time + d.command.timeout >= now]
+        return min(due, default=math.inf)
+
+    def bind(self, index, model: mujoco.MjModel) -> None:
+        """Take the addresses of a new model; a base whose joints are gone is dropped."""
+        for entity, drive in list(self._drives.items()):
+            if not drive.bind(index, model):
+                del self._drives[entity]  # gone (its old addresses mean nothing now)
+                self._place(entity, None)
+
+    def stop_all(self) -> None:
+        """Every base stops (a reset): no command, no speed, no integral."""
+        for drive in self._drives.values():
+            drive.command = Command()
+            drive.speeds[:] = 0
+            drive.integral = None
+        self._driving.clear()
+        self._batched.clear()
+
+    def _place(self, entity: str, need: Optional[str]) -> None:
+        """File a drive under what it needs next (:meth:`Drive.apply`)."""
+        self._driving.discard(entity)
+        self._batched.discard(entity)
+        if need == EVERY_STEP:
+            self._driving.add(entity)
+        elif need == EVERY_BATCH:
+            self._batched.add(entity)

@@ -146,8 +146,9 @@ class Perception:
         Publish every sensor group of the snapshot's model (from the publisher thread).
 
         Nothing until :meth:`sync_sensors` has made the publishers of that model generation.
-        The joint samples the loop took go to the controllers after the sensor lock is let go:
-        a controller calls the world, and no node lock is held while calling the world.
+        The joint samples the loop took go to the controllers' publishers after the sensor lock
+        is let go (their laws ran on the stepping side already,
+        :mod:`sim_node.core.control.laws`; what they publish is theirs to pace).
         """
         info = snap.info
         joints: list = []
