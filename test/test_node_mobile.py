@@ -58,10 +58,24 @@ def send(watch, topic: str, msg, seconds: float, rate: float = 20.0,
         watch.node.destroy_publisher(pub)
 
 
-def planar(sim, entity: str) -> tuple:
+def planar(sim, entity: str, stamped: bool = False) -> tuple:
+    """Return (x, y) and yaw of `entity`; `stamped`: ((x, y), yaw), stamp of that one state."""
     s = sim.entity_state(entity)
     x, y, z, w = s['orientation_xyzw']
-    return np.array(s['position'][:2]), math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    pose = (np.array(s['position'][:2]),
+            math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    return (pose, s['stamp']) if stamped else pose
+
+
+def odometry_at(odom: list, t: float) -> np.ndarray:
+    """Return the odometry's (x, y) at simulated time `t`, between the messages around it."""
+    msgs = sorted(odom, key=_stamp)
+    after = next((k for k, m in enumerate(msgs) if _stamp(m) >= t), len(msgs) - 1)
+    a, b = msgs[max(after - 1, 0)], msgs[after]
+    ta, tb = _stamp(a), _stamp(b)
+    f = 0.0 if tb <= ta else min(max((t - ta) / (tb - ta), 0.0), 1.0)
+    pa, pb = a.pose.pose.position, b.pose.pose.position
+    return np.array([pa.x + f * (pb.x - pa.x), pa.y + f * (pb.y - pa.y)])
 
 
 def test_a_twist_drives_the_rover_and_odometry_follows_as_nav2_reads_it(sim, watch):
@@ -256,20 +270,20 @@ def test_a_base_nobody_tuned_drives_as_commanded_over_the_wire(start_node, rclpy
         # The module's own node publishes /clock too: simulated time comes from this node's
         # entity states, and commands go out for wall seconds.
         send(w, f'{ns}/{name}/cmd_vel', twist(0.3, vy), 1.0, by_clock=False)  # up to speed
-        (p0, yaw0), t0 = planar(sim, name), sim.entity_state(name)['stamp']
+        (p0, yaw0), t0 = planar(sim, name, stamped=True)  # a pose and its own stamp
         send(w, f'{ns}/{name}/cmd_vel', twist(0.3, vy), 2.0, by_clock=False)
-        (p1, _), t1 = planar(sim, name), sim.entity_state(name)['stamp']
-        # The odometry of the same instants as the truth (by its stamps, in simulated time):
-        # the newest message lagged the entity state by 0.1 s of driving on a loaded machine.
+        (p1, _), t1 = planar(sim, name, stamped=True)
+        # The odometry at the same instants as the truth (between its messages, by their
+        # stamps in simulated time): the newest message lagged the entity state by 0.1 s of
+        # driving on a loaded machine, and the nearest message can be a period away.
         wait_for(lambda: odom and _stamp(odom[-1]) >= t1, timeout=10)
-        o0, o1 = (min(list(odom), key=lambda m: abs(_stamp(m) - t)).pose.pose.position
-                  for t in (t0, t1))
+        o0, o1 = odometry_at(list(odom), t0), odometry_at(list(odom), t1)
         assert t1 - t0 >= 1.0, 'the simulation did not run'
         c, s = math.cos(yaw0), math.sin(yaw0)
         along, across = np.array([[c, s], [-s, c]]) @ (p1 - p0) / (t1 - t0)
         assert along == pytest.approx(0.3, rel=0.1) and across == pytest.approx(vy, abs=0.03)
         # odometry (from the wheels, or the truth where there are none) against the truth
-        assert math.hypot(o1.x - o0.x, o1.y - o0.y) == pytest.approx(
+        assert float(np.linalg.norm(o1 - o0)) == pytest.approx(
             float(np.linalg.norm(p1 - p0)), rel=0.05)
         wait_for(lambda: f'{name}/odom' in w.tf, timeout=10)
         with w.lock:

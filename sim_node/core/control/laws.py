@@ -372,7 +372,7 @@ class Laws:
                 if not law.due(sample):
                     continue
                 try:
-                    out += law.update(sample, self.index)
+                    out += self.world_writes(law.update(sample, self.index))
                 except Exception as exc:  # noqa: B902 (one controller's failure stops no other)
                     self.failures = (self.failures + [(name, repr(exc))])[-5:]
-        return self.world_writes(out)
+        return out
