@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-respawn bench-sensors bench-controllers snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-respawn bench-sensors bench-controllers bench-laws snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -89,6 +89,9 @@ bench-sensors: setup
 # A robot's controllers at 1 kHz: steps/s over the same robot held without them, ~1 min
 bench-controllers: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/controllers.py
+
+bench-laws: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/laws.py
 
 bench-viewer: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/viewer.py

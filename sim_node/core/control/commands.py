@@ -52,6 +52,7 @@ class Control:
         self._held: dict = {}  # joint name -> (mode, value), PD/effort, held until replaced
         self.kp, self.kd = float(kp), float(kd)
         self._pd_out = Outputs.empty()  # where the current binding's PD torques go
+        self._bound_index: Optional[ModelIndex] = None  # the index of the current binding
         self.per_step = False  # True when PD torques or servo targets change every step
         self.runs = Runs()  # trajectories being followed
         self.drives = drives.Drives()  # mobile bases driven
@@ -105,6 +106,10 @@ class Control:
         with self._stage_lock:
             staged, self._staged = self._staged, {}
         ctrl = {}  # actuator -> value, written once the old binding let go of its outputs
+        # A binding is remade only when what it is made of changed: a held command, a run
+        # ended, another index. Commands to actuators alone (a controller's law writing its
+        # wheels' speeds at every update) change none of it: remaking it cost 0.1 ms a time.
+        changed = index is not self._bound_index
         for name, (mode, value) in staged.items():
             i = index.joint_index.get(name)
             if i is None:
@@ -112,13 +117,16 @@ class Control:
             for run in self.runs.claiming(name):
                 self._end_run(run, INVALID_GOAL, ERR_CLAIMED.format(name=name), data,
                               hold=False)
+                changed = True
             act = index.joint_actuators[i].get(mode)
             if act is not None:
                 ctrl[act] = value
-                self._held.pop(name, None)
-            else:
+                changed = self._held.pop(name, None) is not None or changed
+            elif self._held.get(name) != (mode, value):
                 self._held[name] = (mode, value)
-        self.bind(index, model, data)
+                changed = True
+        if changed:
+            self.bind(index, model, data)
         for act, value in ctrl.items():
             data.ctrl[act] = value
 
@@ -144,6 +152,7 @@ class Control:
         """
         if not new_model:
             self._pd_out.release(data)
+        self._bound_index = index
         self._held = {n: c for n, c in self._held.items() if n in index.joint_index}
         items = [(index.joint_index[n], mode, v) for n, (mode, v) in self._held.items()]
         acts = index.joint_actuators
