@@ -28,6 +28,7 @@ starts from zero, a gripper's goal ends.
 ROS-free: tested in test_core_laws.py without rclpy.
 """
 
+import copy
 import math
 import threading
 from typing import Callable, NamedTuple, Optional, Sequence
@@ -45,9 +46,9 @@ class Write(NamedTuple):
     interface: str
 
 
-def _mean(sample, index: dict, joints: Sequence[str], field: str = 'position') -> float:
-    values = getattr(sample, field)
-    return sum(float(values[index[j]]) for j in joints) / len(joints)
+def _mean(sample, index: dict, joints: Sequence[str]) -> float:
+    """Return the mean position of `joints` in `sample`."""
+    return sum(float(sample.position[index[j]]) for j in joints) / len(joints)
 
 
 class Law:
@@ -144,9 +145,7 @@ class BaseLaw(Law):
     def snapshot(self):
         """Return a copy of the odometry now (any thread), for its message."""
         with self.lock:
-            copy = type(self.odometry).__new__(type(self.odometry))
-            copy.__dict__.update(self.odometry.__dict__)
-            return copy
+            return copy.copy(self.odometry)
 
     def steer(self, v: float, w: float, dt: float, sample, index: dict) -> list:
         """Return the wheel commands for the twist (v, w), `dt` after the last update."""
