@@ -15,7 +15,7 @@ import math
 from conftest import DEFAULT_SCENE
 import numpy as np
 import pytest
-from sim_node.core.errors import NamespaceInvalidError
+from sim_node.core.errors import InvalidArgumentError, NamespaceInvalidError
 from sim_node.core.lidar import LaserConfig, LaserScanner, sweep_of
 from sim_node.core.models import sensor_tags, sources
 from sim_node.core.world import World
@@ -313,3 +313,66 @@ def test_always_on_false_is_read_for_each_kind():
     assert not info.imus['shy/ear_imu'].always_on
     assert not info.cameras_declared['shy/cam'].always_on
     assert not info.contacts['shy/skin'].always_on
+
+
+#: A laser among things it must see as they are at each scan's time: a box going round it (at
+#: 2 rad/s, no gravity), a mesh, a height field and a capsule, all in its plane.
+SWEPT = """<mujoco><option gravity="0 0 0" timestep="0.002"/>
+  <asset>
+    <mesh name="wedge" vertex="0 0 0  0.4 0 0  0 0.4 0  0 0 0.8  0.4 0.4 0.8"/>
+    <hfield name="bumps" nrow="3" ncol="3" elevation="0 1 0 1 0 1 0 1 0" size="1 1 0.5 0.1"/>
+  </asset>
+  <worldbody>
+    <body name="scanner" pos="0 0 0.3"><site name="lidar"/></body>
+    <body name="rotor" pos="0 0 0.3"><joint name="spin" type="hinge" axis="0 0 1"/>
+      <geom type="box" size="0.1 0.1 0.1" pos="1 0 0" mass="1"/></body>
+    <geom type="mesh" mesh="wedge" pos="-1.5 0.5 0"/>
+    <geom type="hfield" hfield="bumps" pos="0 -2.5 0"/>
+    <geom type="capsule" size="0.1 0.3" pos="0 1.6 0.3"/>
+  </worldbody>
+  <keyframe><key name="home" qvel="2"/></keyframe>
+</mujoco>"""
+
+
+def test_laser_poses_come_at_their_rate_and_cast_as_a_scan_of_that_instant():
+    """The stepping side takes poses; cast later, off the lock, they read as a scan then."""
+    w = World.from_string(SWEPT)
+    w.scan_lasers({'lidar': 50.0})
+    w.step(250)  # 0.5 s: the first at the first step's end, then at 0.02, 0.04, ..., 0.5
+    poses = w.take_laser_poses()
+    times = [p.time for p in poses]
+    np.testing.assert_allclose(times, [0.002] + list(np.arange(1, 26) * 0.02), atol=1e-9)
+    assert w.take_laser_poses() == []  # taken once
+    scanner = LaserScanner(w, LaserConfig(samples=720, range_max=5.0))
+    late = scanner.cast(poses)  # the world is at 0.5 s now: each reads as at its own time
+    (now,) = scanner.scan(['lidar'])
+    np.testing.assert_allclose(late[-1].ranges, now.ranges, rtol=0, atol=1e-9)
+    assert np.isfinite(now.ranges).sum() > 60  # the box, the mesh, the bumps, the capsule
+    # the box went round: where a ray met it at 0.1 s it meets nothing at 0.5 s
+    angle = LaserConfig(samples=720).angles()
+    at = np.argmin(np.abs(angle - 0.2))  # the box's bearing at 0.1 s (2 rad/s)
+    assert late[5].time == pytest.approx(0.1)
+    assert late[5].ranges[at] == pytest.approx(0.9, abs=0.02)  # its near face, 1 - 0.1 m
+    assert not np.isfinite(now.ranges[at])
+
+
+def test_laser_poses_of_a_past_timeline_or_model_are_not_cast_and_bad_rates_are_refused():
+    w = World.from_string(SWEPT)
+    w.scan_lasers({'lidar': 100.0})
+    w.step(10)
+    before = w.take_laser_poses()
+    assert before
+    scanner = LaserScanner(w)
+    w.reset()  # a new timeline: those poses are of a past it left
+    assert scanner.cast(before, resets=w.clock().resets) == []
+    assert len(scanner.cast(before)) == len(before)  # (unless the caller asks to check)
+    w.step(10)
+    fresh = w.take_laser_poses()
+    w.spawn('crate', sources.from_model_text(BOX), position=[0.0, 3.0, 0.3])
+    assert scanner.cast(fresh) == []  # another model: its geoms are others
+    for rate in (0.0, -5.0, float('nan'), 1e6, True, '15'):
+        with pytest.raises(InvalidArgumentError, match='lidar.*rate'):
+            w.scan_lasers({'lidar': rate})
+    w.scan_lasers({'nope': 10.0})  # a site the model lacks waits for one that has it
+    w.step(10)
+    assert w.take_laser_poses() == []

@@ -41,6 +41,7 @@ class Sensors:
         from rclpy.qos import qos_profile_sensor_data
         self.node = rclpy.create_node(f'sensors_{id(self):x}')
         self.latest, self.counts = {}, {}
+        self.arrivals = {}  # topic -> [(monotonic time received, stamp)]
         self.lock = threading.Lock()
         for topic, msg_type in topics.items():
             self.node.create_subscription(msg_type, topic, self._keeper(topic),
@@ -56,6 +57,8 @@ class Sensors:
             with self.lock:
                 self.latest[topic] = msg
                 self.counts[topic] = self.counts.get(topic, 0) + 1
+                self.arrivals.setdefault(topic, []).append((time.monotonic(),
+                                                            _sec(msg.header.stamp)))
         return keep
 
     def _spin(self):
@@ -163,6 +166,42 @@ def test_a_spawned_ball_appears_where_camera_info_and_tf_predict(sim, sensors, w
     d = np.frombuffer(bytes(depth.data), '<f4').reshape(H, W)
     expected = p[2] * (dist - BALL_R) / dist
     assert d[int(round(v)), int(round(u))] == pytest.approx(expected, abs=0.01)
+
+
+def test_no_image_drawn_before_a_reset_comes_after_its_reply(start_node, rclpy_context):
+    """
+    Publish no image drawn before a reset once the reset is answered.
+
+    An image is drawn from the state at its stamp, then published: a reset in between makes
+    it a picture of a past the world left.
+
+    At a real-time factor of 1, simulated time since a reset can not run ahead of the wall
+    clock since its request: a later image stamped ahead of that was drawn before the reset.
+    Large images (a tenth of a second or more to draw here) leave a reset room to come between.
+    """
+    from sensor_msgs.msg import Image
+    from sim_node.ros.client import SimClient
+    start_node('real_time_factor:=1.0', 'camera_width:=1280', 'camera_height:=960',
+               'camera_rate_hz:=30.0', namespace='/resets')
+    topic = f'/resets/{CAM}/image_raw'
+    eye = Sensors({topic: Image})
+    sim = SimClient(namespace='resets', timeout_sec=30)
+    try:
+        stale = []
+        for _ in range(12):
+            eye.after(topic, 0.3, timeout=30)  # the world ran a while: its images say so
+            asked = time.monotonic()
+            sim.reset()
+            answered = time.monotonic()
+            time.sleep(0.3)
+            with eye.lock:
+                got = list(eye.arrivals[topic])
+            stale += [(round(at - asked, 3), stamp) for at, stamp in got
+                      if at > answered and stamp > at - asked + 0.05]
+        assert not stale, f'images from before a reset, after its reply: {stale[:3]}'
+    finally:
+        sim.close()
+        eye.close()
 
 
 def test_a_spawned_camera_comes_and_goes_with_its_entity(sim, watcher, rclpy_context):

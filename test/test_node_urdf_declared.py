@@ -100,15 +100,20 @@ def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, wat
     sub = watch.node.create_subscription(CameraInfo, '/ranger/head_front_camera/camera_info',
                                          images.append, qos_profile_sensor_data)
     try:
-        wait_for(lambda: len(images) >= 6, timeout=60)
+        wait_for(lambda: len(images) >= 10, timeout=60)
     finally:
         watch.node.destroy_subscription(sub)
     info = images[-1]
     assert (info.width, info.height, info.header.frame_id) == (
         400, 300, 'ranger/head_cam_optical_frame')
     assert info.k[0] == pytest.approx(200 / math.tan(0.6), rel=1e-3)  # its hfov of 1.2 rad
+    # 7 Hz of simulated time, drawn when the perception thread gets to it: an image is left
+    # out when it is late (cores short: "fewer if the renderer cannot keep up", the physics
+    # never waits), never two in a period; most come a period apart, give or take a snapshot
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in images[1:]]
-    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(7.0, rel=0.1)
+    gaps = sorted(b - a for a, b in zip(stamps, stamps[1:]))
+    assert gaps[0] > 0.6 / 7.0, gaps
+    assert gaps[len(gaps) // 2] == pytest.approx(1 / 7.0, rel=0.2), gaps
     junk = latest(watch, LaserScan, 'lasers/ranger/junk_lidar/scan')  # the node's own
     assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'
 

@@ -101,6 +101,7 @@ class CameraFrame:
     pos: np.ndarray
     quat_wxyz: np.ndarray
     intrinsics: tuple = ()
+    resets: int = 0  # the world's resets of state before it: stale once another comes
 
 
 class CameraRig:
@@ -174,12 +175,13 @@ class CameraRig:
             self._renderer.use_model(self._model, self.shadow_size)
             self._model = None
         out = []
-        for (cam, sim_time, generation, pos, q, k), scene in picked:
+        for (cam, sim_time, generation, pos, q, k, resets), scene in picked:
             size = self._sizes.get(cam.name, (self.width, self.height))
             rgb, depth = self._renderer.render(scene, self.depth or cam.name in depth_for,
                                                size)
             out.append(CameraFrame(camera=cam, time=sim_time, generation=generation, rgb=rgb,
-                                   depth=depth, pos=pos, quat_wxyz=q, intrinsics=k))
+                                   depth=depth, pos=pos, quat_wxyz=q, intrinsics=k,
+                                   resets=resets))
         return out
 
     def _fill_scenes(self, m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> list:
@@ -201,6 +203,7 @@ class CameraRig:
             else:
                 self._scenes = []
         out = []
+        resets = self.world.resets
         for cam, scene in zip(self._cameras, self._scenes):
             view = mujoco.MjvCamera()
             view.type = mujoco.mjtCamera.mjCAMERA_FIXED
@@ -211,7 +214,7 @@ class CameraRig:
                                   quat.from_matrix(d.cam_xmat[cam.cam_id]))
             k = frustum_intrinsics(scene.camera[0],
                                    *self._sizes.get(cam.name, (self.width, self.height)))
-            out.append((cam, float(d.time), generation, pos, q, k))
+            out.append((cam, float(d.time), generation, pos, q, k, resets))
         return out
 
     def close(self) -> None:

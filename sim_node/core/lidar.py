@@ -8,6 +8,11 @@ for a hit closer than range_min. A scanner a robot file declares (:class:`Sweep`
 :class:`~sim_node.core.records.DeclaredLaser`) sweeps as declared: its own angles, samples and
 ranges, a vertical sweep (rings, tilted up by their angle: a 3D lidar) and Gaussian noise on
 each range, seeded by the site's name so that a run repeats.
+
+Two ways to scan: :meth:`LaserScanner.scan` casts now, under the world lock; :meth:`cast`
+casts the poses the stepping side took at each laser's due times (:meth:`.world.World.
+scan_lasers`) against a data of its own, holding no lock: the way a node keeps each laser's
+rate in simulated time, its stamps exact, whatever its perception thread is doing.
 """
 
 from dataclasses import dataclass
@@ -123,7 +128,7 @@ def scanner_sites(site_names: Sequence[str], patterns: Sequence[str]) -> tuple:
 
 
 class LaserScanner:
-    """Casts the rays of every listed scanner site of a world in one visit under its lock."""
+    """Casts scanner sites' rays: now (:meth:`scan`), or from the poses taken (:meth:`cast`)."""
 
     def __init__(self, world: World, config: LaserConfig = LaserConfig()):
         self.world = world
@@ -131,6 +136,7 @@ class LaserScanner:
         self._default = Sweep(config)
         self._rays: dict = {}  # Sweep -> (n, 3) directions in the site frame
         self._noise: dict = {}  # site -> its random generator
+        self._scratch: Optional[tuple] = None  # (model, its MjData for cast)
 
     def scan(self, sites: Sequence[str], sweeps: Optional[Mapping[str, Sweep]] = None) -> list:
         """
@@ -141,38 +147,77 @@ class LaserScanner:
         if not sites:
             return []
         sweeps = sweeps or {}
-        return self.world.observe(lambda m, d, generation: self._cast(m, d, sites, sweeps))
+        return self.world.observe(lambda m, d, generation: self._scan(m, d, sites, sweeps))
 
-    def _cast(self, m: mujoco.MjModel, d: mujoco.MjData, sites: Sequence[str],
+    def cast(self, poses: Sequence, sweeps: Optional[Mapping[str, Sweep]] = None,
+             resets: Optional[int] = None) -> list:
+        """
+        Return a :class:`LaserReading` per pose of the world's current model, in order.
+
+        Each pose (:class:`~.stepping.sampling.LaserPose`) says where its laser and every geom
+        were at its time; the rays are cast there, holding no lock. A pose of another model
+        generation (a spawn or a delete came since) is left out, as is one from before a
+        reset when `resets` (the world's count now) is given.
+
+        :param sweeps: site -> its own :class:`Sweep` (declared); else the scanner's config.
+        """
+        if not poses:
+            return []
+        sweeps = sweeps or {}
+        m, generation = self.world.live_model()
+        if self._scratch is None or self._scratch[0] is not m:
+            self._scratch = (m, mujoco.MjData(m))
+        d = self._scratch[1]
+        out = []
+        for pose in poses:
+            if pose.generation != generation or (resets is not None and pose.resets != resets):
+                continue
+            s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, pose.site)
+            if s < 0:
+                continue
+            d.geom_xpos[:], d.geom_xmat[:] = pose.geom_xpos, pose.geom_xmat
+            d.xipos[:], d.ximat[:] = pose.xipos, pose.ximat
+            d.flexvert_xpos[:] = pose.flexvert_xpos
+            out.append(self._reading(m, d, pose.site, s, pose.origin, pose.frame, pose.time,
+                                     sweeps.get(pose.site, self._default)))
+        return out
+
+    def _scan(self, m: mujoco.MjModel, d: mujoco.MjData, sites: Sequence[str],
               sweeps: Mapping[str, Sweep]) -> list:
         out = []
         for name in sites:
             s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name)
             if s < 0:
                 continue  # deleted since the caller listed it
-            sweep = sweeps.get(name, self._default)
-            cfg = sweep.config
-            local = self._rays.get(sweep)
-            if local is None:
-                local = self._rays[sweep] = sweep.directions()
-            n = len(local)
-            vec = (local @ d.site_xmat[s].reshape(3, 3).T).reshape(-1)
-            dist = np.empty(n)
-            geom = np.empty(n, dtype=np.int32)
-            mujoco.mj_multiRay(m, d, d.site_xpos[s].copy(), vec, None, 1,
-                               int(m.site_bodyid[s]), geom, dist, None, n, cfg.range_max)
-            hit = (dist >= 0) & (dist <= cfg.range_max)
-            if sweep.noise is not None:
-                rng = self._noise.get(name)
-                if rng is None:  # seeded by its name: a run repeats
-                    rng = self._noise[name] = np.random.default_rng(zlib.crc32(name.encode()))
-                mean, std = sweep.noise
-                dist = np.where(hit, dist + rng.normal(mean, std, n), dist)
-            ranges = np.where(hit, dist, np.inf)
-            ranges[hit & (ranges < cfg.range_min)] = -np.inf
-            ranges = np.minimum(ranges, np.where(hit, cfg.range_max, np.inf))
-            if sweep.vertical is not None:
-                ranges = ranges.reshape(-1, cfg.samples)
-            out.append(LaserReading(site=name, time=float(d.time), ranges=ranges,
-                                    sweep=sweep))
+            out.append(self._reading(m, d, name, s, d.site_xpos[s].copy(),
+                                     d.site_xmat[s].reshape(3, 3), float(d.time),
+                                     sweeps.get(name, self._default)))
         return out
+
+    def _reading(self, m: mujoco.MjModel, d: mujoco.MjData, name: str, s: int,
+                 origin: np.ndarray, frame: np.ndarray, t: float,
+                 sweep: Sweep) -> LaserReading:
+        """Cast `sweep` from `origin` turned by `frame` against the geoms where `d` has them."""
+        cfg = sweep.config
+        local = self._rays.get(sweep)
+        if local is None:
+            local = self._rays[sweep] = sweep.directions()
+        n = len(local)
+        vec = (local @ np.asarray(frame).T).reshape(-1)
+        dist = np.empty(n)
+        geom = np.empty(n, dtype=np.int32)
+        mujoco.mj_multiRay(m, d, np.array(origin, dtype=float), vec, None, 1,
+                           int(m.site_bodyid[s]), geom, dist, None, n, cfg.range_max)
+        hit = (dist >= 0) & (dist <= cfg.range_max)
+        if sweep.noise is not None:
+            rng = self._noise.get(name)
+            if rng is None:  # seeded by its name: a run repeats
+                rng = self._noise[name] = np.random.default_rng(zlib.crc32(name.encode()))
+            mean, std = sweep.noise
+            dist = np.where(hit, dist + rng.normal(mean, std, n), dist)
+        ranges = np.where(hit, dist, np.inf)
+        ranges[hit & (ranges < cfg.range_min)] = -np.inf
+        ranges = np.minimum(ranges, np.where(hit, cfg.range_max, np.inf))
+        if sweep.vertical is not None:
+            ranges = ranges.reshape(-1, cfg.samples)
+        return LaserReading(site=name, time=t, ranges=ranges, sweep=sweep)

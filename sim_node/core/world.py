@@ -15,7 +15,7 @@ writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
 import contextlib
 import math
 import time
-from typing import Callable, Iterator, Optional, Sequence, TypeVar
+from typing import Callable, Iterator, Mapping, Optional, Sequence, TypeVar
 
 import mujoco
 import numpy as np
@@ -173,6 +173,17 @@ class World:
             return self._live.index.generation
 
     @property
+    def resets(self) -> int:
+        """
+        Count the resets of state so far (as :attr:`Clock.resets`), read without the world lock.
+
+        A reading of the world stamped before a reset is of a timeline the world left; a
+        thread holding a lock of its own (one never held while taking the world lock) can
+        still compare against this.
+        """
+        return self._live.resets
+
+    @property
     def model_info(self) -> ModelInfo:
         with self._live.lock:
             return self._live.index.info
@@ -202,6 +213,40 @@ class World:
         with live.requests_lock:
             live.joint_requests = sampling.joint_requests(live.joint_requests, key, joints,
                                                           rate_hz, sensors, tick)
+
+    def scan_lasers(self, rates: Mapping[str, float]) -> None:
+        """
+        Take the poses of these lasers at their rates (site name -> scans per simulated second).
+
+        Replaces the last request ({}: none). Each due time, the stepping side copies where the
+        laser and every geom are (:class:`~.stepping.sampling.LaserPose`), taken with
+        :meth:`take_laser_poses` and cast by :meth:`~.lidar.LaserScanner.cast` off the
+        stepping thread. Takes no world lock, as :meth:`sample_joints`.
+
+        :raises InvalidArgumentError: a rate not in (0, 1000] Hz.
+        """
+        request = sampling.laser_requests(rates)
+        live = self._live
+        with live.requests_lock:
+            if request != live.laser_requests:
+                live.laser_requests = request
+
+    def take_laser_poses(self) -> list:
+        """Take the lasers' poses so far, oldest first (see :meth:`scan_lasers`)."""
+        return sampling.drain(self._live.laser_poses)
+
+    def live_model(self) -> tuple:
+        """
+        Return (model, generation) of the world now: the model to cast rays in or draw.
+
+        The model is the world's own, not a copy: read it, never write it. A new model (a
+        spawn, a delete) is a new object; this one stays as it is while a caller holds it,
+        but for edits of its values in place (a colour, a friction), which the world makes
+        under its lock.
+        """
+        live = self._live
+        with live.lock:
+            return live.model, live.index.generation
 
     @property
     def timestep(self) -> float:

@@ -76,6 +76,10 @@ class Live:
         #: :meth:`World.sample_joints`): replaced whole under :attr:`requests_lock` (a leaf),
         #: without the world lock; the stepping side reads it once per batch.
         self.joint_requests: tuple = ()
+        #: Lasers whose poses are taken at their rates ((site, Hz), :meth:`World.scan_lasers`),
+        #: replaced the same way, and the queue of those poses.
+        self.laser_requests: tuple = ()
+        self.laser_poses = sampling.new_laser_queue()
         self.requests_lock = threading.Lock()
         self.adopt_locked(model, mujoco.MjData(model))
         self.reset_state_locked(keep_time=False)

@@ -11,6 +11,13 @@ stamped with its own simulated time. A time that goes back (a reset) starts the 
 Contact sensors (:class:`~..records.DeclaredContact`: declared, MuJoCo's, and the entities
 whose contacts were asked for, :class:`ContactRequest`) are sampled the same way, each a
 :class:`~..devices.contacts.ContactReport` in the same queue.
+
+Laser scanners are too (:func:`laser_requests`), in two halves: at each due time the loop
+copies where the laser and every geom are (a :class:`LaserPose`, some microseconds), and the
+perception side casts the rays later against those poses, off the stepping thread and without
+the world lock (:meth:`~..lidar.LaserScanner.cast`). A scan is then never left out when the
+perception side is late (a camera being drawn, cores short), and it is stamped with its own
+due time, at any real-time factor.
 """
 
 from collections import deque
@@ -42,6 +49,11 @@ MAX_JOINT_WALL_HZ = 1000.0
 JOINT_BURST = 50
 #: Simulated time within this fraction of a period of a due time counts as due.
 DUE_TOLERANCE = 1e-6
+#: Laser poses kept for the perception side between two drains (a slow one loses the oldest:
+#: each holds every geom's pose, 96 bytes a geom).
+LASER_POSES_KEPT = 64
+#: The most scans per simulated second of one laser.
+MAX_LASER_RATE_HZ = 1000.0
 
 
 class _Entry:
@@ -88,6 +100,32 @@ class _Joints:
         self.tokens, self.wall = float(JOINT_BURST), time.perf_counter()  # a token bucket
 
 
+class LaserPose(NamedTuple):
+    """Where a laser and every geom were at one simulated time: its rays are cast later."""
+
+    site: str
+    time: float
+    generation: int
+    resets: int  # the world's resets of state before it (stale after another)
+    origin: np.ndarray  # (3,) the site's position in the world
+    frame: np.ndarray  # (3, 3) the site's orientation in the world
+    # What MuJoCo's ray casting reads of the data (mj_multiRay culls by each body's inertial
+    # frame first), shared by the lasers due at the same time:
+    geom_xpos: np.ndarray  # (ngeom, 3)
+    geom_xmat: np.ndarray  # (ngeom, 9)
+    xipos: np.ndarray  # (nbody, 3)
+    ximat: np.ndarray  # (nbody, 9)
+    flexvert_xpos: np.ndarray  # (nflexvert, 3)
+
+
+class _Laser:
+    __slots__ = ('name', 'site', 'period', 'next')
+
+    def __init__(self, name: str, site: int, period: float):
+        self.name, self.site, self.period = name, site, period
+        self.next = math.nan
+
+
 class _Contacts:
     __slots__ = ('name', 'period', 'mine', 'others', 'next')
 
@@ -121,13 +159,20 @@ class Sampler:
         included, and returns joint commands ((names, values, mode) each): they are in
         :attr:`writes` after :meth:`collect`, for the stepping side to apply before the next
         step.
+    :param lasers: (site name, rate Hz) of each laser whose pose is taken into `poses` as a
+        :class:`LaserPose` at each due time (:func:`laser_requests`).
     """
 
     def __init__(self, index, samples: deque, request: ContactRequest = ContactRequest(),
-                 joints: tuple = (), resets: int = 0):
+                 joints: tuple = (), resets: int = 0, lasers: tuple = (),
+                 poses: Optional[deque] = None):
         info = index.info
         self.generation, self.request, self.joints = info.generation, request, joints
-        self.resets = resets
+        self.resets, self.lasers = resets, lasers
+        site_ids = {s.name: s.site_id for s in info.sites}
+        self._lasers = [_Laser(name, site_ids[name], 1.0 / rate) for name, rate in lasers
+                        if name in site_ids]
+        self._poses = poses if poses is not None else new_laser_queue()
         self._entries = [_Entry(s.name, 1.0 / info.imus[s.name].rate_hz, s.adr,
                                 info.imus[s.name])
                          for s in info.sensors if s.kind == 'imu' and s.name in info.imus]
@@ -148,7 +193,7 @@ class Sampler:
                 self._joints.append(_Joints(key, 1.0 / rate, index.joint_qposadr[idx],
                                             index.joint_dofadr[idx], sensors, tick))
         self.writes: list = []  # the ticks' joint commands of the last collect
-        self._all = self._entries + self._contacts + self._joints
+        self._all = self._entries + self._contacts + self._joints + self._lasers
         self._samples = samples
         self._last = -math.inf
 
@@ -220,6 +265,20 @@ class Sampler:
                 acc += e.rng.normal(e.acc_noise[0], e.acc_noise[1])
             self._samples.append((e.site, t, quat, gyro, acc))
             e.next = (math.floor(t / e.period + DUE_TOLERANCE) + 1) * e.period
+        due = [la for la in self._lasers if not t < la.next - DUE_TOLERANCE * la.period]
+        if due:
+            self._take_poses(m, d, t, due)
+
+    def _take_poses(self, m: mujoco.MjModel, d: mujoco.MjData, t: float, due: list) -> None:
+        """Copy where the due lasers and every geom are now (poses of this state, not the last)."""
+        mujoco.mj_kinematics(m, d)  # after a step, poses are those of the state before it
+        where = (d.geom_xpos.copy(), d.geom_xmat.copy(), d.xipos.copy(), d.ximat.copy(),
+                 d.flexvert_xpos.copy())
+        for la in due:
+            self._poses.append(LaserPose(
+                la.name, t, self.generation, self.resets, d.site_xpos[la.site].copy(),
+                d.site_xmat[la.site].reshape(3, 3).copy(), *where))
+            la.next = (math.floor(t / la.period + DUE_TOLERANCE) + 1) * la.period
 
 
 def request(entities, rate_hz: float = 50.0) -> ContactRequest:
@@ -263,6 +322,30 @@ def joint_requests(requests: tuple, key: str, joints, rate_hz: float,
     kept = tuple(r for r in requests if r[0] != key)
     return kept + ((key, tuple(joints), float(rate_hz), bool(sensors), tick),) \
         if rate_hz > 0 else kept
+
+
+def laser_requests(rates) -> tuple:
+    """
+    Return the request for lasers' poses, checked.
+
+    :param rates: a site's name -> its scans per simulated second (a site the model lacks
+        waits for a model that has it).
+
+    :raises InvalidArgumentError: a rate not in (0, :data:`MAX_LASER_RATE_HZ`] Hz.
+    """
+    out = []
+    for name, rate in dict(rates).items():
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) \
+                or not 0 < rate <= MAX_LASER_RATE_HZ:
+            raise InvalidArgumentError(
+                f'laser {name!r}: rate {rate!r} Hz is not in (0, {MAX_LASER_RATE_HZ:g}]')
+        out.append((str(name), float(rate)))
+    return tuple(out)
+
+
+def new_laser_queue() -> deque:
+    """Return the queue of :class:`LaserPose` a world's samplers fill and its node drains."""
+    return deque(maxlen=LASER_POSES_KEPT)
 
 
 def new_queue() -> deque:

@@ -135,10 +135,11 @@ class Stepping:
         sampler = live.sampler
         if sampler is None or sampler.generation != live.index.generation \
                 or sampler.request is not live.contact_request \
-                or sampler.joints is not live.joint_requests or sampler.resets != live.resets:
-            sampler = live.sampler = sampling.Sampler(live.index, live.samples,
-                                                      live.contact_request, live.joint_requests,
-                                                      live.resets)
+                or sampler.joints is not live.joint_requests or sampler.resets != live.resets \
+                or sampler.lasers is not live.laser_requests:
+            sampler = live.sampler = sampling.Sampler(
+                live.index, live.samples, live.contact_request, live.joint_requests,
+                live.resets, live.laser_requests, live.laser_poses)
         if control.per_step:
             self._step_each(m, d, n, sampler)
         elif control.batched or sampler:

@@ -123,10 +123,15 @@ class SimNode(Node):
                                      self.world_config, self.status.sync_paused_parameter,
                                      self.end_process)
         self.sim_services.after_edit = self._after_edit
-        self.sim_services.after_reset = self.controllers.after_reset
+        self.sim_services.after_reset = self._after_reset
         self.create_timer(HOUSEKEEPING_SEC, self.status.housekeeping,
                           callback_group=self._events)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+
+    def _after_reset(self) -> None:
+        """After a reset, before its reply: controllers start again, stale readings are out."""
+        self.controllers.after_reset()
+        self.perception.settle()
 
     def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
         """Make a publisher; with ``record``, one that also writes into the bag."""

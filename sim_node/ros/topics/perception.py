@@ -19,18 +19,19 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, Range
+from sensor_msgs.msg import CameraInfo, Image, Imu, PointCloud2, Range
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
 from .contacts import ContactPublishers
+from .scans import Scans
 from ...core.base import quat
 from ...core.base.config import PerceptionConfig
 from ...core.base.records import ModelInfo, Snapshot
 from ...core.cameras import CameraRig, select
 from ...core.devices.contacts import ContactReport
 from ...core.devices.rendering import RenderingUnavailableError
-from ...core.lidar import LaserConfig, LaserScanner, scanner_sites, sweep_of
+from ...core.lidar import LaserScanner, scanner_sites, sweep_of
 from ...core.stepping.sampling import JointSample
 from ...session import Loaded
 
@@ -74,8 +75,8 @@ class _ThreadState:
         self.cams, self.sites = (), ()
         self.cam_due = Schedule(config.camera_rate_hz)
         self.cam_dues: dict = {}  # camera -> its own Schedule (a declared rate)
-        self.scan_due = Schedule(config.lidar_rate_hz)
-        self.scan_dues: dict = {}  # site -> its own Schedule (a declared rate)
+        self.scan_rates: dict = {}  # site -> its own rate (declared), Hz
+        self.requested: Optional[dict] = None  # what the world was last asked to scan
         self.sweeps: dict = {}  # site -> its declared Sweep
         self.seen = -1
 
@@ -96,21 +97,20 @@ class Perception:
         self._world_frame = frame_prefix + world_frame
         self._prefix = frame_prefix
         self._loaded: Optional[Loaded] = None  # which world: told by the session (on_model)
-        self._laser_config = LaserConfig(
-            angle_min=config.lidar_angle_min, angle_max=config.lidar_angle_max,
-            samples=config.lidar_samples, range_min=config.lidar_range_min,
-            range_max=config.lidar_range_max)
         self._tf_pub = node.create_publisher(TFMessage, '/tf', 100)
         # camera name -> (image, info, depth or None, points or None)
         self._camera_pubs: dict = {}
-        self._laser_pubs: dict = {}  # site name -> publisher
-        self._laser_decl: dict = {}  # site name -> its DeclaredLaser (None: the node's)
         self._camera_decl: dict = {}  # camera name -> its DeclaredCamera (None: the node's)
         self._sensor_pubs: dict = {}  # (kind, name) -> publisher
         self._sensor_generation = None
         self._sensor_frames: dict = {}
         self._sensor_declared: dict = {}  # (kind, name) -> (its DeclaredWrench, parent body)
         self._sensor_lock = threading.Lock()  # the publisher thread reads what sync_sensors sets
+        # Held while images and scans are checked against the world's resets and published:
+        # settle() waits for it, so a reset's reply comes after whatever was checked before it.
+        self._publishing = threading.Lock()
+        self.scans = Scans(node, config, frame_prefix, self._create_publisher, self._publishing,
+                           self._resets)
         self._running = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._cameras_failed = ''
@@ -341,11 +341,11 @@ class Perception:
         if sim.world is not st.world:  # a world was loaded
             if st.rig is not None:
                 st.rig.close()
-            st.world, st.generation, st.seen = sim.world, None, -1
+            st.world, st.generation, st.seen, st.requested = sim.world, None, -1, None
             cfg = self.config
             st.rig = CameraRig(st.world, cfg.camera_width, cfg.camera_height, cfg.cameras,
                                cfg.camera_depth, cfg.camera_shadow_size)
-            st.scanner = LaserScanner(st.world, self._laser_config)
+            st.scanner = LaserScanner(st.world, self.scans.laser_config)
         seq, snap = sim.loop.wait_snapshot(st.seen, 0.1)
         if seq == st.seen:
             return
@@ -354,15 +354,12 @@ class Perception:
             st.generation = snap.info.generation
             st.cams, st.sites = self._sync_device_publishers(snap.info)
             declared = {n: d for n, d in snap.info.lasers.items() if n in st.sites}
-            st.sweeps = {n: sweep_of(d, self._laser_config) for n, d in declared.items()}
-            st.scan_dues = {n: st.scan_dues.get(n) if st.scan_dues.get(n) is not None
-                            and abs(st.scan_dues[n].period - 1.0 / d.rate_hz) < 1e-12
-                            else Schedule(d.rate_hz)
-                            for n, d in declared.items() if d.rate_hz}
+            st.sweeps = {n: sweep_of(d, self.scans.laser_config) for n, d in declared.items()}
+            st.scan_rates = {n: d.rate_hz for n, d in declared.items() if d.rate_hz}
         if st.cams and not self._cameras_failed:
             self._capture_due(st, snap)
-        if st.sites:
-            self._scan_due(st, snap)
+        if st.sites or st.requested:
+            self.scans.due(st, snap, self._current_info)
 
     def _capture_due(self, st: '_ThreadState', snap: Snapshot) -> None:
         """Render the cameras due at the snapshot's time, each at its own (declared) rate."""
@@ -389,28 +386,6 @@ class Perception:
             self._publish_frames(st.rig, due, sizes,
                                  [n for n, d in declared.items() if d.depth])
 
-    def _scan_due(self, st: '_ThreadState', snap: Snapshot) -> None:
-        """Scan the lasers due at the snapshot's time, each at its own (declared) rate."""
-        due = []
-        for site in st.sites:
-            schedule = st.scan_dues.get(site, st.scan_due)
-            if schedule.due(snap.time) and self._wanted(site, snap.info):
-                due.append(site)
-        for schedule in {id(x): x for x in [st.scan_dues.get(site, st.scan_due)
-                                            for site in due]}.values():
-            schedule.done(snap.time)
-        for reading in st.scanner.scan(due, st.sweeps):
-            period = st.scan_dues.get(reading.site, st.scan_due).period
-            self._publish_scan(reading, snap.info, period)
-
-    def _wanted(self, site: str, info: ModelInfo) -> bool:
-        """Say whether a laser scans now: one declared not ``always_on`` only while heard."""
-        declared = info.lasers.get(site)
-        if declared is None or declared.always_on:
-            return True
-        pub = self._laser_pubs.get(site)
-        return pub is not None and pub.get_subscription_count() > 0
-
     def _sync_device_publishers(self, info: ModelInfo) -> tuple:
         """Create and destroy camera and laser publishers for a new model generation."""
         cams = select(info.cameras, self.config.cameras)
@@ -428,29 +403,8 @@ class Perception:
             self._camera_decl[name] = info.cameras_declared.get(name)
         self._sync(self._camera_pubs, keys, lambda name: self._camera_publishers(
             name, info.cameras_declared.get(name)))
-        keys = [(n, info.lasers.get(n)) for n in sites]
-        for gone in [k for k in self._laser_pubs if k not in sites]:
-            self._node.destroy_publisher(self._laser_pubs.pop(gone))
-        for site, declared in keys:
-            if self._laser_decl.get(site) != declared and site in self._laser_pubs:
-                self._node.destroy_publisher(self._laser_pubs.pop(site))
-            if site not in self._laser_pubs:
-                self._laser_pubs[site] = self._laser_publisher(site, declared)
-            self._laser_decl[site] = declared
+        self.scans.sync(info, sites)
         return cams, sites
-
-    def _laser_publisher(self, site: str, declared) -> Publisher:
-        """LaserScan, or PointCloud2 for a 3D lidar; on its declared topic where it has one."""
-        points = declared is not None and declared.points
-        msg_type = PointCloud2 if points else LaserScan
-        default = f'lasers/{pm.topic_token(site)}/{"points" if points else "scan"}'
-        topic = declared.topic if declared is not None and declared.topic else default
-        try:
-            return self._create_publisher(msg_type, topic, qos_profile_sensor_data)
-        except Exception as exc:  # noqa: B902 (a name rclpy refuses: ours instead)
-            self._node.get_logger().warning(
-                f'laser {site!r}: topic {topic!r} is refused ({exc}); publishing on {default}')
-            return self._create_publisher(msg_type, default, qos_profile_sensor_data)
 
     def _camera_publishers(self, name: str, declared=None) -> tuple:
         base = f'cameras/{pm.topic_token(name)}'
@@ -474,10 +428,20 @@ class Perception:
             self._node.get_logger().error(f'cameras are off: {exc}')
             return
         info = self._current_info()
+        with self._publishing:
+            self._publish_checked(frames, info)
+
+    def _publish_checked(self, frames: list, info: Optional[ModelInfo]) -> None:
+        """Publish the frames still of the world's model and timeline (under _publishing)."""
+        resets = self._resets()
         for f in frames:
             pubs = self._camera_pubs.get(f.camera.name)
             if pubs is None or info is None or info.generation != f.generation:
                 continue  # the model changed meanwhile: the next frame has it right
+            if f.resets != resets:
+                # drawn before a reset that came while it was drawn: its time is of a past
+                # the world left (and settle() holds the reset's reply until this is done)
+                continue
             decl = info.cameras_declared.get(f.camera.name)
             frame = (self._prefix + decl.frame if decl is not None and decl.frame
                      else pm.camera_frame(info, f.camera, self._prefix))
@@ -496,23 +460,21 @@ class Perception:
             if points_pub is not None and depth is not None:
                 points_pub.publish(pm.points(depth, f.rgb, f.intrinsics, f.time, frame))
 
-    def _publish_scan(self, reading, info: ModelInfo, period: float) -> None:
-        pub = self._laser_pubs.get(reading.site)
-        site = next((s for s in info.sites if s.name == reading.site), None)
-        if pub is None or site is None:
-            return
-        declared = info.lasers.get(reading.site)
-        frame = (self._prefix + declared.frame if declared is not None and declared.frame
-                 else pm.site_frame(info, site, self._prefix))
-        if declared is not None and declared.points:
-            # in its declared frame: the site's pose in its link when that is the link named
-            on_link = declared.frame == info.body_names[site.body] or (
-                info.body_alias[info.body_root[site.body]] == declared.frame
-                and site.body == info.body_root[site.body])
-            where = (site.pos, site.quat_wxyz) if on_link else ()
-            pub.publish(pm.laser_points(reading, frame, *where))
-            return
-        pub.publish(pm.laser_scan(reading, self._laser_config, frame, period))
+    def settle(self) -> None:
+        """
+        Wait until the images and scans being published have gone out.
+
+        Called after a reset, before its reply: a reading checked against the world's resets
+        before the reset is out by then, and every later one is checked after it (none drawn
+        before the reset comes once the reset is answered).
+        """
+        with self._publishing:
+            pass
+
+    def _resets(self) -> int:
+        """Return the world's resets of state so far (without the world lock: see settle)."""
+        sim = self._loaded
+        return -1 if sim is None else sim.world.resets
 
     def _current_info(self) -> Optional[ModelInfo]:
         sim = self._loaded
