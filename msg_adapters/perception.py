@@ -135,6 +135,28 @@ def depth_image(depth: np.ndarray, sim_time: float, frame: str) -> Image:
     return msg
 
 
+#: The farthest a 16UC1 depth image in millimetres can say (m).
+MM_MAX = 65.535
+
+
+def depth_image_mm(depth: np.ndarray, sim_time: float, frame: str,
+                   clip: Optional[tuple] = None) -> Image:
+    """
+    (h, w) float32 metres -> sensor_msgs/Image 16UC1 in millimetres, as a RealSense sends it.
+
+    0 where nothing is seen: nearer than clip[0], farther than clip[1] or than 65.535 m.
+    """
+    h, w = depth.shape
+    near, far = clip if clip is not None else (0.0, MM_MAX)
+    seen = np.isfinite(depth) & (depth >= near) & (depth <= min(far, MM_MAX))
+    mm = np.where(seen, np.floor(np.where(seen, depth, 0.0) * 1000.0), 0.0).astype('<u2')
+    msg = Image(height=h, width=w, encoding='16UC1', is_bigendian=0, step=2 * w)
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    msg.data = array.array('B', mm.tobytes())
+    return msg
+
+
 def camera_info(intrinsics: Sequence[float], width: int, height: int, sim_time: float,
                 frame: str) -> CameraInfo:
     """

@@ -218,3 +218,34 @@ def test_the_readmes_list_of_a_robots_sensors_is_what_the_node_publishes(sim, wa
         msg = latest(watch, msg_type, topic, timeout=30)
         assert (topic, msg.header.frame_id) == (topic, frame)
         assert hz == 'Hz' and float(rate) > 0
+
+
+def test_a_realsense_publishes_its_streams_where_its_plugin_names_them(sim, watch):
+    """D435 (``test_core_realsense``): 1.2 m from a wall, on the plugin's topics and frames."""
+    import numpy as np
+    from sensor_msgs.msg import Image
+    from test_core_realsense import D435, PREFIX
+    sim.spawn('bot', resource_string=D435, position=(-3.0, 3.0, 0.0))  # the camera 1 m up
+    sim.spawn('wall', resource_string=BOX, position=(-1.55, 3.0, 1.0))  # its face at x = -1.8
+    color = latest(watch, Image, f'/{PREFIX}/color/image_raw')
+    assert (color.header.frame_id, color.encoding, color.width) == (
+        f'bot/{PREFIX}_color_optical_frame', 'rgb8', 160)
+    info = latest(watch, CameraInfo, f'/{PREFIX}/color/camera_info')
+    assert info.header.frame_id == f'bot/{PREFIX}_color_optical_frame'
+    ired = latest(watch, Image, f'/{PREFIX}/infra1/image_raw')
+    assert (ired.header.frame_id, ired.encoding) == (f'bot/{PREFIX}_infra1_optical_frame',
+                                                     'mono8')
+    depth = latest(watch, Image, f'/{PREFIX}/depth/image_raw')
+    assert (depth.header.frame_id, depth.encoding, depth.step) == (
+        f'bot/{PREFIX}_depth_optical_frame', '16UC1', 2 * 160)
+    mm = np.frombuffer(bytes(depth.data), '<u2').reshape(120, 160)
+    assert mm[60, 80] == pytest.approx(1200, abs=5)  # the wall, straight ahead
+    assert mm[0, 0] == 0  # the sky, beyond its 3 m: nothing seen
+    depth_info = latest(watch, CameraInfo, f'/{PREFIX}/depth/camera_info')
+    assert depth_info.header.frame_id == f'bot/{PREFIX}_depth_optical_frame'
+    cloud = latest(watch, PointCloud2, f'/{PREFIX}/depth/color/points')
+    assert (cloud.header.frame_id, cloud.width, cloud.height) == (
+        f'bot/{PREFIX}_depth_optical_frame', 160, 120)
+    topics = [name for name, _ in watch.node.get_topic_names_and_types()]
+    assert not [t for t in topics if f'{PREFIX}color' in t or f'{PREFIX}depth' in t], topics
+    assert f'/{PREFIX}/color/depth/image_raw' not in topics  # an image stream alone

@@ -172,6 +172,15 @@ class DeclaredCamera:
     :param clip: (near, far) metres: depth outside reads -inf (nearer) or +inf (farther),
         as REP 118 has it; None: the node's.
     :param depth: a depth or RGB-D camera: it publishes depth images and points too.
+    :param image_topic, info_topic, depth_topic, points_topic: topics a plugin names one by
+        one (the RealSense plugin's, :mod:`~..models.realsense`); '' : ``<topic>/image_raw``,
+        ``<topic>/camera_info``, ``<topic>/depth/image_raw``, ``<topic>/points``; an image
+        topic of '-': no colour or grey image (a depth stream alone); a depth topic of '-':
+        no depth even when the node's cameras publish depth (an image stream alone).
+    :param depth_mm: depth images as 16UC1 millimetres, 0 outside `clip` (a RealSense's),
+        not 32FC1 metres.
+    :param points: None: a depth camera publishes points, another does not; else whether it
+        does. `points_clip`: (near, far) metres of the points (NaN outside), None: `clip`'s.
     """
 
     camera: str
@@ -184,6 +193,13 @@ class DeclaredCamera:
     encoding: str = 'rgb8'
     clip: Optional[tuple] = None
     depth: bool = False
+    image_topic: str = ''
+    info_topic: str = ''
+    depth_topic: str = ''
+    points_topic: str = ''
+    depth_mm: bool = False
+    points: Optional[bool] = None
+    points_clip: Optional[tuple] = None
 
 
 @dataclass(frozen=True)

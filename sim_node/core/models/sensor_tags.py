@@ -224,7 +224,13 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
     if isinstance(decl, DeclaredCamera):
         return replace(decl, camera=f'{entity}/{decl.camera}',
                        frame=f'{entity}/{decl.frame}' if decl.frame else '',
-                       topic=_under(namespace, decl.topic))
+                       topic=_under(namespace, decl.topic),
+                       image_topic=decl.image_topic if decl.image_topic == '-'
+                       else _under(namespace, decl.image_topic),
+                       info_topic=_under(namespace, decl.info_topic),
+                       depth_topic=decl.depth_topic if decl.depth_topic == '-'
+                       else _under(namespace, decl.depth_topic),
+                       points_topic=_under(namespace, decl.points_topic))
     if isinstance(decl, DeclaredImu):
         return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
                        topic=_under(namespace, decl.topic))

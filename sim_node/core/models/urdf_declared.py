@@ -11,7 +11,8 @@ elements :func:`.urdf.prepare` kept:
   accelerometer; ``ray``, ``gpu_ray``, ``lidar``, ``gpu_lidar`` a site ``<sensor>_lidar``;
   ``force_torque`` on a joint a site on its child; ``contact`` reports on the link's
   collisions. What each tag declares (rates, sizes, sweeps, noise, frames, topics) is read by
-  :mod:`.sensor_tags`; a sensor's ``<pose>`` places it on the link.
+  :mod:`.sensor_tags`; a sensor's ``<pose>`` places it on the link. The cameras a RealSense
+  plugin drives take the topics, frames and depth format it names (:mod:`.realsense`).
 * ``<ros2_control>`` joints: a joint whose command interfaces are velocity without position
   gets a velocity actuator (``kv`` the link's inertia over twice a 2 ms step: a 4 ms time
   constant, stable; ``ctrlrange`` from the interface's min/max or the URDF velocity limit,
@@ -28,7 +29,7 @@ from xml.etree import ElementTree as ET
 import mujoco
 import numpy as np
 
-from . import sensor_tags
+from . import realsense, sensor_tags
 from ..base import quat
 
 log = logging.getLogger(__name__)
@@ -92,6 +93,7 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict,
             continue
         if text:
             done.append(text)
+    declared = realsense.apply(declared, extensions, [b.name for b in spec.bodies if b.name])
     return done, declared
 
 

@@ -27,7 +27,7 @@ from .contacts import ContactPublishers
 from .scans import Scans
 from ...core.base import quat
 from ...core.base.config import PerceptionConfig
-from ...core.base.records import ModelInfo, Snapshot
+from ...core.base.records import DeclaredCamera, ModelInfo, Snapshot
 from ...core.cameras import CameraRig, select
 from ...core.devices.contacts import ContactReport
 from ...core.devices.rendering import RenderingUnavailableError
@@ -407,18 +407,24 @@ class Perception:
         return cams, sites
 
     def _camera_publishers(self, name: str, declared=None) -> tuple:
+        """(image or None, info, depth or None, points or None); topics as declared."""
         base = f'cameras/{pm.topic_token(name)}'
         if declared is not None and declared.topic:
             base = declared.topic  # camera_name/image_raw ..., as gazebo_ros' camera names them
+        own = declared if declared is not None else DeclaredCamera(camera=name)
         qos = qos_profile_sensor_data
         create = self._create_publisher
-        seen = declared is not None and declared.depth  # a depth camera: depth and points
-        depth = self.config.camera_depth or seen
-        return (create(Image, f'{base}/image_raw', qos),
-                create(CameraInfo, f'{base}/camera_info', qos),
-                create(Image, f'{base}/depth/image_raw', qos) if depth else None,
-                create(PointCloud2, f'{base}/points', qos)
-                if seen or (depth and self.config.camera_points) else None)
+        seen = own.depth  # a depth camera: depth and points
+        depth = (self.config.camera_depth or seen) and own.depth_topic != '-'
+        points = own.points if own.points is not None else \
+            seen or (depth and self.config.camera_points)
+        image = own.image_topic or f'{base}/image_raw'
+        return (None if image == '-' else create(Image, image, qos),
+                create(CameraInfo, own.info_topic or f'{base}/camera_info', qos),
+                create(Image, own.depth_topic or f'{base}/depth/image_raw', qos)
+                if depth else None,
+                create(PointCloud2, own.points_topic or f'{base}/points', qos)
+                if depth and points else None)
 
     def _publish_frames(self, rig: CameraRig, only=None, sizes=None, depth_for=()) -> None:
         try:
@@ -449,16 +455,26 @@ class Perception:
             if not f.camera.fixed:
                 self._tf_pub.publish(pm.moving_camera_tf(frame, self._world_frame, f.pos,
                                                          f.quat_wxyz, f.time))
-            image_pub.publish(pm.image(f.rgb, f.time, frame,
-                                       decl.encoding if decl is not None else 'rgb8'))
+            if image_pub is not None:
+                image_pub.publish(pm.image(f.rgb, f.time, frame,
+                                           decl.encoding if decl is not None else 'rgb8'))
             height, width = f.rgb.shape[:2]
             info_pub.publish(pm.camera_info(f.intrinsics, width, height, f.time, frame))
-            depth = f.depth if f.depth is None or decl is None else pm.clipped(f.depth,
-                                                                               decl.clip)
-            if depth_pub is not None and depth is not None:
+            if f.depth is not None:
+                self._publish_depth(f, decl, frame, depth_pub, points_pub)
+
+    def _publish_depth(self, f, decl, frame: str, depth_pub, points_pub) -> None:
+        """Publish a frame's depth image (32FC1 metres, a RealSense's 16UC1 mm) and points."""
+        if depth_pub is not None:
+            if decl is not None and decl.depth_mm:
+                depth_pub.publish(pm.depth_image_mm(f.depth, f.time, frame, decl.clip))
+            else:
+                depth = f.depth if decl is None else pm.clipped(f.depth, decl.clip)
                 depth_pub.publish(pm.depth_image(depth, f.time, frame))
-            if points_pub is not None and depth is not None:
-                points_pub.publish(pm.points(depth, f.rgb, f.intrinsics, f.time, frame))
+        if points_pub is not None:
+            clip = None if decl is None else (decl.points_clip or decl.clip)
+            points_pub.publish(pm.points(pm.clipped(f.depth, clip), f.rgb, f.intrinsics,
+                                         f.time, frame))
 
     def settle(self) -> None:
         """
