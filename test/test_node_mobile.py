@@ -81,14 +81,19 @@ def odometry_at(odom: list, t: float) -> np.ndarray:
 def test_a_twist_drives_the_rover_and_odometry_follows_as_nav2_reads_it(sim, watch):
     p0, _ = planar(sim, 'rover')
     send(watch, 'rover/cmd_vel', twist(0.4), 1.0)  # up to speed
-    t0, p1 = watch.latest_clock(), planar(sim, 'rover')[0]
+    (p1, _), t0 = planar(sim, 'rover', stamped=True)
     send(watch, 'rover/cmd_vel', twist(0.4), 2.0)
-    t1, p2 = watch.latest_clock(), planar(sim, 'rover')[0]
+    (p2, _), t1 = planar(sim, 'rover', stamped=True)
     assert np.linalg.norm(p2 - p1) == pytest.approx(0.4 * (t1 - t0), rel=0.1)
-    odom = watch.odom[-1]
+    # the odometry while it was driven (a loaded host may let the command time out before
+    # the last message: the base then stops, as it should)
+    driven = [o for o in watch.odom if t0 <= _stamp(o) <= t1]
+    assert len(driven) > 10
+    odom = driven[-1]
     assert (odom.header.frame_id, odom.child_frame_id) == ('rover/odom', 'rover')
-    assert odom.twist.twist.linear.x == pytest.approx(0.4, rel=0.1)  # in the base's frame
-    assert odom.pose.pose.position.x == pytest.approx(np.linalg.norm(p2 - p0), rel=0.1)
+    speed = float(np.median([o.twist.twist.linear.x for o in driven]))
+    assert speed == pytest.approx(0.4, rel=0.1)  # in the base's frame
+    assert odometry_at(watch.odom, t1)[0] == pytest.approx(np.linalg.norm(p2 - p0), rel=0.1)
     stamps = [o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 for o in watch.odom[-20:]]
     assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
 
