@@ -13,9 +13,10 @@ side by side in one run, simulated seconds per wall second from /clock:
   joint_states and the controller's work.
 
 The two are measured by turns, four rounds of 4 s each (medians): this machine drifts by
-10-20% over a minute. Verdict (issue 42): with controllers over without >= 0.9. The arm limp
-(nothing commanded) is printed for information: holding joints by PD costs the physics
-itself, controllers or not.
+10-20% over a minute. Verdict (issue 42): with controllers over without >= 0.9. The arm as
+spawned, before any controller is active, is printed for information: its plugin's
+``hold_joints`` (true, as gz_ros2_control's default) holds it where it is by the same PD, once,
+from the stepping side; holding joints by PD costs the physics itself, controllers or not.
 Then at real_time_factor 1: joint_states per simulated second over the 1000 asked.
 
     make bench-controllers
@@ -117,7 +118,7 @@ def main() -> int:
         finally:
             node.close()
         held, controlled = statistics.median(held), statistics.median(controlled)
-        print(f'node, arm limp                              {limp / timestep:10.0f} steps/s')
+        print(f'node, arm held by hold_joints, no controller {limp / timestep:9.0f} steps/s')
         print(f'node, arm held by joint_commands            {held / timestep:10.0f} steps/s')
         print(f'node, arm held by its controllers at 1 kHz  {controlled / timestep:10.0f} '
               f'steps/s  ({controlled / held:.2f}x held by joint_commands)')

@@ -573,3 +573,44 @@ tricycle_controller:
       has_position_limits: true
       max_position: 0.15
 """
+
+
+def boom(yaml_path: str, plugin_extra: str = '') -> str:
+    """
+    Return a boom: a beam 0.3 m out sideways from a post 1 m up, on a hinge whose axis is level.
+
+    Its ros2_control block commands the hinge by position; `plugin_extra` goes into the
+    gz_ros2_control plugin tag (``<hold_joints>false</hold_joints>``). Left free, gravity swings
+    the beam down at once.
+    """
+    return f"""<robot name="boom"><link name="world"/>
+  <link name="post"><inertial><mass value="1"/>{_I}</inertial></link>
+  <joint name="mount" type="fixed"><parent link="world"/><child link="post"/>
+    <origin xyz="0 0 1"/></joint>
+  <link name="beam"><inertial><origin xyz="0.3 0 0"/><mass value="1"/>{_I}</inertial></link>
+  <joint name="hinge" type="revolute"><parent link="post"/><child link="beam"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="100" velocity="5"/></joint>
+  <ros2_control name="BoomSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>
+    <joint name="hinge"><command_interface name="position"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>
+  </ros2_control>
+  <gazebo><plugin filename="gz_ros2_control-system"
+    name="gz_ros2_control::GazeboSimROS2ControlPlugin"><parameters>{yaml_path}</parameters>
+    {plugin_extra}</plugin></gazebo>
+</robot>"""
+
+
+BOOM_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 100
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    boom_controller:
+      type: forward_command_controller/ForwardCommandController
+
+boom_controller:
+  ros__parameters:
+    joints: [hinge]
+    interface_name: position
+"""

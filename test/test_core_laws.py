@@ -7,10 +7,12 @@ fast the world steps and whether or not anybody reads the joint samples; timeout
 checks are simulated seconds; a reset of state starts them again.
 """
 
+import logging
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import controllers_corpus as corpus
+import pytest
 from sim_node.core.control import controller_types as types, laws, manager as core
 from sim_node.core.models import controller_yaml, sources, urdf
 from sim_node.core.records import RESET_STATE
@@ -175,3 +177,54 @@ def test_one_failing_law_stops_no_other_and_is_reported(tmp_path):
     assert robot.failures and robot.failures[-1][0] == 'broken'
     assert 'broken on purpose' in robot.failures[-1][1]
     assert law.snapshot().x > before + 0.2  # 0.3 m/s for 1 s: the base went on
+
+
+FREE = '<hold_joints>false</hold_joints>'
+
+
+def _hinge(world) -> float:
+    return world.get_joint_states()['robot/hinge'][0]
+
+
+def test_joints_no_controller_claims_are_held_still_and_let_go_joints_again(tmp_path):
+    """gz_ros2_control's hold_joints: a boom gravity would swing down stays where it was."""
+    world, robot, law, rate = _robot(tmp_path, lambda p: corpus.boom(p, FREE), corpus.BOOM_YAML,
+                                     'boom_controller')  # not held at its spawn: the law holds
+    holder = laws.HoldLaw(laws.held_interfaces({'hinge': {'position': (None, None)}}), rate)
+    holder.activate()
+    robot.put('(hold_joints)', holder)
+    world.step(500)  # 1 s
+    assert abs(_hinge(world)) < 0.01
+    holder.claimed({'hinge'})  # a controller claims it, and (here) commands nothing
+    world.command(['robot/hinge'], [0.5], 'position')
+    world.step(500)
+    assert _hinge(world) == pytest.approx(0.5, abs=0.01)  # the hold did not write over it
+    world.command(['robot/hinge'], [0.0], 'effort')  # nobody holds it: it swings
+    world.step(50)
+    swinging = _hinge(world)
+    assert abs(swinging - 0.5) > 0.02
+    holder.claimed(set())  # let go: held where it is now
+    world.step(500)
+    assert _hinge(world) == pytest.approx(swinging, abs=0.05)
+    world.reset(RESET_STATE)  # a reset: held again where the reset put it
+    world.step(500)
+    assert abs(_hinge(world)) < 0.01
+
+
+def test_a_spawn_holds_a_boom_from_its_first_step_unless_its_plugin_says_not(tmp_path, caplog):
+    world, *_ = _robot(tmp_path, lambda p: corpus.boom(p, FREE), corpus.BOOM_YAML,
+                       'boom_controller')
+    world.step(500)
+    assert abs(_hinge(world)) > 0.5  # free, it swings down
+    world, *_ = _robot(tmp_path, corpus.boom, corpus.BOOM_YAML, 'boom_controller')
+    world.step(1)
+    assert abs(_hinge(world)) < 1e-4  # held from the first step (no law runs here)
+    world.step(499)
+    assert abs(_hinge(world)) < 0.01
+    for extra, hold in (('', True), ('<hold_joints>false</hold_joints>', False),
+                        ('<hold_joints>0</hold_joints>', False),
+                        ('<hold_joints>maybe</hold_joints>', True)):
+        text = corpus.boom('c.yaml', extra)
+        with caplog.at_level(logging.WARNING):
+            assert urdf.prepare(ET.fromstring(text)).ros2_control.hold_joints is hold
+    assert "<hold_joints> 'maybe' is not true or false" in caplog.text

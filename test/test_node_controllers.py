@@ -577,6 +577,39 @@ def test_a_spawned_arm_without_controllers_is_held_where_it_spawns(sim, watch):
     assert msg.position[list(msg.name).index('boom/hinge')] == pytest.approx(0.0, abs=0.05)
 
 
+def test_joints_no_controller_claims_are_held_as_gz_ros2_control_holds_them(sim, watch):
+    """
+    A boom made for gz_ros2_control stays where it spawns before any controller is active.
+
+    Unless its plugin says ``<hold_joints>false</hold_joints>``: then gravity swings it down,
+    as in Gazebo. A controller that claims the joint and lets it go leaves it held there.
+    """
+    path = corpus.write(FOLDER['path'], 'boom.yaml', corpus.BOOM_YAML)
+    sim.spawn('held', resource_string=corpus.boom(path), position=(3.0, -3.0, 0.0),
+              namespace='held')
+    sim.spawn('limp', resource_string=corpus.boom(path, '<hold_joints>false</hold_joints>'),
+              position=(3.0, -1.0, 0.0), namespace='limp')
+    for ns in ('held', 'limp'):  # its joint_states (it claims no joint)
+        assert corpus.spawner(sim, 'joint_state_broadcaster',
+                              manager=f'/{ns}/controller_manager')[0] is None
+    time.sleep(1.0)
+    assert position(watch, 'hinge', '/held/joint_states') == pytest.approx(0.0, abs=0.02)
+    swing = states(watch, 'hinge', '/limp/joint_states', n=50)  # half a second: it swings
+    assert max(abs(m.position[list(m.name).index('hinge')]) for m in swing) > 0.5
+    manager = '/held/controller_manager'
+    assert corpus.spawner(sim, 'boom_controller', manager=manager)[0] is None
+    from std_msgs.msg import Float64MultiArray
+    publish(watch, Float64MultiArray, '/held/boom_controller/commands',
+            Float64MultiArray(data=[0.4]))
+    wait_for(lambda: abs(position(watch, 'hinge', '/held/joint_states') - 0.4) < 0.02)
+    from controller_manager_msgs.srv import SwitchController
+    request = SwitchController.Request(deactivate_controllers=['boom_controller'],
+                                       strictness=SwitchController.Request.STRICT)
+    assert sim.call(f'{manager}/switch_controller', SwitchController, request).ok
+    time.sleep(1.0)
+    assert position(watch, 'hinge', '/held/joint_states') == pytest.approx(0.4, abs=0.03)
+
+
 def test_a_trajectory_controller_preempts_checks_its_constraints_and_reports_its_state(
         sim, watch):
     """Preemption aborts the running goal; the YAML's path tolerance aborts a goal too fast."""

@@ -104,6 +104,58 @@ class Law:
         return []
 
 
+class HoldLaw(Law):
+    """
+    Hold still the joints no active controller claims, as gz_ros2_control's ``hold_joints``.
+
+    At its first sample and after each reset of the world's state, and when a controller lets
+    a joint go: a joint with a position interface is held where it is, one with a velocity
+    interface (and no position one) at zero speed. gz_ros2_control commands such joints a
+    velocity of zero; a position held from where the joint is, is that here. A joint with an
+    effort interface alone is left free (this has no velocity command for it).
+
+    :param joints: joint -> 'position' or 'velocity', the interface it is held through.
+    """
+
+    def __init__(self, joints: dict, rate_hz: float):
+        super().__init__({}, rate_hz)
+        self.joints = dict(joints)
+        self.free = set(self.joints)  # the joints no active controller claims
+        self.pending: set = set()  # those to hold at the next update
+
+    def restart(self) -> None:
+        self.pending = set(self.free)
+
+    def claimed(self, joints: set) -> None:
+        """Say which joints active controllers claim now (any thread): those let go are held."""
+        with self.lock:
+            free = set(self.joints) - set(joints)
+            self.pending = (self.pending | (free - self.free)) & free
+            self.free = free
+
+    def due(self, sample) -> bool:
+        return super().due(sample) and bool(self.pending)
+
+    def update(self, sample, index: dict) -> list:
+        todo, self.pending = sorted(self.pending & self.free), set()
+        at = tuple(j for j in todo if self.joints[j] == 'position')
+        still = tuple(j for j in todo if self.joints[j] == 'velocity')
+        return [w for w in (Write(at, [float(sample.position[index[j]]) for j in at],
+                                  'position'),
+                            Write(still, [0.0] * len(still), 'velocity')) if w.joints]
+
+
+def held_interfaces(command: dict) -> dict:
+    """Return joint -> the interface :class:`HoldLaw` holds it through (joint -> interfaces)."""
+    out = {}
+    for joint, interfaces in command.items():
+        if 'position' in interfaces:
+            out[joint] = 'position'
+        elif 'velocity' in interfaces:
+            out[joint] = 'velocity'
+    return out
+
+
 class BaseLaw(Law):
     """
     What the base controllers share: a twist held until it is stale, written every update.

@@ -102,7 +102,27 @@ class Edits:
             source.settle(spawned=False)  # its copied files go, unless others use them
             raise
         source.settle(spawned=True)
+        self._hold_spawned(result, getattr(source.urdf_notes, 'ros2_control', None))
         return result
+
+    def _hold_spawned(self, name: str, control) -> None:
+        """
+        Hold a gz_ros2_control robot's position joints where they spawned (``hold_joints``).
+
+        As Gazebo holds them from the robot's first step, before its controller manager is up
+        (the node's own hold, ``laws.HoldLaw``, takes over from its first joint sample).
+        """
+        if control is None or not control.hold_joints or not control.simulated:
+            return
+        live = self.live
+        with live.lock:
+            index = live.index
+            names = [f'{name}/{j.name}' for j in control.joints().values()
+                     if 'position' in j.command and f'{name}/{j.name}' in index.joint_index]
+            if names:
+                adr = index.joint_qposadr[[index.joint_index[n] for n in names]]
+                live.control.stage(index, names, [float(q) for q in live.data.qpos[adr]],
+                                   'position')
 
     def _plan_spawn_locked(self, name: str, source: sources.SpawnSource, pos: np.ndarray,
                            q: np.ndarray, reference: str, allow_renaming: bool,

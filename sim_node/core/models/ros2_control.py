@@ -10,14 +10,15 @@ A robot made for Gazebo and ros2_control carries (after xacro):
   ``<command_interface>`` (``min``/``max`` params) and ``<state_interface>`` (an
   ``initial_value`` param), and its sensors with their state interfaces;
 * ``<gazebo><plugin filename="gz_ros2_control-system">`` (or classic
-  ``libgazebo_ros2_control.so``) with the controllers YAML in ``<parameters>`` and a
-  ``<ros><namespace>``.
+  ``libgazebo_ros2_control.so``) with the controllers YAML in ``<parameters>`` (one or more),
+  a ``<ros><namespace>``, a ``<controller_manager_name>`` and ``<hold_joints>``.
 
 :func:`read` returns a :class:`Ros2Control` of it, with the robot's own names; the node serves
 its controller manager (:mod:`sim_node.ros.control.controller_manager`). ROS-free.
 """
 
 from dataclasses import dataclass, field
+import logging
 import math
 from typing import Optional
 from xml.etree import ElementTree as ET
@@ -31,6 +32,8 @@ TOPIC_BASED = ('topic_based_ros2_control/TopicBasedSystem',
 #: Gazebo control plugins (their file names, without ``lib`` and ``.so``).
 CONTROL_PLUGINS = ('gz_ros2_control-system', 'ign_ros2_control-system', 'gazebo_ros2_control')
 INTERFACES = ('position', 'velocity', 'effort', 'acceleration')
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,9 @@ class Ros2Control:
     :param namespace: the plugin's ``<ros><namespace>`` ('' : none); a spawn's namespace
         replaces it.
     :param manager: the controller manager's node name (``controller_manager``).
+    :param hold_joints: the plugin's ``<hold_joints>`` (default true): the joints no active
+        controller claims are held still, as gz_ros2_control holds them
+        (:class:`~sim_node.core.control.laws.HoldLaw`); false: they are left free.
     :param spawn: which spawn it came with (a robot spawned again is another robot, with
         controllers of its own, even when nothing was seen in between).
     """
@@ -85,6 +91,7 @@ class Ros2Control:
     namespace: str = ''
     manager: str = 'controller_manager'
     spawn: int = 0
+    hold_joints: bool = True
 
     @property
     def simulated(self) -> bool:
@@ -107,7 +114,7 @@ def read(extensions: list) -> Optional[Ros2Control]:
     if not blocks:
         return None
     components = tuple(_component(b) for b in blocks)
-    parameters, namespace, manager = [], '', 'controller_manager'
+    parameters, namespace, manager, hold = [], '', 'controller_manager', True
     for ext in extensions:
         if ext.tag != 'gazebo':
             continue
@@ -121,8 +128,25 @@ def read(extensions: list) -> Optional[Ros2Control]:
                            if (p.text or '').strip()]
             namespace = (plugin.findtext('ros/namespace') or namespace).strip().strip('/')
             manager = (plugin.findtext('controller_manager_name') or manager).strip()
+            hold = _flag(plugin, 'hold_joints', hold)
     return Ros2Control(components=components, parameters=tuple(parameters),
-                       namespace=namespace, manager=manager.strip('/') or 'controller_manager')
+                       namespace=namespace, manager=manager.strip('/') or 'controller_manager',
+                       hold_joints=hold)
+
+
+def _flag(plugin: ET.Element, tag: str, default: bool) -> bool:
+    """Return a plugin's boolean child as sdformat reads one; a value it refuses: `default`."""
+    text = plugin.findtext(tag)
+    if text is None:
+        return default
+    value = text.strip().lower()
+    if value in ('true', '1'):
+        return True
+    if value in ('false', '0'):
+        return False
+    log.warning('gz_ros2_control plugin: <%s> %r is not true or false; %s is used', tag,
+                text, str(default).lower())
+    return default
 
 
 def _component(block: ET.Element) -> HardwareComponent:

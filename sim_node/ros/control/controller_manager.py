@@ -48,6 +48,8 @@ from ...session import Loaded, Session
 
 #: The most joint samples of one robot its controllers take per publishing tick.
 MAX_BURST = 20
+#: The name the hold of unclaimed joints goes by among a robot's laws (no controller's can).
+HOLD = '(hold_joints)'
 
 
 class _Parameters:
@@ -115,6 +117,13 @@ class RobotControl:
                               lambda j, interface, v: self.hardware[j].within(interface, v),
                               self.internal)
         self.failure_said = None  # the laws' latest failure logged
+        # gz_ros2_control's hold_joints: joints no active controller claims are held still
+        self.holder = laws.HoldLaw(laws.held_interfaces(
+            {j.name: j.command for j in self.hardware.values()}), self.manager.update_rate) \
+            if control.hold_joints and control.simulated else None
+        if self.holder is not None:
+            self.holder.activate()
+            self.laws.put(HOLD, self.holder)
         host.sample(self.key, [self.internal(j) for j in self.hardware],
                     self.manager.update_rate, self.sensors, self.laws.tick)
 
@@ -191,6 +200,8 @@ class RobotControl:
             self.runtimes[name].deactivate()
         for name in on:
             self.runtimes[name].activate(self.latest)
+        if self.holder is not None:
+            self.holder.claimed({i.rsplit('/', 1)[0] for i in self.manager.claimed()})
         response.message = message
         return self._answer(response, ok, message, 'switch_controller')
 
