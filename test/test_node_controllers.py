@@ -53,6 +53,23 @@ def publish(watch, msg_type, topic: str, msg, times: int = 3) -> None:
         watch.node.destroy_publisher(pub)
 
 
+def steady(odoms: list, seconds: float = 1.0) -> tuple:
+    """
+    Return the median (linear x, angular z) of the odometry's last `seconds` (its stamps).
+
+    What a base keeps going at: one message can be a blip (a loaded host's late command, a
+    bump), and a sustained error still shows.
+    """
+    def t(o):
+        return o.header.stamp.sec + o.header.stamp.nanosec * 1e-9
+    end = t(odoms[-1])
+    window = [o for o in odoms if t(o) >= end - seconds]
+    assert len(window) >= 10, len(window)
+    xs = sorted(o.twist.twist.linear.x for o in window)
+    zs = sorted(o.twist.twist.angular.z for o in window)
+    return xs[len(xs) // 2], zs[len(zs) // 2]
+
+
 def listed(sim, manager: str = '/controller_manager') -> dict:
     from controller_manager_msgs.srv import ListControllers
     got = sim.call(f'{manager}/list_controllers', ListControllers, ListControllers.Request())
@@ -546,8 +563,9 @@ def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch)
         watch.node.destroy_publisher(pub)
     last = odoms[-1]
     assert (last.header.frame_id, last.child_frame_id) == ('car_odom', 'base_link')  # YAML's
-    assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.04)
-    assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.03)
+    speed, turn = steady(odoms)
+    assert speed == pytest.approx(0.4, abs=0.04)
+    assert turn == pytest.approx(0.2, abs=0.03)
     tf = heard(watch, TFMessage, '/ackermann_steering_controller/tf_odometry')[-1]
     assert [(t.header.frame_id, t.child_frame_id) for t in tf.transforms] == [
         ('car_odom', 'base_link')]
@@ -692,12 +710,12 @@ def test_a_bicycle_goes_at_the_twist_asked_and_a_tricycle_within_its_limits(sim,
             watch.node.destroy_subscription(sub)
         for pub in pubs:
             watch.node.destroy_publisher(pub)
-    last = odoms['car'][-1]
-    assert last.twist.twist.linear.x == pytest.approx(0.4, abs=0.05)
-    assert last.twist.twist.angular.z == pytest.approx(0.2, abs=0.04)
-    last = odoms['trike'][-1]
-    assert last.twist.twist.linear.x == pytest.approx(0.32 * math.cos(0.15), abs=0.02)
-    assert last.twist.twist.angular.z == pytest.approx(0.32 * math.sin(0.15) / 0.5, abs=0.015)
+    car = steady(odoms['car'])
+    assert car[0] == pytest.approx(0.4, abs=0.05)
+    assert car[1] == pytest.approx(0.2, abs=0.04)
+    trike = steady(odoms['trike'])
+    assert trike[0] == pytest.approx(0.32 * math.cos(0.15), abs=0.02)
+    assert trike[1] == pytest.approx(0.32 * math.sin(0.15) / 0.5, abs=0.015)
     # 1.3 s without commands: past the tricycle's cmd_vel_timeout of 500 (ms) and its wheel's
     # coming to rest, within the bicycle's reference_timeout of 2.0 (s)
     time.sleep(1.3)
