@@ -149,7 +149,7 @@ def depth_image_mm(depth: np.ndarray, sim_time: float, frame: str,
     h, w = depth.shape
     near, far = clip if clip is not None else (0.0, MM_MAX)
     seen = np.isfinite(depth) & (depth >= near) & (depth <= min(far, MM_MAX))
-    mm = np.where(seen, np.floor(np.where(seen, depth, 0.0) * 1000.0), 0.0).astype('<u2')
+    mm = np.floor(np.where(seen, depth, 0.0) * 1000.0).astype('<u2')  # (0 where unseen)
     msg = Image(height=h, width=w, encoding='16UC1', is_bigendian=0, step=2 * w)
     msg.header.stamp = stamp(sim_time)
     msg.header.frame_id = frame

@@ -189,7 +189,7 @@ class LaserScanner:
             s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name)
             if s < 0:
                 continue  # deleted since the caller listed it
-            out.append(self._reading(m, d, name, s, d.site_xpos[s].copy(),
+            out.append(self._reading(m, d, name, s, d.site_xpos[s],
                                      d.site_xmat[s].reshape(3, 3), float(d.time),
                                      sweeps.get(name, self._default)))
         return out

@@ -159,6 +159,10 @@ class DeclaredLaser:
     points: bool = False
 
 
+#: A declared camera's image or depth topic that says: none (:class:`DeclaredCamera`).
+NO_TOPIC = '-'
+
+
 @dataclass(frozen=True)
 class DeclaredCamera:
     """
@@ -175,8 +179,9 @@ class DeclaredCamera:
     :param image_topic, info_topic, depth_topic, points_topic: topics a plugin names one by
         one (the RealSense plugin's, :mod:`~..models.realsense`); '' : ``<topic>/image_raw``,
         ``<topic>/camera_info``, ``<topic>/depth/image_raw``, ``<topic>/points``; an image
-        topic of '-': no colour or grey image (a depth stream alone); a depth topic of '-':
-        no depth even when the node's cameras publish depth (an image stream alone).
+        topic of :data:`NO_TOPIC`: no colour or grey image (a depth stream alone); a depth
+        topic of :data:`NO_TOPIC`: no depth even when the node's cameras publish depth (an
+        image stream alone).
     :param depth_mm: depth images as 16UC1 millimetres, 0 outside `clip` (a RealSense's),
         not 32FC1 metres.
     :param points: None: a depth camera publishes points, another does not; else whether it

@@ -27,7 +27,7 @@ from ..base.errors import (CapacityError, IncorrectStateError, InvalidArgumentEr
                            InvalidPoseError, NameNotUniqueError, NamespaceInvalidError)
 from ..base.records import ROBOT, STATIC
 from ..compiled import state
-from ..control import bases
+from ..control import bases, laws
 from ..models import sensor_tags, sources
 from ..stepping.design import Contact, Edit, NOTHING, Spawned
 from ..stepping.live import Live
@@ -117,8 +117,9 @@ class Edits:
         live = self.live
         with live.lock:
             index = live.index
-            names = [f'{name}/{j.name}' for j in control.joints().values()
-                     if 'position' in j.command and f'{name}/{j.name}' in index.joint_index]
+            held = laws.held_interfaces({j.name: j.command for j in control.joints().values()})
+            names = [f'{name}/{j}' for j, how in held.items()
+                     if how == 'position' and f'{name}/{j}' in index.joint_index]
             if names:
                 adr = index.joint_qposadr[[index.joint_index[n] for n in names]]
                 live.control.stage(index, names, [float(q) for q in live.data.qpos[adr]],

@@ -34,7 +34,7 @@ from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
 from .sensor_tags import MAX_RANGE, MAX_RATE_HZ, valid_topic
-from ..base.records import DeclaredCamera
+from ..base.records import DeclaredCamera, NO_TOPIC
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,7 @@ def _named(d: DeclaredCamera, plugin: ET.Element, prefix: str, stream: str,
         rate = _positive(plugin, rate_tag, MAX_RATE_HZ, warn)
     changes = {'topic': base or d.topic, 'info_topic': info, 'frame': frame, 'rate_hz': rate}
     if stream != 'depth':  # an image stream alone: no depth nor points beside it
-        return replace(d, image_topic=full, depth_topic='-', points=False, **changes)
+        return replace(d, image_topic=full, depth_topic=NO_TOPIC, points=False, **changes)
     near = _positive(plugin, 'rangeMinDepth', MAX_RANGE, warn, zero=True)
     far = _positive(plugin, 'rangeMaxDepth', MAX_RANGE, warn)
     clip = (DEPTH_RANGE[0] if near is None else near, DEPTH_RANGE[1] if far is None else far)
@@ -129,7 +129,7 @@ def _named(d: DeclaredCamera, plugin: ET.Element, prefix: str, stream: str,
     if not cut[0] < cut[1]:
         warn('point cloud cutoffs', cut, 'are not near < far')
         cut = POINTS_CUTOFF
-    return replace(d, image_topic='-', depth_topic=full, depth_mm=True, clip=clip,
+    return replace(d, image_topic=NO_TOPIC, depth_topic=full, depth_mm=True, clip=clip,
                    depth=True, points=cloud, points_clip=cut,
                    points_topic=f'{prefix}/{points_topic}' if prefix else points_topic,
                    **changes)

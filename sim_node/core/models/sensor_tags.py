@@ -30,7 +30,7 @@ from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
 from ..base.records import (DeclaredCamera, DeclaredContact, DeclaredImu, DeclaredLaser,
-                            DeclaredWrench)
+                            DeclaredWrench, NO_TOPIC)
 
 log = logging.getLogger(__name__)
 
@@ -225,11 +225,9 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
         return replace(decl, camera=f'{entity}/{decl.camera}',
                        frame=f'{entity}/{decl.frame}' if decl.frame else '',
                        topic=_under(namespace, decl.topic),
-                       image_topic=decl.image_topic if decl.image_topic == '-'
-                       else _under(namespace, decl.image_topic),
+                       image_topic=_under(namespace, decl.image_topic),
                        info_topic=_under(namespace, decl.info_topic),
-                       depth_topic=decl.depth_topic if decl.depth_topic == '-'
-                       else _under(namespace, decl.depth_topic),
+                       depth_topic=_under(namespace, decl.depth_topic),
                        points_topic=_under(namespace, decl.points_topic))
     if isinstance(decl, DeclaredImu):
         return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
@@ -374,8 +372,12 @@ def entity_wrench(decl: DeclaredWrench, entity: str, namespace: str,
 
 
 def _under(namespace: str, topic: str) -> str:
-    """Return a declared `topic` under a spawn's `namespace` (absolute or not; '' stays '')."""
-    if topic and namespace:
+    """
+    Return a declared `topic` under a spawn's `namespace` (absolute or not).
+
+    '' stays '', as does :data:`~..records.NO_TOPIC` (a camera's stream that is not there).
+    """
+    if topic and topic != NO_TOPIC and namespace:
         return f'/{namespace.strip("/")}/{topic.lstrip("/")}'
     return topic
 

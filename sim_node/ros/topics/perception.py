@@ -27,7 +27,7 @@ from .contacts import ContactPublishers
 from .scans import Scans
 from ...core.base import quat
 from ...core.base.config import PerceptionConfig
-from ...core.base.records import DeclaredCamera, ModelInfo, Snapshot
+from ...core.base.records import DeclaredCamera, ModelInfo, NO_TOPIC, Snapshot
 from ...core.cameras import CameraRig, select
 from ...core.devices.contacts import ContactReport
 from ...core.devices.rendering import RenderingUnavailableError
@@ -415,11 +415,11 @@ class Perception:
         qos = qos_profile_sensor_data
         create = self._create_publisher
         seen = own.depth  # a depth camera: depth and points
-        depth = (self.config.camera_depth or seen) and own.depth_topic != '-'
+        depth = (self.config.camera_depth or seen) and own.depth_topic != NO_TOPIC
         points = own.points if own.points is not None else \
             seen or (depth and self.config.camera_points)
         image = own.image_topic or f'{base}/image_raw'
-        return (None if image == '-' else create(Image, image, qos),
+        return (None if image == NO_TOPIC else create(Image, image, qos),
                 create(CameraInfo, own.info_topic or f'{base}/camera_info', qos),
                 create(Image, own.depth_topic or f'{base}/depth/image_raw', qos)
                 if depth else None,
