@@ -20,6 +20,14 @@ def _plugin(yaml_path: str, namespace: str = '') -> str:
             f'<parameters>{yaml_path}</parameters>{ns}</plugin></gazebo>')
 
 
+def _gz_system(name: str, joints: str, yaml_path: str) -> str:
+    """Return a ``<ros2_control>`` block on Gazebo's hardware with `joints`, and its plugin."""
+    return f"""<ros2_control name="{name}" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
+  </ros2_control>
+  {_plugin(yaml_path)}"""
+
+
 def cart(interface: str, yaml_path: str, namespace: str = '') -> str:
     """Return a cart on a 30 m rail (``slider_to_cart``) commanded through one interface."""
     limits = {'position': (-15, 15), 'velocity': (-10, 10), 'effort': (-100, 100)}[interface]
@@ -216,10 +224,7 @@ def diff_drive(yaml_path: str) -> str:
     <collision><geometry><sphere radius="0.05"/></geometry></collision></link>
   <joint name="caster_joint" type="fixed"><parent link="base_link"/><child link="caster"/>
     <origin xyz="-0.3 0 -0.05"/></joint>
-  <ros2_control name="RoverSystem" type="system">
-    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
-  </ros2_control>
-  {_plugin(yaml_path)}
+  {_gz_system('RoverSystem', joints, yaml_path)}
 </robot>"""
 
 
@@ -466,10 +471,7 @@ def car(yaml_path: str) -> str:
     <inertia ixx="0.1" iyy="0.3" izz="0.3" ixy="0" ixz="0" iyz="0"/></inertial>
     <collision><origin xyz="0 0 0.05"/><geometry><box size="0.6 0.3 0.05"/></geometry>
     </collision></link>{rears}{steers}
-  <ros2_control name="CarSystem" type="system">
-    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
-  </ros2_control>
-  {_plugin(yaml_path)}
+  {_gz_system('CarSystem', joints, yaml_path)}
 </robot>"""
 
 
@@ -487,8 +489,9 @@ ackermann_steering_controller:
   ros__parameters:
     reference_timeout: 2.0
     front_steering: true
-    rear_wheels_names: [left_rear_wheel_joint, right_rear_wheel_joint]
-    front_wheels_names: [left_steering_joint, right_steering_joint]
+    # Jazzy's order: the right wheel first
+    rear_wheels_names: [right_rear_wheel_joint, left_rear_wheel_joint]
+    front_wheels_names: [right_steering_joint, left_steering_joint]
     wheelbase: 0.5
     front_wheel_track: 0.4
     rear_wheel_track: 0.4
@@ -613,4 +616,82 @@ boom_controller:
   ros__parameters:
     joints: [hinge]
     interface_name: position
+"""
+
+
+def gz_car(yaml_path: str, effort: float = 0.0, speed: float = 0.0) -> str:
+    """
+    Return a car as gz_ros2_control's Ackermann demo builds it, for its example program.
+
+    A 100 kg chassis (2 x 1 x 0.5 m) over four 11.3 kg wheels 0.3 m in radius; wheelbase
+    1.7 m, track 1.0 m; the rear wheels driven by velocity interfaces, the front ones steered
+    by position and rolling freely; every joint damped (0.2). (The demo's own URDF puts the
+    steering joint named left on the right; this one puts it on the left.) `effort` and
+    `speed` (> 0) give the rear wheels a URDF ``<limit>``.
+    """
+    wheel_inertia = ('<inertial><mass value="11.3"/><inertia ixx="0.26" iyy="0.26" izz="0.51" '
+                     'ixy="0" ixz="0" iyz="0"/></inertial>')
+    limit = f'<limit effort="{effort}" velocity="{speed}"/>' if effort or speed else ''
+
+    def wheel(name: str, parent: str, xyz: str, rpy: str, extra: str = '') -> str:
+        return f"""
+  <link name="{name}">{wheel_inertia}
+    <collision><geometry><cylinder length="0.08" radius="0.3"/></geometry></collision></link>
+  <joint name="{name}_joint" type="continuous"><parent link="{parent}"/><child link="{name}"/>
+    <origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="0 0 1"/><dynamics damping="0.2"/>{extra}</joint>"""
+
+    steering = ''.join(f"""
+  <link name="{side}_wheel_steering"><inertial><mass value="0.1"/>{_I}</inertial></link>
+  <joint name="{side}_wheel_steering_joint" type="revolute"><parent link="chassis"/>
+    <child link="{side}_wheel_steering"/><origin xyz="0.9 {y} -0.2" rpy="1.57 0 0"/>
+    <axis xyz="0 1 0"/><dynamics damping="0.2"/>
+    <limit effort="1000" lower="-1.57" upper="1.57" velocity="30"/></joint>{wheel(
+        f'front_{side}_wheel', f'{side}_wheel_steering', '0 0 0', '0 0 0')}"""
+                       for side, y in (('left', 0.5), ('right', -0.5)))
+    rears = ''.join(wheel(f'rear_{side}_wheel', 'chassis', f'-0.8 {y} -0.2', '-1.57 0 0', limit)
+                    for side, y in (('left', 0.5), ('right', -0.5)))
+    joints = ''.join(f"""
+    <joint name="rear_{side}_wheel_joint"><command_interface name="velocity"/>
+      <state_interface name="velocity"/><state_interface name="position"/></joint>"""
+                     for side in ('left', 'right')) + ''.join(f"""
+    <joint name="{side}_wheel_steering_joint"><command_interface name="position"/>
+      <state_interface name="position"/></joint>""" for side in ('left', 'right'))
+    return f"""<robot name="ackermann_drive"><link name="base_link"/>
+  <link name="chassis"><inertial><mass value="100"/>
+    <inertia ixx="10.4" iyy="35.4" izz="41.66" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><box size="2 1 0.5"/></geometry></collision></link>
+  <joint name="chassis_joint" type="fixed"><parent link="base_link"/><child link="chassis"/>
+    <origin xyz="0.8 0 0.5"/></joint>{rears}{steering}
+  {_gz_system('GazeboSystem', joints, yaml_path)}
+</robot>"""
+
+
+#: The Ackermann demo's controllers YAML as Jazzy's ros2_controllers read it (update rate 10 Hz,
+#: the right wheels first, Twist references as its example program sends them).
+GZ_CAR_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 10
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    ackermann_steering_controller:
+      type: ackermann_steering_controller/AckermannSteeringController
+
+ackermann_steering_controller:
+  ros__parameters:
+    wheelbase: 1.7
+    front_wheel_track: 1.0
+    rear_wheel_track: 1.0
+    front_wheels_radius: 0.3
+    rear_wheels_radius: 0.3
+    front_steering: true
+    reference_timeout: 2.0
+    rear_wheels_names: ['rear_right_wheel_joint', 'rear_left_wheel_joint']
+    front_wheels_names: ['right_wheel_steering_joint', 'left_wheel_steering_joint']
+    use_stamped_vel: false
+    open_loop: false
+    velocity_rolling_window_size: 10
+    base_frame_id: base_link
+    odom_frame_id: odom
+    enable_odom_tf: true
+    position_feedback: false
 """

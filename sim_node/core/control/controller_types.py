@@ -269,10 +269,14 @@ class _Steering(ControllerType):
 
 _STEERING_COMMON = (
     Param('front_steering', 'bool', True, 'the front wheels steer (false: the rear ones)'),
-    Param('rear_wheels_names', 'string_array', (), 'the rear wheels'),
-    Param('front_wheels_names', 'string_array', (), 'the front wheels'),
-    Param('traction_joints_names', 'string_array', (), 'the driving joints (later releases)'),
-    Param('steering_joints_names', 'string_array', (), 'the steering joints (later releases)'),
+    Param('rear_wheels_names', 'string_array', (),
+          'the rear wheels (Ackermann: the right one, then the left, as Jazzy orders them)'),
+    Param('front_wheels_names', 'string_array', (),
+          'the front wheels (Ackermann: the right one, then the left)'),
+    Param('traction_joints_names', 'string_array', (),
+          'the driving joints (later releases; right, then left)'),
+    Param('steering_joints_names', 'string_array', (),
+          'the steering joints (later releases; right, then left)'),
     Param('wheelbase', 'double', REQUIRED, 'between the axles (m)', positive=True),
     Param('reference_timeout', 'double', 1.0, 'simulated seconds after which a reference is '
           'stale and the base stops'),

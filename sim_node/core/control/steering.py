@@ -28,13 +28,21 @@ def bicycle(length: float, radius: float, v: float, w: float) -> Steered:
 
 
 def ackermann(length: float, track: float, radius: float, v: float, w: float) -> Steered:
-    """Two steered front wheels on their own circles (left, right), two rear traction wheels."""
+    """
+    Two steered front wheels on their own circles, two rear traction wheels: each (right, left).
+
+    Jazzy's ackermann_steering_controller takes the first of ``rear_wheels_names`` and of
+    ``front_wheels_names`` as the right wheel and the second as the left (its
+    ``CMD_TRACTION_RIGHT_WHEEL`` is 0, ``CMD_STEER_RIGHT_WHEEL`` the first steering command),
+    and so does this: a YAML that lists the left wheel first steers its inner wheel as the
+    outer one, here as there.
+    """
     if abs(v) < 1e-9:
         return Steered((0.0, 0.0), (0.0, 0.0))
     half = track / 2.0
     left = math.atan(w * length / (v - w * half))
     right = math.atan(w * length / (v + w * half))
-    return Steered((left, right), ((v - w * half) / radius, (v + w * half) / radius))
+    return Steered((right, left), ((v + w * half) / radius, (v - w * half) / radius))
 
 
 def tricycle(length: float, radius: float, v: float, w: float) -> Steered:

@@ -14,11 +14,21 @@ import mujoco
 import numpy as np
 
 from .bases import DIFF_DRIVE
+from ..base import loads
 
 log = logging.getLogger(__name__)
 
-#: Seconds in which a spawned wheel's velocity actuator brings the robot to speed.
+#: Seconds in which a base's wheel actuator (a Gazebo drive plugin's, whose drive trims the
+#: base's own speed: :mod:`.drives`) brings the robot to speed.
 WHEEL_TAU = 0.05
+#: Time steps of the world in which a ros2_control velocity interface's wheel reaches its
+#: commanded speed under the load it carries (its time constant): held as Gazebo holds a
+#: joint's velocity command, a constraint its joint meets within its effort limit.
+HOLD_STEPS = 1
+#: The most that gain may be, times the wheel's own inertia over the time step: beyond about
+#: 20 a wheel's contact and its implicit velocity loop ring (measured on a 1 kg two-wheeler
+#: whose wheels weigh 0.1 kg: 40 drove it at 2.5 times its speed, 20 did not).
+HOLD_RATIO = 12.0
 #: What :func:`add_wheel_actuators` assumes when a model gives no masses or no wheel radius.
 FALLBACK_MASS, FALLBACK_RADIUS = 20.0, 0.1
 #: How far above the wheels' lowest point a fixed body's collision may end and still be a
@@ -49,26 +59,38 @@ def wheel_joints(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
 
 
 def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
-                        euler: bool = False, only: Optional[set] = None) -> list:
+                        explicit: bool = False, only: Optional[set] = None,
+                        timestep: Optional[float] = None) -> list:
     """
     Give each wheel of a spawned model that has no actuator a velocity actuator of its own.
 
-    A wheel's speed is then held by MuJoCo (implicitly, under ``implicitfast``: stable at any
-    gain), not by a torque computed in Python before every step: what a base costs is what its
-    actuators cost. The gain makes the robot's speed settle in about :data:`WHEEL_TAU` (the
-    robot's mass as each wheel carries it, ``m r^2 / wheels``, over that time); the torque is
-    bounded by the joint's effort limit (URDF ``effort``) or the plugin's wheel torque. Under
-    the Euler integrator (actuator gains explicit) the gain is capped at the wheel's own
-    inertia over the time step, where an explicit velocity loop stays stable.
+    A wheel's speed is then held by MuJoCo (implicitly, under ``implicit`` and
+    ``implicitfast``: stable at any gain), not by a torque computed in Python before every
+    step: what a base costs is what its actuators cost. The load is the robot's mass as each
+    wheel carries it (``m r^2 / wheels``). A ros2_control velocity interface's wheel (`only`)
+    holds the commanded speed as Gazebo holds a joint's velocity command: its gain is that
+    load over :data:`HOLD_STEPS` time steps (at most :data:`HOLD_RATIO` times the wheel's own
+    inertia over a step), so it reaches its speed within a few steps and a load torque ``T``
+    leaves an error of ``T / gain`` (a car's rear wheels scrubbing through a turn: under 2%,
+    ``test/test_core_wheels.py``). A drive plugin's wheel settles in about :data:`WHEEL_TAU`,
+    and its drive trims the base's speed. The torque is bounded by the joint's effort limit
+    (URDF ``effort``) or the plugin's wheel torque. Under the explicit integrators (Euler's
+    actuator gains, RK4) the gain is capped at the wheel's own inertia over the time step,
+    where an explicit velocity loop stays stable.
 
     :param only: the wheels that may be driven (a ros2_control robot's: its velocity
-        interfaces, whose own actuators this replaces); the others roll freely. None: all.
+        interfaces, whose own actuators this replaces, sized for a wheel's load); the others
+        roll freely. None: all.
+    :param explicit: the world integrates actuator gains explicitly (Euler, RK4).
+    :param timestep: the world's time step (default: the spawned model's own).
     :returns: the names of the actuators added (``<joint>_drive``).
     """
+    step = timestep or spec.option.timestep
     wheels = wheel_joints(spec, plugin)
     if only is not None:
         wheels = [j for j in wheels if j.name in only]
-        for act in [a for a in spec.actuators if a.target in only]:
+        replaced = {j.name for j in wheels}
+        for act in [a for a in spec.actuators if a.target in replaced]:
             spec.delete(act)
     driven = {a.target for a in spec.actuators}
     wheels = [j for j in wheels if j.name not in driven]
@@ -79,9 +101,14 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     for j in wheels:
         radius = _spec_wheel_radius(j.parent) or FALLBACK_RADIUS
         inertia = max(0.5 * max(float(j.parent.mass), 0.01) * radius ** 2, 1e-6)
-        kv = max(mass * radius ** 2 / len(wheels), inertia) / WHEEL_TAU
-        if euler:
-            kv = min(kv, inertia / spec.option.timestep)
+        load = max(mass * radius ** 2 / len(wheels), inertia)
+        if only is None:
+            kv = load / WHEEL_TAU
+        else:
+            own = max(loads.moved_inertia(j) + float(j.armature), inertia)
+            kv = min(load / (HOLD_STEPS * step), HOLD_RATIO * own / step)
+        if explicit:
+            kv = min(kv, inertia / step)
         act = spec.add_actuator(name=f'{j.name}_drive', target=j.name,
                                 trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_velocity(kv=kv)

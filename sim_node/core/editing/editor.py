@@ -43,6 +43,8 @@ OWN_CONTACT_PRIORITY = design.OWN_CONTACT_PRIORITY
 _BODY_TYPES = (int(mujoco.mjtObj.mjOBJ_BODY), int(mujoco.mjtObj.mjOBJ_XBODY))
 # The frame a spawned entity is attached through: ``<entity>/__spawn_frame``.
 SPAWN_FRAME = '__spawn_frame'
+#: Integrators that take actuators' velocity gains explicitly: a stiff velocity loop diverges.
+EXPLICIT = (mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtIntegrator.mjINT_RK4)
 # Spec element lists swept by name prefix when an entity is removed (what its frame does not
 # take with it).
 _NAMED_KINDS = ('meshes', 'skins', 'hfields', 'textures', 'materials', 'tendons', 'actuators',
@@ -133,8 +135,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     only = None if control is None or not control.simulated else {
         j.name for j in control.joints().values() if 'velocity' in j.command}
     added = wheels.add_wheel_actuators(
-        child, plugin, euler=spec.option.integrator == mujoco.mjtIntegrator.mjINT_EULER,
-        only=only)
+        child, plugin, explicit=spec.option.integrator in EXPLICIT, only=only,
+        timestep=spec.option.timestep)
     if added:
         log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
                  name, ', '.join(added))

@@ -17,9 +17,10 @@ A robot made for Gazebo and ros2_control carries (after xacro):
 its controller manager (:mod:`sim_node.ros.control.controller_manager`). ROS-free.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import logging
 import math
+import time
 from typing import Optional
 from xml.etree import ElementTree as ET
 
@@ -32,8 +33,19 @@ TOPIC_BASED = ('topic_based_ros2_control/TopicBasedSystem',
 #: Gazebo control plugins (their file names, without ``lib`` and ``.so``).
 CONTROL_PLUGINS = ('gz_ros2_control-system', 'ign_ros2_control-system', 'gazebo_ros2_control')
 INTERFACES = ('position', 'velocity', 'effort', 'acceleration')
+#: The fastest velocity command a joint whose URDF gives no ``<limit velocity>`` takes (rad/s
+#: or m/s; about 950 rpm, 30 m/s on a wheel 0.3 m in radius). A URDF's revolute and prismatic
+#: joints must give one; its continuous joints (wheels) may not. Held at 1,000 rad/s, a car's
+#: wheels (gz_ros2_control's Ackermann demo, no effort limit) fling it 100 m in 0.8 s and its
+#: physics diverges; at this it flies but keeps stepping. A robot whose joints go faster
+#: declares its ``<limit velocity>``.
+MAX_COMMAND_SPEED = 100.0
+#: Seconds between two warnings of one joint's capped velocity commands (a controller sends
+#: one at every update).
+CAP_WARNING_PERIOD = 10.0
 
 log = logging.getLogger(__name__)
+_warned: dict = {}  # joint name -> time.monotonic() of its last capping warning
 
 
 @dataclass(frozen=True)
@@ -44,18 +56,39 @@ class HardwareJoint:
     :param command: command interface -> (min, max), None where not given.
     :param state: its state interfaces, in order.
     :param initial: state interface -> its ``initial_value``.
+    :param speed: the URDF joint's ``<limit velocity>`` (None: none given).
     """
 
     name: str
     command: dict = field(default_factory=dict)
     state: tuple = ()
     initial: dict = field(default_factory=dict)
+    speed: Optional[float] = None
 
     def within(self, interface: str, value: float) -> float:
-        """Return `value` within the interface's ``min`` and ``max`` (where declared)."""
+        """
+        Return `value` within the interface's ``min`` and ``max`` (where declared).
+
+        A velocity is also kept within the URDF's ``<limit velocity>`` (as ros2_control's
+        joint limits keep it), or :data:`MAX_COMMAND_SPEED` where none is given, with a
+        warning naming the joint and the value asked (at most one per joint every
+        :data:`CAP_WARNING_PERIOD` seconds).
+        """
         lo, hi = self.command.get(interface, (None, None))
-        value = value if lo is None else max(value, lo)
-        return value if hi is None else min(value, hi)
+        out = value if lo is None else max(value, lo)
+        out = out if hi is None else min(out, hi)
+        if interface == 'velocity':
+            bound = self.speed or MAX_COMMAND_SPEED
+            if not abs(out) <= bound:  # NaN too: a controller's command is never NaN here
+                out = math.copysign(bound, out) if not math.isnan(out) else 0.0
+                now = time.monotonic()
+                if now - _warned.get(self.name, -math.inf) >= CAP_WARNING_PERIOD:
+                    _warned[self.name] = now
+                    log.warning('joint %r: a velocity command of %.6g is capped at %.6g (%s)',
+                                self.name, value, out, 'its URDF <limit velocity>'
+                                if self.speed else 'no URDF <limit velocity>: the most any '
+                                'joint takes')
+        return out
 
 
 @dataclass(frozen=True)
@@ -106,6 +139,14 @@ class Ros2Control:
     def joints(self) -> dict:
         """Return joint name -> :class:`HardwareJoint` over every component."""
         return {j.name: j for c in self.components for j in c.joints}
+
+    def with_speeds(self, limits: dict) -> 'Ros2Control':
+        """Return it with its joints' URDF ``<limit velocity>`` (joint -> {'velocity': v})."""
+        def joint(j: HardwareJoint) -> HardwareJoint:
+            speed = abs((limits.get(j.name) or {}).get('velocity') or 0.0)
+            return replace(j, speed=speed if 0 < speed < math.inf else None)
+        return replace(self, components=tuple(
+            replace(c, joints=tuple(joint(j) for j in c.joints)) for c in self.components))
 
 
 def read(extensions: list) -> Optional[Ros2Control]:

@@ -147,8 +147,10 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
         out.extensions.append(ext)
     model = [e for e in out.extensions if e.tag == 'gazebo' and 'reference' not in e.attrib]
     out.static = any(_true(e.findtext('static')) for e in model)
-    out.ros2_control = read_ros2_control(out.extensions)
     out.joint_limits = urdf_declared.joint_limits(root)
+    out.ros2_control = read_ros2_control(out.extensions)
+    if out.ros2_control is not None:
+        out.ros2_control = out.ros2_control.with_speeds(out.joint_limits)
     out.joint_links = urdf_declared.joint_links(root)
     out.self_collide = any(_true(e.findtext('self_collide')) for e in model)
     out.unknown = _drop_unknown(root)

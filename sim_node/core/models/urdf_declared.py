@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 
 from . import realsense, sensor_tags
-from ..base import quat
+from ..base import loads, quat
 
 log = logging.getLogger(__name__)
 
@@ -250,11 +250,12 @@ def _actuator(spec, joint: str, interfaces: dict, limit: dict) -> str:
         speed = abs(limit.get('velocity') or 0.0)
         if lo is None and hi is None and speed > 0:
             lo, hi = -speed, speed
-        # Stiff enough to follow, not so stiff that an explicit step overshoots: the link's
-        # inertia over twice a 2 ms step (a 4 ms time constant).
-        body = spec.joint(joint).parent  # URDF inertias arrive as fullinertia
-        inertia = max(float(np.max(body.inertia)), float(np.max(body.fullinertia[:3])))
-        kv = max(inertia, 1e-6) * VELOCITY_GAIN / STEP
+        # Held under the load the joint moves (its links and all they carry), stiff enough to
+        # keep its velocity as Gazebo's joint velocity command does, not so stiff that an
+        # explicit step overshoots: that load over twice a 2 ms step (a 4 ms time constant).
+        # A wheel's gain is set again at spawn by the robot's weight it carries
+        # (:func:`~sim_node.core.control.wheels.add_wheel_actuators`).
+        kv = max(loads.moved_inertia(spec.joint(joint)), 1e-6) * VELOCITY_GAIN / STEP
         act = spec.add_actuator(name=f'{joint}_velocity', target=joint,
                                 trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_velocity(kv=kv)
