@@ -20,12 +20,16 @@ def _plugin(yaml_path: str, namespace: str = '') -> str:
             f'<parameters>{yaml_path}</parameters>{ns}</plugin></gazebo>')
 
 
-def _gz_system(name: str, joints: str, yaml_path: str) -> str:
+def _gz_system(name: str, joints: str, yaml_path: str, remappings: tuple = ()) -> str:
     """Return a ``<ros2_control>`` block on Gazebo's hardware with `joints`, and its plugin."""
+    plugin = _plugin(yaml_path)
+    if remappings:
+        rules = ''.join(f'<remapping>{r}</remapping>' for r in remappings)
+        plugin = plugin.replace('</plugin>', f'<ros>{rules}</ros></plugin>')
     return f"""<ros2_control name="{name}" type="system">
     <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>{joints}
   </ros2_control>
-  {_plugin(yaml_path)}"""
+  {plugin}"""
 
 
 def cart(interface: str, yaml_path: str, namespace: str = '') -> str:
@@ -202,8 +206,12 @@ ARM_JTC_YAML = """arm_controller:
 WHEEL = '<cylinder radius="0.1" length="0.05"/>'
 
 
-def diff_drive(yaml_path: str) -> str:
-    """Return a 10 kg base on two 0.1 m wheels 0.4 m apart and a caster ball."""
+def diff_drive(yaml_path: str, remappings: tuple = ()) -> str:
+    """
+    Return a 10 kg base on two 0.1 m wheels 0.4 m apart and a caster ball.
+
+    `remappings` go into its gz_ros2_control plugin as ``<ros><remapping>`` rules.
+    """
     wheels = ''.join(f"""
   <link name="{side}_wheel"><inertial><mass value="0.5"/>{_I}</inertial>
     <collision><geometry>{WHEEL}</geometry></collision></link>
@@ -224,7 +232,7 @@ def diff_drive(yaml_path: str) -> str:
     <collision><geometry><sphere radius="0.05"/></geometry></collision></link>
   <joint name="caster_joint" type="fixed"><parent link="base_link"/><child link="caster"/>
     <origin xyz="-0.3 0 -0.05"/></joint>
-  {_gz_system('RoverSystem', joints, yaml_path)}
+  {_gz_system('RoverSystem', joints, yaml_path, remappings)}
 </robot>"""
 
 
@@ -314,7 +322,7 @@ def spawner(sim, name: str, param_file: str = '', manager: str = '/controller_ma
             params = [Parameter(name=f'{name}.params_file', value=ParameterValue(
                 type=ParameterType.PARAMETER_STRING_ARRAY, string_array_value=[param_file]))]
             doc = yaml.safe_load(Path(param_file).read_text())
-            entry = doc.get(name) if isinstance(doc, dict) else None
+            entry = (doc.get(name) or doc.get(f'/**/{name}')) if isinstance(doc, dict) else None
             kind = (entry or {}).get('ros__parameters', {}).get('type')
             if kind:
                 params.append(Parameter(name=f'{name}.type', value=ParameterValue(
@@ -694,4 +702,82 @@ ackermann_steering_controller:
     odom_frame_id: odom
     enable_odom_tf: true
     position_feedback: false
+"""
+
+
+def gz_diff_drive(yaml_path: str) -> str:
+    """
+    Return a base as gz_ros2_control's diff-drive demo builds it, for its example program.
+
+    A 1.1 kg chassis (2 x 1 x 0.57 m) on two 2 kg ball wheels 0.3 m in radius, 1.25 m apart,
+    and a fixed ball caster behind; velocity interfaces within -1 and 1 rad/s, joints damped.
+    """
+    def wheel(side: str, y: float) -> str:
+        return f"""
+  <joint name="{side}_wheel_joint" type="continuous"><parent link="chassis"/>
+    <child link="{side}_wheel"/><origin xyz="0.554283 {y} 0.3" rpy="-1.5707 0 0"/>
+    <axis xyz="0 0 1"/><dynamics damping="0.2"/></joint>
+  <link name="{side}_wheel"><collision><geometry><sphere radius="0.3"/></geometry></collision>
+    <inertial><mass value="2"/>
+      <inertia ixx="0.145833" iyy="0.145833" izz="0.125" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>"""
+
+    joints = ''.join(f"""
+    <joint name="{side}_wheel_joint"><command_interface name="velocity">
+        <param name="min">-1</param><param name="max">1</param></command_interface>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>"""
+                     for side in ('left', 'right'))
+    return f"""<robot name="diff_drive">
+  <link name="chassis">
+    <collision><origin xyz="-0.151427 0 0.5"/><geometry><box size="2.01142 1 0.568726"/>
+    </geometry></collision>
+    <inertial><origin xyz="-0.151427 0 0.5"/><mass value="1.14395"/>
+      <inertia ixx="0.126164" iyy="0.416519" izz="0.481014" ixy="0" ixz="0" iyz="0"/>
+    </inertial></link>{wheel('left', 0.625029)}{wheel('right', -0.625029)}
+  <joint name="caster_joint" type="fixed"><parent link="chassis"/><child link="caster"/>
+    <origin xyz="-0.957138 0 0.2"/></joint>
+  <link name="caster"><collision><geometry><sphere radius="0.2"/></geometry></collision>
+    <inertial><mass value="0.005"/>{_I}</inertial></link>
+  {_gz_system('GazeboSimSystem', joints, yaml_path)}
+</robot>"""
+
+
+#: The diff-drive demo's controllers YAML (its wildcards, its NaN jerks, its limits' flags).
+GZ_DIFF_DRIVE_YAML = """/**/controller_manager:
+  ros__parameters:
+    update_rate: 100
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+
+/**/diff_drive_base_controller:
+  ros__parameters:
+    type: diff_drive_controller/DiffDriveController
+    left_wheel_names: ["left_wheel_joint"]
+    right_wheel_names: ["right_wheel_joint"]
+    wheel_separation: 1.25
+    wheel_radius: 0.3
+    wheel_separation_multiplier: 1.0
+    left_wheel_radius_multiplier: 1.0
+    right_wheel_radius_multiplier: 1.0
+    publish_rate: 50.0
+    odom_frame_id: odom
+    base_frame_id: chassis
+    open_loop: false
+    enable_odom_tf: true
+    cmd_vel_timeout: 0.5
+    linear.x.has_velocity_limits: true
+    linear.x.has_acceleration_limits: true
+    linear.x.max_velocity: 1.0
+    linear.x.min_velocity: -1.0
+    linear.x.max_acceleration: 1.0
+    linear.x.max_jerk: .NAN
+    linear.x.min_jerk: .NAN
+    angular.z.has_velocity_limits: true
+    angular.z.has_acceleration_limits: true
+    angular.z.max_velocity: 1.0
+    angular.z.min_velocity: -1.0
+    angular.z.max_acceleration: 1.0
+    angular.z.min_acceleration: -1.0
+    angular.z.max_jerk: .NAN
+    angular.z.min_jerk: .NAN
 """

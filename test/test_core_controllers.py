@@ -34,6 +34,24 @@ def test_a_urdfs_ros2_control_block_and_gazebo_plugin_are_read_with_its_names():
     assert ros2_control.read([]) is None
 
 
+def test_the_plugins_remapping_rules_are_read_and_a_rule_ros_would_refuse_is_said(caplog):
+    # <ros><remapping>, and <hardware_init_timeout>, which needs nothing here
+    rules = ('diff_drive_base_controller/cmd_vel:=/cmd_vel', ' ~/odom := /odom ', '/tf:=tf',
+             'nonsense', '__node:=other', 'a:=b:=c', 'bad name:=/x')
+    root = ET.fromstring(corpus.diff_drive('/pkg/rover.yaml', remappings=rules))
+    # gz_ros2_control's wait for its hardware: nothing to wait for here, read without a word
+    ET.SubElement(root.find('gazebo/plugin'), 'hardware_init_timeout').text = '20'
+    with caplog.at_level('WARNING'):
+        control = urdf.prepare(root).ros2_control
+    assert control.remappings == ('diff_drive_base_controller/cmd_vel:=/cmd_vel',
+                                  '~/odom:=/odom', '/tf:=tf')
+    refused = [r.getMessage() for r in caplog.records if '<remapping>' in r.getMessage()]
+    assert len(refused) == 4 and all('left out' in m for m in refused)
+    assert 'hardware_init_timeout' not in caplog.text
+    assert "'nonsense'" in refused[0] and "'__node:=other'" in refused[1]
+    assert urdf.prepare(ET.fromstring(corpus.diff_drive('/r.yaml'))).ros2_control.remappings == ()
+
+
 def test_a_controllers_yaml_is_read_as_ros_reads_it(tmp_path):
     doc = controller_yaml.load(corpus.write(tmp_path, 'a.yaml', """/**:
   ros__parameters:

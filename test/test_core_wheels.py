@@ -1,14 +1,19 @@
 """
-Velocity command interfaces held as Gazebo holds them (issue 53, item 3).
+Command interfaces held as Gazebo holds them (issue 53, item 3).
 
 gz_ros2_control commands a velocity interface as a joint velocity command, a constraint the
-joint meets whatever it carries, within its effort limit. Here a ros2_control robot's wheel on
-a velocity interface gets a velocity actuator sized by the weight it carries; these tests hold
-it to Gazebo's promise on the car of gz_ros2_control's Ackermann demo (145 kg on four wheels),
-checked against theory: a wheel at the speed asked, a car rolling at that speed times the
-radius, a torque within the URDF's effort, a command beyond any bound capped and said.
+joint meets whatever it carries, within its effort limit; and a position interface as a held
+velocity of ``position_proportional_gain x update_rate x (command - position)``. Here a
+ros2_control robot's wheel on a velocity interface gets a velocity actuator sized by the weight
+it carries, and a position interface a servo of that law (``core/control/interfaces.py``).
+These tests hold them to Gazebo's promise on the car of gz_ros2_control's Ackermann demo (145 kg
+on four wheels) and on a boom that gravity pulls down, checked against theory: a wheel at the
+speed asked, a car rolling at that speed times the radius and turning at ``v tan(phi) / L``, a
+first-order lag of the plugin's rate, a torque within the URDF's effort, a command beyond any
+bound capped and said.
 """
 
+from dataclasses import replace
 import logging
 import math
 from xml.etree import ElementTree as ET
@@ -16,6 +21,7 @@ from xml.etree import ElementTree as ET
 import controllers_corpus as corpus
 import numpy as np
 import pytest
+from sim_node.core.control import steering
 from sim_node.core.models import ros2_control, sources, urdf
 from sim_node.core.world import World
 
@@ -100,3 +106,72 @@ def test_a_velocity_command_beyond_any_bound_is_capped_with_a_warning(caplog):
     world.step(round(2.0 / world.timestep))
     assert np.all(np.isfinite(world.get_state().values))
     assert _wheel_speeds(world) == pytest.approx([bound, bound], rel=0.02)
+
+
+def _boom(plugin_extra: str = '', rate=None):
+    """Return (world, hardware joint) of the boom, its manager's update rate `rate`."""
+    source = sources.from_model_text(corpus.boom('/none.yaml', plugin_extra))
+    control = source.urdf_notes.ros2_control
+    source.urdf_notes.ros2_control = replace(control, update_rate=rate)
+    world = World.from_file(EMPTY)
+    world.spawn('boom', source, position=(0, 0, 0))
+    return world, control
+
+
+def _hinge(world) -> float:
+    return float(world.get_joint_states()['boom/hinge'][0])
+
+
+@pytest.mark.parametrize('gain, rate', [(None, None), (0.2, 50.0)])
+def test_a_position_interface_lags_as_gz_ros2_controls_law_and_holds_under_gravity(gain, rate):
+    # gz_ros2_control: the joint moves at gain x rate x (command - position), held whatever
+    # it carries: q(t) = q* (1 - exp(-gain rate t)) from rest, then no sag under the beam's
+    # weight (1 kg at 0.3 m: 2.9 N m). Defaults: gain 0.1, rate 100 Hz (the manager's).
+    extra = f'<position_proportional_gain>{gain}</position_proportional_gain>' if gain else ''
+    world, control = _boom(extra, rate)
+    assert control.position_gain == (gain or 0.1)
+    k = (gain or 0.1) * (rate or 100.0)  # 10 /s both ways: the same law, two spellings
+    world.step(round(0.5 / world.timestep))  # held where it spawned, from its first step
+    assert abs(_hinge(world)) < 1e-3
+    world.command(['boom/hinge'], [0.5], 'position')
+    start = world.time
+    for t in (0.05, 0.1, 0.2, 0.3):
+        world.step(round((start + t - world.time) / world.timestep))
+        assert _hinge(world) == pytest.approx(0.5 * (1 - math.exp(-k * t)), abs=0.01)
+    world.step(round(1.0 / world.timestep))
+    assert _hinge(world) == pytest.approx(0.5, abs=2e-3)  # held up against gravity
+
+
+def test_a_position_interface_a_controller_lets_go_is_free_and_a_bad_gain_is_said(caplog):
+    with caplog.at_level(logging.WARNING):
+        world, control = _boom('<hold_joints>false</hold_joints>'
+                               '<position_proportional_gain>fast</position_proportional_gain>')
+    assert control.position_gain == 0.1
+    assert "<position_proportional_gain> 'fast' is not a positive number" in caplog.text
+    world.step(round(0.5 / world.timestep))
+    assert abs(_hinge(world)) > 0.5  # nothing commands it: it swings down, free
+    world.command(['boom/hinge'], [0.0], 'position')
+    world.step(round(1.0 / world.timestep))
+    assert abs(_hinge(world)) < 0.02  # held, once commanded
+    world.command(['boom/hinge'], [0.0], 'effort')  # an effort controller takes it: free
+    world.step(round(0.3 / world.timestep))
+    assert abs(_hinge(world)) > 0.2
+
+
+def test_the_demo_cars_steering_holds_its_angles_and_it_turns_as_the_geometry_says():
+    # The Ackermann command of 0.5 m/s and 0.3 rad/s through the demo car's joints (its
+    # steering by position, its rear wheels by velocity): the front tyres push the steering
+    # back, Gazebo's position interface does not give way, nor does this one.
+    world = _car()
+    out = steering.ackermann(1.7, 1.0, RADIUS, SPEED, 0.3)  # (right, left) each
+    world.command(['car/right_wheel_steering_joint', 'car/left_wheel_steering_joint'],
+                  list(out.steering), 'position')
+    world.command(['car/rear_right_wheel_joint', 'car/rear_left_wheel_joint'],
+                  list(out.traction), 'velocity')
+    world.step(round(2.0 / world.timestep))  # the law's lag: 0.1 s at 100 Hz
+    states = world.get_joint_states()
+    reached = [states[f'car/{side}_wheel_steering_joint'][0] for side in ('right', 'left')]
+    assert reached == pytest.approx(list(out.steering), rel=0.01)
+    twist = world.get_entity_state('car')
+    assert twist.angular_velocity[2] == pytest.approx(0.3, rel=0.03)
+    assert np.linalg.norm(twist.linear_velocity[:2]) == pytest.approx(SPEED, rel=0.02)

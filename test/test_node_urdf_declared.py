@@ -107,13 +107,16 @@ def test_declared_lasers_publish_on_their_topics_frames_sizes_and_rates(sim, wat
     assert (info.width, info.height, info.header.frame_id) == (
         400, 300, 'ranger/head_cam_optical_frame')
     assert info.k[0] == pytest.approx(200 / math.tan(0.6), rel=1e-3)  # its hfov of 1.2 rad
-    # 7 Hz of simulated time, drawn when the perception thread gets to it: an image is left
-    # out when it is late (cores short: "fewer if the renderer cannot keep up", the physics
-    # never waits), never two in a period; most come a period apart, give or take a snapshot
+    # 7 Hz of simulated time, drawn when the perception thread gets to it: each image is due
+    # at a multiple of 1/7 s and drawn at the first snapshot from then on; one the renderer
+    # is late for is stamped late, or left out (cores short: "fewer if the renderer cannot
+    # keep up", the physics never waits), so gaps vary under load (0.10-0.14 s seen in a
+    # full run) but no period holds two images, and at least half of the periods hold one.
+    # The node's own 10 Hz would put two into some period of 1/7 s.
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in images[1:]]
-    gaps = sorted(b - a for a, b in zip(stamps, stamps[1:]))
-    assert gaps[0] > 0.6 / 7.0, gaps
-    assert gaps[len(gaps) // 2] == pytest.approx(1 / 7.0, rel=0.2), gaps
+    periods = [math.floor(t * 7.0 + 1e-6) for t in stamps]
+    assert periods == sorted(set(periods)), stamps  # one image per period at most
+    assert len(periods) >= 0.5 * (periods[-1] - periods[0] + 1), stamps
     junk = latest(watch, LaserScan, 'lasers/ranger/junk_lidar/scan')  # the node's own
     assert len(junk.ranges) == 360 and junk.header.frame_id == 'ranger/base_link'
 

@@ -8,6 +8,8 @@ them), :mod:`.runs` (the trajectories being followed, driven before every step),
 :mod:`.bases` (which entities are differential-drive or holonomic bases, and their wheels),
 :mod:`.drives` (a base's velocity command, tracked on its own motion; the bases driven),
 :mod:`.wheels` (what a spawn gives a wheeled model: wheel actuators, rolling casters),
+:mod:`.interfaces` (a gz_ros2_control robot's position interfaces, held by gz_ros2_control's
+law; which of their servos hold),
 :mod:`.odometry` (the one planar odometry: every base's pose from its wheels, a diff drive's
 or a car's, or the ground truth), :mod:`.motion` (the world's control part: trajectories
 started and cancelled, bases found and driven, pushes and gains, each under the world lock),

@@ -13,7 +13,7 @@ from typing import Optional, Sequence
 import mujoco
 import numpy as np
 
-from . import bases, drives
+from . import bases, drives, interfaces
 from .actuation import Outputs, times_mass
 from .runs import Run, Runs
 from .trajectory import INVALID_GOAL, SUCCESSFUL, Tracker
@@ -56,6 +56,7 @@ class Control:
         self.per_step = False  # True when PD torques or servo targets change every step
         self.runs = Runs()  # trajectories being followed
         self.drives = drives.Drives()  # mobile bases driven
+        self.servos = interfaces.Servos()  # gz_ros2_control robots' position servos
 
     # ---------------------------------------------------------------- any thread
 
@@ -118,6 +119,7 @@ class Control:
                 self._end_run(run, INVALID_GOAL, ERR_CLAIMED.format(name=name), data,
                               hold=False)
                 changed = True
+            changed = self.servos.command(name, mode) or changed
             act = index.joint_actuators[i].get(mode)
             if act is not None:
                 ctrl[act] = value
@@ -139,6 +141,7 @@ class Control:
             self._end_run(run, INVALID_GOAL, ERR_RESET, data, hold=False)
         self.drives.stop_all()  # bases stop
         self.bind(index, model, data)
+        self.servos.settle(model, data)  # the holding servos hold where the joints are now
 
     def bind(self, index: ModelIndex, model: mujoco.MjModel, data: mujoco.MjData,
              new_model: bool = False) -> None:
@@ -191,6 +194,7 @@ class Control:
                 run.qadr = None
                 self._end_run(run, INVALID_GOAL, ERR_GONE, data, hold=False, rebind=False)
         self.drives.bind(index, model)
+        self.servos.apply(model)
         self._update_per_step()
 
     def _update_per_step(self) -> None:
@@ -247,6 +251,7 @@ class Control:
             self._end_run(old, INVALID_GOAL, ERR_PREEMPTED, data, hold=False, canceled=True,
                           rebind=False)
         joints = tracker.trajectory.joints
+        self.servos.engage(joints)
         self._held = {n: c for n, c in self._held.items() if n not in joints}
         self.runs.add(Run(entity, tracker))
         self.bind(index, model, data)

@@ -18,7 +18,7 @@ from ..base import quat
 from ..base.errors import ResourceParseError
 from ..base.records import EntityRecord
 from ..compiled.index import ModelIndex
-from ..control import bases, wheels
+from ..control import bases, interfaces, wheels
 from ..models import sources
 from ..stepping import design
 
@@ -140,6 +140,14 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     if added:
         log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
                  name, ', '.join(added))
+    if source.kind == 'urdf':  # a URDF's <mimic> joints: as stiff as a step allows
+        interfaces.stiffen_mimics(child, spec.option.timestep)
+    servos = interfaces.add_position_servos(
+        child, control, spec.option.timestep, explicit=spec.option.integrator in EXPLICIT,
+        assets=source.assets)
+    if servos:
+        log.info('spawning %r: its position interfaces are held as gz_ros2_control holds '
+                 'them (%s)', name, ', '.join(servos))
     casters = wheels.roll_casters(child, plugin, source.assets) if casters_roll else []
     if casters:
         log.info('spawning %r: %s roll as casters (frictionless contacts; the node parameter '

@@ -9,7 +9,7 @@ them. Nested keys become ROS's dotted names (``constraints.goal_time``). ROS-fre
 """
 
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Optional
 
 import yaml
 
@@ -46,7 +46,8 @@ def node_parameters(docs: Iterable[dict], node: str, namespace: str = '') -> dic
     """
     Return the dotted parameters `docs` (parsed files, in order) give the node `node`.
 
-    Later files and the node's own entry win over earlier ones and wildcards.
+    Later files and the node's own entry win over earlier ones and wildcards (``/**`` for every
+    node, ``/**/<node>`` for the node in any namespace).
     """
     ns = f'/{namespace.strip("/")}' if namespace.strip('/') else ''
     names = (node, f'/{node}', f'{ns}/{node}'.lstrip('/'), f'{ns}/{node}')
@@ -58,11 +59,34 @@ def node_parameters(docs: Iterable[dict], node: str, namespace: str = '') -> dic
             for name in names:
                 _merge(out, (wild.get(name) or {}).get(ROS_PARAMETERS)
                        if isinstance(wild.get(name), dict) else None)
+        anywhere = doc.get(f'/**/{node}')  # the node in any namespace
+        if isinstance(anywhere, dict):
+            _merge(out, anywhere.get(ROS_PARAMETERS))
         for name in dict.fromkeys(names):
             entry = doc.get(name)
             if isinstance(entry, dict):
                 _merge(out, entry.get(ROS_PARAMETERS))
     return out
+
+
+def manager_rate(paths: Iterable[str], manager: str, namespace: str = '',
+                 readable: Callable[[Path], bool] = lambda p: True) -> Optional[float]:
+    """
+    Return the ``update_rate`` a robot's controllers YAML gives its controller manager.
+
+    None where none of its files may be read or none gives a positive number (the manager
+    then takes its default); a file it cannot read is the manager's to refuse, by name.
+    """
+    docs = []
+    for path in paths:
+        try:
+            docs.append(load(path, readable))
+        except ValueError:
+            continue
+    rate = node_parameters(docs, manager, namespace).get('update_rate')
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)):
+        return None
+    return float(rate) if 0 < rate < float('inf') else None
 
 
 def _merge(out: dict, params) -> None:

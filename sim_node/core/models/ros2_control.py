@@ -11,7 +11,8 @@ A robot made for Gazebo and ros2_control carries (after xacro):
   ``initial_value`` param), and its sensors with their state interfaces;
 * ``<gazebo><plugin filename="gz_ros2_control-system">`` (or classic
   ``libgazebo_ros2_control.so``) with the controllers YAML in ``<parameters>`` (one or more),
-  a ``<ros><namespace>``, a ``<controller_manager_name>`` and ``<hold_joints>``.
+  a ``<ros><namespace>`` and ``<remapping>`` rules, a ``<controller_manager_name>``,
+  ``<hold_joints>`` and ``<position_proportional_gain>``.
 
 :func:`read` returns a :class:`Ros2Control` of it, with the robot's own names; the node serves
 its controller manager (:mod:`sim_node.ros.control.controller_manager`). ROS-free.
@@ -20,6 +21,7 @@ its controller manager (:mod:`sim_node.ros.control.controller_manager`). ROS-fre
 from dataclasses import dataclass, field, replace
 import logging
 import math
+import re
 import time
 from typing import Optional
 from xml.etree import ElementTree as ET
@@ -43,6 +45,12 @@ MAX_COMMAND_SPEED = 100.0
 #: Seconds between two warnings of one joint's capped velocity commands (a controller sends
 #: one at every update).
 CAP_WARNING_PERIOD = 10.0
+
+#: gz_ros2_control's ``<position_proportional_gain>`` when its plugin gives none.
+DEFAULT_POSITION_GAIN = 0.1
+#: One side of a ``<remapping>`` rule: a topic or service name, relative, absolute or private
+#: (no ``__`` in it, which ROS reserves).
+_NAME = re.compile(r'^(~/|/)?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$')
 
 log = logging.getLogger(__name__)
 _warned: dict = {}  # joint name -> time.monotonic() of its last capping warning
@@ -115,6 +123,13 @@ class Ros2Control:
     :param hold_joints: the plugin's ``<hold_joints>`` (default true): the joints no active
         controller claims are held still, as gz_ros2_control holds them
         (:class:`~sim_node.core.control.laws.HoldLaw`); false: they are left free.
+    :param position_gain: the plugin's ``<position_proportional_gain>`` (default 0.1): a
+        position interface moves its joint at this times the update rate times its error
+        (:mod:`~sim_node.core.control.interfaces`).
+    :param update_rate: its controller manager's ``update_rate`` as its YAML gives it, where
+        the node may read the YAML (None: not read; the manager's default is taken).
+    :param remappings: the plugin's ``<ros><remapping>`` rules (``from:=to``), in order: the
+        controller manager's and its controllers' names remapped as ROS remaps a node's.
     :param spawn: which spawn it came with (a robot spawned again is another robot, with
         controllers of its own, even when nothing was seen in between).
     """
@@ -125,6 +140,9 @@ class Ros2Control:
     manager: str = 'controller_manager'
     spawn: int = 0
     hold_joints: bool = True
+    remappings: tuple = ()
+    position_gain: float = DEFAULT_POSITION_GAIN
+    update_rate: Optional[float] = None
 
     @property
     def simulated(self) -> bool:
@@ -155,7 +173,8 @@ def read(extensions: list) -> Optional[Ros2Control]:
     if not blocks:
         return None
     components = tuple(_component(b) for b in blocks)
-    parameters, namespace, manager, hold = [], '', 'controller_manager', True
+    parameters, namespace, manager, hold, remaps = [], '', 'controller_manager', True, []
+    gain = DEFAULT_POSITION_GAIN
     for ext in extensions:
         if ext.tag != 'gazebo':
             continue
@@ -170,9 +189,40 @@ def read(extensions: list) -> Optional[Ros2Control]:
             namespace = (plugin.findtext('ros/namespace') or namespace).strip().strip('/')
             manager = (plugin.findtext('controller_manager_name') or manager).strip()
             hold = _flag(plugin, 'hold_joints', hold)
+            remaps += [r for r in (_remapping(e.text) for e in plugin.findall('ros/remapping'))
+                       if r]
+            gain = _gain(plugin.findtext('position_proportional_gain'), gain)
     return Ros2Control(components=components, parameters=tuple(parameters),
                        namespace=namespace, manager=manager.strip('/') or 'controller_manager',
-                       hold_joints=hold)
+                       hold_joints=hold, remappings=tuple(remaps), position_gain=gain)
+
+
+def _gain(text: Optional[str], default: float) -> float:
+    """Return a ``<position_proportional_gain>``: a positive number, else `default`, said."""
+    if text is None:
+        return default
+    value = _float(text)
+    if value is not None and value > 0:
+        return value
+    log.warning('gz_ros2_control plugin: <position_proportional_gain> %r is not a positive '
+                'number; %g is used', text, default)
+    return default
+
+
+def _remapping(text: Optional[str]) -> str:
+    """
+    Return a ``<remapping>`` rule as ROS takes it (``from:=to``), or '' with a warning.
+
+    Topic and service names only: a rule of a node's name or namespace (``__node``,
+    ``__ns``), or one ROS would refuse, is left out (ROS would refuse to start the node).
+    """
+    rule = (text or '').strip()
+    sides = rule.split(':=')
+    if len(sides) == 2 and all(_NAME.match(side.strip()) and '__' not in side for side in sides):
+        return ':='.join(side.strip() for side in sides)
+    log.warning('gz_ros2_control plugin: <remapping> %r is not a rule of topic or service names '
+                '(from:=to); left out', text)
+    return ''
 
 
 def _flag(plugin: ET.Element, tag: str, default: bool) -> bool:

@@ -19,6 +19,7 @@ its publishers on the node's side with the samples it is sent. Parameter files a
 the node's resource folders and installed packages' share folders only.
 """
 
+from dataclasses import replace
 import os
 import threading
 from typing import Callable, Optional
@@ -81,8 +82,12 @@ class RobotControl:
             except ValueError as exc:
                 self.yaml_error = str(exc)
         params = controller_yaml.node_parameters(self.docs, control.manager, self.namespace)
+        # The plugin's <ros><remapping> rules: gz_ros2_control gives them to the process its
+        # manager and controllers run in; here each of their nodes takes them.
+        self.remaps = ['--ros-args'] + [a for rule in control.remappings
+                                        for a in ('-r', rule)] if control.remappings else None
         self.node = Node(control.manager, namespace=self.namespace or '/',
-                         allow_undeclared_parameters=True)
+                         allow_undeclared_parameters=True, cli_args=self.remaps)
         for key, value in params.items():
             try:
                 self.node.declare_parameter(key, value)
@@ -291,7 +296,7 @@ class RobotControl:
             except Exception:  # noqa: B902 (a value no parameter type takes: left out)
                 pass
         node = Node(name, namespace=self.namespace or '/', parameter_overrides=overrides,
-                    automatically_declare_parameters_from_overrides=True)
+                    automatically_declare_parameters_from_overrides=True, cli_args=self.remaps)
         self.host.add_node(node)
         return node
 
@@ -358,6 +363,31 @@ def runtime_for(host, controller) -> controllers.Runtime:
     return runtime(host, controller)
 
 
+def parameter_roots(roots) -> tuple:
+    """Return the folders parameter files are read from: `roots` and installed packages' shares."""
+    shares = [os.path.join(p, 'share') for p in
+              os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    return tuple(roots) + tuple(shares)
+
+
+def with_update_rate(source, namespace: str, roots) -> None:
+    """
+    Give a spawn's gz_ros2_control robot its manager's update rate, as its YAML says it.
+
+    Its position interfaces are held from its spawn by gz_ros2_control's law, whose rate is
+    the manager's (:mod:`sim_node.core.control.interfaces`); the YAML is read from the folders
+    its manager reads it from (:func:`parameter_roots` of the node's `roots`).
+    """
+    control = getattr(source.urdf_notes, 'ros2_control', None)
+    if control is None or not control.simulated:
+        return
+    folders = parameter_roots(roots)
+    rate = controller_yaml.manager_rate(
+        control.parameters, control.manager, namespace.strip('/') or control.namespace,
+        lambda p: inside_roots(p, folders))
+    source.urdf_notes.ros2_control = replace(control, update_rate=rate)
+
+
 class ControllerManagers:
     """
     The controller managers of a node's robots, made and removed with them.
@@ -370,9 +400,7 @@ class ControllerManagers:
                  drop_node: Callable, refused: Callable):
         self.node, self.session, self.refused = node, session, refused
         self.add_node, self.drop_node = add_node, drop_node
-        shares = [os.path.join(p, 'share') for p in
-                  os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
-        self._roots = tuple(roots) + tuple(shares)
+        self._roots = parameter_roots(roots)
         self.robots: dict = {}  # entity -> RobotControl
         self.topic_robots: dict = {}  # entity -> TopicHardware
         self._lock = threading.Lock()  # the robots: held briefly, never while closing one

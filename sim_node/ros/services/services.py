@@ -22,6 +22,7 @@ from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Res
                                        SimulationState, SimulatorFeatures, Spawnable,
                                        WorldResource)
 
+from ..control.controller_manager import with_update_rate
 from ..settings.params import Frames
 from ..settings.qos import FEEDBACK_QOS, SERVICE_QOS
 from ... import session as lifecycle
@@ -184,6 +185,7 @@ class Services:
                    resource_string: str, namespace: str, initial_pose) -> str:
         # parsed (meshes converted, xacro expanded) outside the world lock
         src = self._source_for(uri, resource_string, world.config.max_bodies)
+        with_update_rate(src, namespace, self._readable.roots)
         pos, quat = convert.pose_from_msg(initial_pose.pose)
         return world.spawn(name, src, pos, quat,
                            reference=self._frames.reference(initial_pose.header.frame_id),
