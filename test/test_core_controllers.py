@@ -32,6 +32,12 @@ def test_a_urdfs_ros2_control_block_and_gazebo_plugin_are_read_with_its_names():
     assert (joint.name, joint.command, joint.state) == (
         'slider_to_cart', {'velocity': (-10.0, 10.0)}, ('position', 'velocity', 'effort'))
     assert ros2_control.read([]) is None
+    # <parameters> as a list, in order, and <controller_manager_name>
+    text = corpus.cart('velocity', '/pkg/a.yaml').replace(
+        '</plugin>', '<parameters>/pkg/b.yaml</parameters>'
+        '<controller_manager_name>/my_manager</controller_manager_name></plugin>')
+    control = urdf.prepare(ET.fromstring(text)).ros2_control
+    assert (control.parameters, control.manager) == (('/pkg/a.yaml', '/pkg/b.yaml'), 'my_manager')
 
 
 def test_the_plugins_remapping_rules_are_read_and_a_rule_ros_would_refuse_is_said(caplog):

@@ -438,6 +438,28 @@ def test_the_plugins_remapping_rules_rename_its_controllers_topics(sim, watch):
         sim.delete('remapped')
 
 
+def test_the_plugins_parameter_files_and_manager_name_are_honoured_in_order(sim, watch):
+    # gz_ros2_control's <parameters> as a list (later files win) and <controller_manager_name>
+    first = corpus.write(FOLDER['path'], 'cart_named.yaml',
+                         corpus.cart_yaml('position').replace('controller_manager:',
+                                                              'my_manager:', 1))
+    second = corpus.write(FOLDER['path'], 'cart_named_rate.yaml',
+                          'my_manager:\n  ros__parameters:\n    update_rate: 50\n')
+    text = corpus.cart('position', first).replace(
+        '</plugin>', f'<parameters>{second}</parameters>'
+        '<controller_manager_name>my_manager</controller_manager_name></plugin>')
+    sim.spawn('named_cart', resource_string=text, namespace='named', position=(3.0, 6.0, 0.0))
+    try:
+        manager = '/named/my_manager'
+        assert corpus.spawner(sim, 'joint_state_broadcaster', manager=manager)[0] is None
+        (state,) = [c for c in corpus.listed(sim, manager) if c.name == 'joint_state_broadcaster']
+        assert (state.state, state.update_rate) == ('active', 50)  # the second file's rate
+        assert position(watch, 'slider_to_cart', '/named/joint_states') == pytest.approx(
+            0.0, abs=0.01)
+    finally:
+        sim.delete('named_cart')
+
+
 def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
         node, sim, watch, tmp_path):
     from controller_manager_msgs.srv import LoadController
