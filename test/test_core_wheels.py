@@ -156,6 +156,13 @@ def test_a_position_interface_a_controller_lets_go_is_free_and_a_bad_gain_is_sai
     world.command(['boom/hinge'], [0.0], 'effort')  # an effort controller takes it: free
     world.step(round(0.3 / world.timestep))
     assert abs(_hinge(world)) > 0.2
+    world.command(['boom/hinge'], [0.0], 'position')  # held again; then deleted, and a
+    world.step(round(0.3 / world.timestep))  # boom spawned again under its name starts free
+    world.delete('boom')
+    source = sources.from_model_text(corpus.boom('/none.yaml', '<hold_joints>0</hold_joints>'))
+    world.spawn('boom', source, position=(0, 0, 0))
+    world.step(round(0.5 / world.timestep))
+    assert abs(_hinge(world)) > 0.5
 
 
 def test_the_demo_cars_steering_holds_its_angles_and_it_turns_as_the_geometry_says():

@@ -168,6 +168,8 @@ class Servos:
         """Give the servos of `model` their gains: as compiled where engaged, else 0."""
         if model is not self._model:
             self._model = model
+            # A joint deleted is forgotten: a robot spawned again under its name starts free.
+            self.engaged &= {model.joint(j).name for j in range(model.njnt)}
             self._gains = {
                 a: (model.joint(int(model.actuator_trnid[a, 0])).name,
                     float(model.actuator_gainprm[a, 0]), float(model.actuator_biasprm[a, 2]))
