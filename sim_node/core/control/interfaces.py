@@ -43,7 +43,7 @@ SERVO_SUFFIX = '_gz_position'
 
 
 def add_position_servos(spec: mujoco.MjSpec, control, timestep: float, explicit: bool = False,
-                        assets: Optional[dict] = None) -> list:
+                        alone: Optional[wheels.Alone] = None) -> list:
     """
     Give each position interface of a gz_ros2_control robot its position servo.
 
@@ -56,7 +56,8 @@ def add_position_servos(spec: mujoco.MjSpec, control, timestep: float, explicit:
         manager's default, 100 Hz).
     :param explicit: the world integrates actuator gains explicitly (Euler, RK4): the
         velocity hold is kept within the joint's inertia over the step.
-    :param assets: meshes given in memory (a spec built in code), to compile it alone.
+    :param alone: the spec compiled alone (:class:`.wheels.Alone`), shared with the spawn's
+        other rules (default: one of its own).
     :returns: the names of the actuators added (``<joint>`` and :data:`SERVO_SUFFIX`).
     """
     if control is None or not control.simulated:
@@ -68,7 +69,7 @@ def add_position_servos(spec: mujoco.MjSpec, control, timestep: float, explicit:
     joints = [j for j in joints if int(j.type) in _ONE_DOF]
     if not joints:
         return []
-    inertia = _joint_inertias(spec, assets)
+    inertia = _joint_inertias(alone or wheels.Alone(spec))
     rate = float(control.update_rate or DEFAULT_UPDATE_RATE)
     law = control.position_gain * rate  # 1/s: the lag's rate
     added = []
@@ -108,22 +109,16 @@ def stiffen_mimics(spec: mujoco.MjSpec, timestep: float) -> None:
             eq.solref = [2.0 * timestep, 1.0]
 
 
-def _joint_inertias(spec: mujoco.MjSpec, assets: Optional[dict]) -> dict:
+def _joint_inertias(alone: wheels.Alone) -> dict:
     """
     Return joint name -> its inertia at rest (kg m^2 or kg), from the spec compiled alone.
 
     MuJoCo's ``dof_invweight0`` inverted: the inertia a push on the joint meets at the model's
     rest pose with its other joints free (the least it can be: what an explicit gain must
-    stay stable on).
+    stay stable on). {} when it does not compile alone.
     """
-    probe = spec.copy()
-    if assets:
-        probe.assets = {**probe.assets, **assets}
-    probe.compiler.usethread = False  # as the world's own compile: the world steps meanwhile
-    try:
-        model = probe.compile()
-    except ValueError as exc:
-        log.info('position interfaces: the model does not compile alone (%s); none held', exc)
+    model = alone.model
+    if model is None:
         return {}
     out = {}
     for j in range(model.njnt):

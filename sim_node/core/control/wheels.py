@@ -39,6 +39,40 @@ CASTER_REACH, CASTER_REACH_MIN = 0.25, 0.005
 CASTER_PRIORITY = 2
 
 
+class Alone:
+    """
+    A spawned model compiled alone, once, when first asked (None: it does not compile alone).
+
+    What the spawn's rules measure that only a compiled model knows (a mesh's extent, a
+    joint's inertia), for :func:`roll_casters` and the position servos
+    (:func:`~.interfaces.add_position_servos`) alike: one compile of the robot, not one each.
+    The copy is taken when first asked; what is added to the spec later (actuators) changes
+    neither geometry nor inertia.
+
+    :param assets: meshes given in memory (a spec built in code).
+    """
+
+    def __init__(self, spec: mujoco.MjSpec, assets: Optional[dict] = None):
+        self._spec, self._assets = spec, assets
+        self._done, self._model = False, None
+
+    @property
+    def model(self) -> Optional[mujoco.MjModel]:
+        if not self._done:
+            self._done = True
+            probe = self._spec.copy()
+            if self._assets:
+                probe.assets = {**probe.assets, **self._assets}
+            # One thread, as the world's own compile (Design.built): the world steps meanwhile.
+            probe.compiler.usethread = False
+            try:
+                self._model = probe.compile()
+            except ValueError as exc:
+                log.info('the spawned model does not compile alone (%s): no casters made to '
+                         'roll, no position interface held', exc)
+        return self._model
+
+
 def wheel_joints(spec: mujoco.MjSpec, plugin: Optional[dict] = None) -> list:
     """
     Return a model's wheel joints as :func:`.bases.find` will drive them (left, then right), or [].
@@ -124,7 +158,7 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
 
 
 def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
-                 assets: Optional[dict] = None) -> list:
+                 assets: Optional[dict] = None, alone: Optional[Alone] = None) -> list:
     """
     Make the fixed casters of a wheeled model roll: their contacts carry weight, not friction.
 
@@ -143,12 +177,14 @@ def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     (the node's ``casters_roll``) turns the rule off.
 
     :param assets: meshes given in memory (a spec built in code), to measure the geometry.
+    :param alone: the spec compiled alone, shared with the spawn's other rules (default: one
+        of its own, from `assets`).
     :returns: the names of the bodies made casters.
     """
     wheels = wheel_joints(spec, plugin)
     if not wheels:
         return []
-    low = _lowest_points(spec, assets)
+    low = _lowest_points(alone or Alone(spec, assets))
     wheel_bodies = {w.parent.name for w in wheels}
     floor = min((low[b] for b in wheel_bodies if b in low), default=None)
     if floor is None:
@@ -168,22 +204,15 @@ def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     return found
 
 
-def _lowest_points(spec: mujoco.MjSpec, assets: Optional[dict]) -> dict:
+def _lowest_points(alone: Alone) -> dict:
     """
     Return body name -> the lowest point (z) of its colliding geoms, the model at rest.
 
-    From a compiled copy of the spec (a mesh's extent is known only once compiled): each geom's
-    bounding box in its frame, turned into the world's. {} when the copy does not compile.
+    From the model compiled alone (a mesh's extent is known only once compiled): each geom's
+    bounding box in its frame, turned into the world's. {} when it does not compile.
     """
-    probe = spec.copy()
-    if assets:
-        probe.assets = {**probe.assets, **assets}
-    # One thread, as the world's own compile (Design.built): the world steps meanwhile.
-    probe.compiler.usethread = False
-    try:
-        model = probe.compile()
-    except ValueError as exc:
-        log.info('casters: the model does not compile alone (%s); none made to roll', exc)
+    model = alone.model
+    if model is None:
         return {}
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)

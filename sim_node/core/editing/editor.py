@@ -142,13 +142,14 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
                  name, ', '.join(added))
     if source.kind == 'urdf':  # a URDF's <mimic> joints: as stiff as a step allows
         interfaces.stiffen_mimics(child, spec.option.timestep)
+    alone = wheels.Alone(child, source.assets)  # compiled once, if a rule below needs it
     servos = interfaces.add_position_servos(
         child, control, spec.option.timestep, explicit=spec.option.integrator in EXPLICIT,
-        assets=source.assets)
+        alone=alone)
     if servos:
         log.info('spawning %r: its position interfaces are held as gz_ros2_control holds '
                  'them (%s)', name, ', '.join(servos))
-    casters = wheels.roll_casters(child, plugin, source.assets) if casters_roll else []
+    casters = wheels.roll_casters(child, plugin, alone=alone) if casters_roll else []
     if casters:
         log.info('spawning %r: %s roll as casters (frictionless contacts; the node parameter '
                  'casters_roll turns this off)', name, ', '.join(casters))
