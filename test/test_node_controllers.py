@@ -9,6 +9,7 @@ what the real ones do.
 
 import math
 import time
+from typing import Optional
 
 from conftest import action_client, serve_node, wait_for, Watcher
 import controllers_corpus as corpus
@@ -356,6 +357,36 @@ def spawn_rover(sim, namespace: str = '') -> None:
         assert corpus.spawner(sim, controller, manager=manager)[0] is None
 
 
+def drive(sim, watch, entity: str, msg, topic: str, odom_topic: str, seconds: float,
+          first_pose: Optional[float] = None, delete: bool = True) -> tuple:
+    """
+    Drive `entity` as gz_ros2_control's example programs do; return (odometry, states).
+
+    `msg` goes on `topic` every 50 ms for `seconds` (never a gap a command timeout would
+    stop it in); then, unless `delete` is false, `entity` is deleted. Returns the odometry
+    heard on `odom_topic` meanwhile and, with `first_pose`, two entity states taken 2 s apart
+    from `first_pose` seconds on, while it is driven.
+    """
+    from nav_msgs.msg import Odometry
+    pub = watch.node.create_publisher(type(msg), topic, 10)
+    odoms, poses = [], []
+    sub = watch.node.create_subscription(Odometry, odom_topic, odoms.append, 100)
+    try:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            pub.publish(msg)
+            time.sleep(0.05)
+            if first_pose is not None and len(poses) < 2 and \
+                    time.monotonic() - t0 > first_pose + 2.0 * len(poses):
+                poses.append(sim.entity_state(entity))  # its own motion
+    finally:
+        watch.node.destroy_subscription(sub)
+        watch.node.destroy_publisher(pub)
+        if delete:
+            sim.delete(entity)
+    return odoms, poses
+
+
 def test_a_diff_drive_base_goes_at_its_commanded_twist_by_its_odometry(sim, watch):
     from geometry_msgs.msg import TwistStamped
     from nav_msgs.msg import Odometry
@@ -407,7 +438,6 @@ def test_the_plugins_remapping_rules_rename_its_controllers_topics(sim, watch):
     # gz_ros2_control's <ros><remapping>: a relative rule (expanded in the robot's namespace),
     # a private one (each controller's own ~), and one ROS would refuse (said, left out).
     from geometry_msgs.msg import TwistStamped
-    from nav_msgs.msg import Odometry
     path = corpus.write(FOLDER['path'], 'rover.yaml', corpus.DIFF_DRIVE_YAML)
     rules = ('diff_drive_base_controller/cmd_vel:=/remapped_cmd', '~/odom:=/remapped_odom',
              'nonsense')
@@ -420,44 +450,13 @@ def test_the_plugins_remapping_rules_rename_its_controllers_topics(sim, watch):
         topics = dict(watch.node.get_topic_names_and_types())
         assert '/remapped_odom' in topics
         assert '/remapped/diff_drive_base_controller/odom' not in topics
-        cmd = TwistStamped()
-        cmd.twist.linear.x = 0.3
-        pub = watch.node.create_publisher(TwistStamped, '/remapped_cmd', 10)
-        odoms = []
-        sub = watch.node.create_subscription(Odometry, '/remapped_odom', odoms.append, 10)
-        try:
-            t0 = time.monotonic()
-            while time.monotonic() - t0 < 3.0:
-                pub.publish(cmd)
-                time.sleep(0.05)
-        finally:
-            watch.node.destroy_subscription(sub)
-            watch.node.destroy_publisher(pub)
-        assert odoms and odoms[-1].twist.twist.linear.x == pytest.approx(0.3, abs=0.03)
-    finally:
+    except BaseException:
         sim.delete('remapped')
-
-
-def test_the_plugins_parameter_files_and_manager_name_are_honoured_in_order(sim, watch):
-    # gz_ros2_control's <parameters> as a list (later files win) and <controller_manager_name>
-    first = corpus.write(FOLDER['path'], 'cart_named.yaml',
-                         corpus.cart_yaml('position').replace('controller_manager:',
-                                                              'my_manager:', 1))
-    second = corpus.write(FOLDER['path'], 'cart_named_rate.yaml',
-                          'my_manager:\n  ros__parameters:\n    update_rate: 50\n')
-    text = corpus.cart('position', first).replace(
-        '</plugin>', f'<parameters>{second}</parameters>'
-        '<controller_manager_name>my_manager</controller_manager_name></plugin>')
-    sim.spawn('named_cart', resource_string=text, namespace='named', position=(3.0, 6.0, 0.0))
-    try:
-        manager = '/named/my_manager'
-        assert corpus.spawner(sim, 'joint_state_broadcaster', manager=manager)[0] is None
-        (state,) = [c for c in corpus.listed(sim, manager) if c.name == 'joint_state_broadcaster']
-        assert (state.state, state.update_rate) == ('active', 50)  # the second file's rate
-        assert position(watch, 'slider_to_cart', '/named/joint_states') == pytest.approx(
-            0.0, abs=0.01)
-    finally:
-        sim.delete('named_cart')
+        raise
+    cmd = TwistStamped()
+    cmd.twist.linear.x = 0.3
+    odoms, _ = drive(sim, watch, 'remapped', cmd, '/remapped_cmd', '/remapped_odom', 3.0)
+    assert odoms and odoms[-1].twist.twist.linear.x == pytest.approx(0.3, abs=0.03)
 
 
 def test_bad_yaml_types_joints_interfaces_and_files_get_the_managers_answer(
@@ -602,7 +601,6 @@ def test_a_topic_based_robot_takes_the_plugins_commands_and_gives_its_states(sim
 
 def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch):
     from geometry_msgs.msg import TwistStamped
-    from nav_msgs.msg import Odometry
     from tf2_msgs.msg import TFMessage
     path = corpus.write(FOLDER['path'], 'car.yaml', corpus.CAR_YAML)
     sim.spawn('car', resource_string=corpus.car(path), position=(-3.0, -3.0, 0.1))
@@ -610,20 +608,9 @@ def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch)
         assert corpus.spawner(sim, controller)[0] is None
     cmd = TwistStamped()
     cmd.twist.linear.x, cmd.twist.angular.z = 0.4, 0.2  # a circle of 2 m radius
-    pub = watch.node.create_publisher(TwistStamped, '/ackermann_steering_controller/reference',
-                                      10)
-    odoms = []
-    sub = watch.node.create_subscription(
-        Odometry, '/ackermann_steering_controller/odometry', odoms.append, 100)
-    try:
-        start = sim.entity_state('car')['position']
-        t0 = time.monotonic()
-        while time.monotonic() - t0 < 4.0:
-            pub.publish(cmd)
-            time.sleep(0.05)
-    finally:
-        watch.node.destroy_subscription(sub)
-        watch.node.destroy_publisher(pub)
+    odoms, (start, _) = drive(sim, watch, 'car', cmd, '/ackermann_steering_controller/reference',
+                              '/ackermann_steering_controller/odometry', 4.0, first_pose=0.0,
+                              delete=False)
     last = odoms[-1]
     assert (last.header.frame_id, last.child_frame_id) == ('car_odom', 'base_link')  # YAML's
     speed, turn = steady(odoms)
@@ -633,34 +620,8 @@ def test_an_ackermann_car_turns_on_the_circle_its_reference_asks_for(sim, watch)
     assert [(t.header.frame_id, t.child_frame_id) for t in tf.transforms] == [
         ('car_odom', 'base_link')]
     moved = sim.entity_state('car')['position']
-    assert math.hypot(moved[0] - start[0], moved[1] - start[1]) > 0.5  # it really went
-
-
-def drive_as_its_example(sim, watch, entity: str, msg, topic: str, odom_topic: str,
-                         seconds: float, first_pose: float) -> tuple:
-    """
-    Drive `entity` as gz_ros2_control's example programs do; return (odometry, two states).
-
-    `msg` goes on `topic` every 50 ms for `seconds`; then `entity` is deleted. Returns the
-    odometry heard on `odom_topic` and two entity states taken 2 s apart from `first_pose`
-    seconds on, while it is driven.
-    """
-    from nav_msgs.msg import Odometry
-    pub = watch.node.create_publisher(type(msg), topic, 10)
-    odoms, poses = [], []
-    sub = watch.node.create_subscription(Odometry, odom_topic, odoms.append, 100)
-    try:
-        t0 = time.monotonic()
-        while time.monotonic() - t0 < seconds:
-            pub.publish(msg)
-            time.sleep(0.05)
-            if time.monotonic() - t0 > first_pose + 2.0 * len(poses) and len(poses) < 2:
-                poses.append(sim.entity_state(entity))  # its own motion
-    finally:
-        watch.node.destroy_subscription(sub)
-        watch.node.destroy_publisher(pub)
-        sim.delete(entity)
-    return odoms, poses
+    assert math.hypot(moved[0] - start['position'][0],
+                      moved[1] - start['position'][1]) > 0.5  # it really went
 
 
 def test_gz_ros2_controls_ackermann_demo_goes_at_what_its_example_program_asks(sim, watch):
@@ -678,7 +639,7 @@ def test_gz_ros2_controls_ackermann_demo_goes_at_what_its_example_program_asks(s
         assert corpus.spawner(sim, controller, manager=manager)[0] is None
     cmd = Twist()
     cmd.linear.x, cmd.angular.z = 0.5, 0.3
-    odoms, poses = drive_as_its_example(  # at 10 Hz the steering's lag is 1 s
+    odoms, poses = drive(  # at 10 Hz the steering's lag is 1 s
         sim, watch, 'demo_car', cmd, '/demo/ackermann_steering_controller/reference_unstamped',
         '/demo/ackermann_steering_controller/odometry', seconds=9.0, first_pose=5.0)
     speed, turn = steady(odoms, seconds=2.0)  # 10 Hz odometry
@@ -709,7 +670,7 @@ def test_gz_ros2_controls_diff_drive_demo_goes_at_what_its_example_program_asks(
     cmd = TwistStamped()
     cmd.header.stamp = watch.node.get_clock().now().to_msg()
     cmd.twist.linear.x, cmd.twist.angular.z = 0.1, 0.1
-    odoms, poses = drive_as_its_example(  # its timeout is 0.5 s
+    odoms, poses = drive(  # its timeout is 0.5 s
         sim, watch, 'demo_base', cmd, '/demo_dd/diff_drive_base_controller/cmd_vel',
         '/demo_dd/diff_drive_base_controller/odom', seconds=6.0, first_pose=2.5)
     assert (odoms[-1].header.frame_id, odoms[-1].child_frame_id) == ('odom', 'chassis')
