@@ -71,7 +71,7 @@ ROSDEP_KEYS = {'numpy': 'python3-numpy', 'mujoco': 'python3-mujoco-pip',
                'collada': 'python3-collada', 'yaml': 'python3-yaml'}
 #: Imported, but rosdep has no key: ros_env/requirements.txt installs them, package.xml says
 #: so in a comment, and the code says what to pip install when one is missing.
-PIP_ONLY = {'fast_simplification', 'rosbags', 'mcap', 'viser', 'glfw'}
+PIP_ONLY = {'fast_simplification', 'coacd', 'rosbags', 'mcap', 'viser', 'glfw'}
 
 
 def test_package_xml_declares_exactly_what_the_code_imports():

@@ -137,3 +137,38 @@ def test_the_launch_example_spawns_from_robot_state_publishers_topic(sim, own):
     assert out.returncode == 0, out.stdout + out.stderr
     wait_for(lambda: 'cart_launch' in sim.entities(), timeout=10)
     assert sim.entity_state('cart_launch')['position'][0] == pytest.approx(2.5, abs=0.05)
+
+
+def test_a_concave_mesh_is_decomposed_while_the_world_steps_and_the_tool_says_so(sim, watch,
+                                                                                 own):
+    import random
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    import concave_meshes
+    # A washer of a shape no run made before: decomposed now, not read from the cache.
+    folder = own / 'concave'
+    folder.mkdir(exist_ok=True)
+    washer = concave_meshes.ring(folder / 'washer.stl', segments=random.randint(60, 200))
+    said = []
+    sub = watch.node.create_subscription(DiagnosticArray, '/diagnostics', lambda msg: said.extend(
+        kv.value for s in msg.status for kv in s.values if kv.key == 'decomposing'), 10)
+    try:
+        with watch.lock:
+            before = watch.clock[-1]
+        out = spawn('-file', str(washer), '-name', 'washer', '-x', '3.0', '-y', '-3.0')
+        with watch.lock:
+            after = watch.clock[-1]
+    finally:
+        watch.node.destroy_subscription(sub)
+    assert out.returncode == 0, out.stderr
+    assert 'splitting concave collision meshes' in out.stdout and 'washer.stl' in out.stdout
+    assert any('washer.stl' in v for v in said), said
+    # The world stepped while it waited (at real time: as long as the tool was told to wait).
+    waited = float(said[-1].split('(')[1].split(' s')[0]) if said else 0.0
+    assert after - before >= 0.5 * max(waited, 1.0), (before, after, said)
+    peg = ('<mujoco><worldbody><body name="peg"><freejoint/><geom type="cylinder" '
+           'size=".04 .1" mass=".1"/></body></worldbody></mujoco>')
+    assert spawn('-string', peg, '-name', 'peg', '-x', '3.0', '-y', '-3.0',
+                 '-z', '0.3').returncode == 0
+    # Through the hole, on the floor (as its hull, the washer would hold it at 0.15 m).
+    wait_for(lambda: sim.entity_state('peg')['position'][2] < 0.11, timeout=10)

@@ -33,7 +33,7 @@ from .editing import editor
 from .editing.edits import Edits
 from .editing.transaction import Transaction
 from .editing.writes import Writes
-from .models import asset_store, description, sources
+from .models import asset_store, decompose, description, sources
 from .stepping import guard, sampling
 from .stepping.design import Design
 from .stepping.live import Live
@@ -67,6 +67,7 @@ class World:
             spec.option.timestep = float(config.timestep)
         guard.route_mujoco_warnings()
         asset_store.set_mesh_cache(config.mesh_cache_mb)
+        decompose.configure(config.mesh_decomposition, config.mesh_decomposition_threshold)
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
         arena = ((config.arena_base_bytes, config.arena_bytes_per_body)

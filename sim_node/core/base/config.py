@@ -59,6 +59,13 @@ class WorldConfig:
     #: memory is given back. 0 s: evicted at once, as soon as the robot is deleted.
     mesh_cache_keep_sec: float = 120.0
     mesh_cache_keep_mb: int = 512
+    #: Which concave collision meshes are split into convex parts (process-wide; see
+    #: :mod:`sim_node.core.models.decompose`): ``objects`` (meshes spawned by URI, MJCF meshes
+    #: a model marks, URDF models without joints), ``all`` (robots' links too), ``none``.
+    mesh_decomposition: str = 'objects'
+    #: CoACD's concavity threshold (a fraction of a shell's size): lower follows a concave
+    #: mesh closer, with more parts.
+    mesh_decomposition_threshold: float = 0.05
     #: Most bodies the world may hold (scene and spawned, world body included): a spawn past it
     #: is refused with a clear error. MuJoCo itself failed at about 5,000 ("Could not allocate
     #: memory"), and every body costs stepping time.

@@ -14,6 +14,7 @@ streams a RealSense Gazebo plugin names) and
 (a controllers YAML as a controller manager reads it),
 :mod:`.xacro_files` and :mod:`.xacro_worker` (xacro expanded in an isolated child process),
 :mod:`.meshes`, :mod:`.mesh_worker` and :mod:`.collada_fast` (meshes MuJoCo cannot read,
-converted in child processes), :mod:`.description` (a URDF of a compiled model, for
-robot_description).
+converted in child processes), :mod:`.decompose` and :mod:`.decompose_worker` (concave
+collision meshes split into convex parts in a child process), :mod:`.description` (a URDF of
+a compiled model, for robot_description).
 """

@@ -36,11 +36,17 @@ _UNIT = re.compile(rb'<unit\b[^>]*\bmeter\s*=\s*"([^"]+)"')
 _BIND_MATERIAL = re.compile(rb'<bind_material\b.*?</bind_material>', re.S)
 
 
-_ALLOWED: set = set()  # what the file being converted may open: its source, its output
+ALLOWED: set = set()  # what the file being converted may open: its source, its output
 
 
-def _limit() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_BYTES, MEMORY_BYTES))
+def sandbox(memory: int = MEMORY_BYTES, who: str = 'the mesh worker') -> None:
+    """
+    Limit this process: its memory and writes, and what it may open (:data:`ALLOWED`).
+
+    Its audit hook refuses to open anything but ALLOWED (and modules), to start processes, to
+    open sockets or to load libraries; :mod:`.decompose_worker` runs in it too.
+    """
+    resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
     resource.setrlimit(resource.RLIMIT_FSIZE, (WRITE_BYTES, WRITE_BYTES))
 
     def hook(event: str, args: tuple) -> None:
@@ -49,20 +55,20 @@ def _limit() -> None:
             if isinstance(path, int):
                 return
             real = os.path.realpath(os.fsdecode(path))
-            if real not in _ALLOWED and not real.endswith(('.py', '.pyc', '.so')):
-                raise PermissionError(f'the mesh worker may not open {real}')
+            if real not in ALLOWED and not real.endswith(('.py', '.pyc', '.so')):
+                raise PermissionError(f'{who} may not open {real}')
         elif event.split('.')[0] in ('subprocess', 'socket') or event in (
                 'os.system', 'os.exec', 'os.fork', 'os.forkpty', 'os.posix_spawn', 'os.spawn',
                 'ctypes.dlopen', 'os.startfile'):
-            raise PermissionError(f'the mesh worker may not {event}')
+            raise PermissionError(f'{who} may not {event}')
     sys.addaudithook(hook)
 
 
 def _allow(job: dict) -> None:
     """Let this file's source and output be opened, nothing else; give it its CPU time."""
-    _ALLOWED.clear()
-    _ALLOWED.update({os.path.realpath(job['src']), os.path.realpath(job['out']),
-                     os.path.realpath(job['out'] + '.part')})
+    ALLOWED.clear()
+    ALLOWED.update({os.path.realpath(job['src']), os.path.realpath(job['out']),
+                    os.path.realpath(job['out'] + '.part')})
     used = resource.getrusage(resource.RUSAGE_SELF)
     spent = int(used.ru_utime + used.ru_stime) + 1
     resource.setrlimit(resource.RLIMIT_CPU, (spent + CPU_SECONDS, resource.RLIM_INFINITY))
@@ -180,7 +186,7 @@ def main() -> None:
         import collada  # noqa: F401
     except ImportError:
         pass  # said per file below
-    _limit()
+    sandbox()
     for line in sys.stdin:
         try:
             item = json.loads(line)

@@ -265,22 +265,30 @@ def _remember(folder: Path, path: str, converted: Converted) -> None:
     _prune(folder)
 
 
+def drop_oldest(entries: list, limit: int, drop) -> None:
+    """Call ``drop(item)`` on (time used, bytes, item) entries, oldest first, until <= `limit`."""
+    total = sum(size for _, size, _ in entries)
+    for _, size, item in sorted(entries, key=lambda e: e[:2]):
+        if total <= limit:
+            break
+        drop(item)
+        total -= size
+
+
 def _prune(folder: Path, limit: int = CACHE_BYTES) -> None:
     """Keep the cache under `limit` bytes, the least recently used out first."""
     try:
         files = [(p.stat().st_mtime, p.stat().st_size, p) for p in folder.glob('*_v*.stl')]
     except OSError:
         return
-    total = sum(size for _, size, _ in files)
-    for _, size, path in sorted(files):
-        if total <= limit:
-            break
+
+    def drop(path: Path) -> None:
         for p in (path, path.with_suffix('.json')):
             try:
                 p.unlink()
             except OSError:
                 pass
-        total -= size
+    drop_oldest(files, limit, drop)
     try:  # the files' identities (tiny), past a bound the oldest first
         sources = sorted((p.stat().st_mtime, p) for p in folder.glob('*.source'))
     except OSError:

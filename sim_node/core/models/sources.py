@@ -18,7 +18,7 @@ import xml.etree.ElementTree as ET
 
 import mujoco
 
-from . import assets, meshes, prepare, urdf, xacro_files
+from . import assets, decompose, meshes, prepare, urdf, xacro_files
 from .assets import Reader
 from .paths import inside_roots  # noqa: F401 (this module's too)
 from .prepare import compile_error, WORLD_GEOMS_BODY  # noqa: F401 (named by scripts)
@@ -57,6 +57,10 @@ ERR_PRIMITIVE = 'unknown primitive {shape!r}; supported: ' + ', '.join(PRIMITIVE
 ERR_SIZE = '{shape} needs {n} positive finite size values, got {size}'
 ERR_MASS = 'mass must be finite and >= 0, got {mass}'
 ERR_RGBA = 'rgba must be 4 values in [0, 1], got {rgba}'
+#: The MJCF custom text naming the meshes to decompose (see :func:`split_marked_meshes`).
+DECOMPOSE_TEXT = 'decompose_meshes'
+ERR_MARKED_MESH = ('<custom><text name="decompose_meshes"> names meshes the model does not have: '
+                   '{names}; name <mesh> elements of this model')
 # Default budgets: the configuration's (the node passes its own WorldConfig's).
 _LIMITS = WorldConfig()
 #: Most faces a URDF mesh may have as it comes (over MuJoCo's limit it is decimated).
@@ -254,7 +258,9 @@ def world_spec(text: str, base_dir: Optional[str] = None,
         raise
     dropped = drop_unknown_elements(root, fail_on_unsupported_element) \
         if root.tag == 'mujoco' else []
-    return _spec_from(root), dropped
+    spec = _spec_from(root)
+    split_marked_meshes(spec)
+    return spec, dropped
 
 
 def from_model_text(text: str, base_dir: Optional[str] = None,
@@ -290,7 +296,9 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
             prepare.gather_world_geoms(root)
         spec = _spec_from(root)
         if is_urdf:
-            urdf.finish(spec, prepared)
+            urdf.finish(spec, prepared, {e.get('filename'): value for e, value, _ in found})
+        else:
+            split_marked_meshes(spec)
         prepare.inline_skin_files(spec)
         kind = 'urdf' if is_urdf else 'mjcf'
         name = root.attrib.get('name') or root.attrib.get('model') or ''
@@ -304,6 +312,24 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     source.text, source.name = text, name
     source.reader, source.urdf_notes = reader, prepared
     return source
+
+
+def split_marked_meshes(spec: mujoco.MjSpec) -> int:
+    """
+    Give the MJCF meshes a model marks convex parts (:mod:`.decompose`); return how many.
+
+    MJCF marks them with a custom text element naming them, as MuJoCo keeps it unread::
+
+        <custom><text name="decompose_meshes" data="tray shelf"/></custom>
+    """
+    marked = [t for t in spec.texts if t.name == DECOMPOSE_TEXT]
+    if not marked:
+        return 0
+    names = {n for t in marked for n in t.data.split()}
+    unknown = sorted(n for n in names if spec.mesh(n) is None)
+    if unknown:
+        raise ResourceParseError(ERR_MARKED_MESH.format(names=', '.join(unknown[:10])))
+    return decompose.split_geoms(spec, {}, only=names)
 
 
 def read_model_text(path: Path) -> str:
@@ -443,6 +469,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
                              rgba=colour)
         if mass:
             geom.mass = float(mass)
+        decompose.split_geoms(spec, {file: p.name})
         source = _finish(spec, 'mesh', f'mesh {p.name}')
     except BaseException:
         reader.settle(keep=False)

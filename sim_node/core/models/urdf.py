@@ -36,7 +36,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
-from . import inertias, urdf_declared
+from . import decompose, inertias, urdf_declared
 from .ros2_control import read as read_ros2_control, Ros2Control
 from ..base import quat as rotations
 from ..base.errors import CapacityError, ResourceParseError
@@ -201,9 +201,13 @@ def prepare(root: ET.Element, max_bodies: Optional[int] = None,
     return out
 
 
-def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
+def finish(spec: mujoco.MjSpec, prepared: Prepared, labels: Optional[dict] = None) -> None:
     """
     Finish the imported spec: a free joint for a floating root; meshes that weigh nothing.
+
+    Concave collision meshes of a model with no joint (a tray, a table; every model's with
+    ``mesh_decomposition`` ``all``) get convex parts (:mod:`.decompose`; `labels`: mesh file
+    -> the name the URDF gives it, for its messages), as Gazebo collides them as they are.
 
     A mesh whose volume no body's inertia comes from (a visual: MuJoCo gives visual geoms no
     density; a collision mesh of a link with its own inertial) is taken as a shell: a thin
@@ -226,6 +230,9 @@ def finish(spec: mujoco.MjSpec, prepared: Prepared) -> None:
                 if g.contype or g.conaffinity:
                     g.group = COLLISION_GROUP
     prepared.collisions = _name_collisions(spec, prepared.collisions)
+    thing = all(j.type == mujoco.mjtJoint.mjJNT_FREE for j in spec.joints)  # not a robot
+    if decompose.mode() == 'all' or thing:
+        decompose.split_geoms(spec, labels or {}, collisions=prepared.collisions)
     prepared.declared, prepared.sensors = urdf_declared.add(
         spec, prepared.extensions, prepared.joint_limits, prepared.joint_links,
         prepared.collisions)

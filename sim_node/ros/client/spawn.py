@@ -16,6 +16,7 @@ there is none: no answer; 2: a bad argument; 130: Ctrl-C, with one line)::
 import argparse
 import os
 from pathlib import Path
+import re
 import sys
 from typing import Optional, Sequence
 
@@ -101,6 +102,31 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             os._exit(EXIT_INTERRUPTED)
 
 
+def _say_decomposing(node) -> list:
+    """
+    Print what the simulator says on /diagnostics it is decomposing while the spawn waits.
+
+    A concave collision mesh seen for the first time is split into convex parts before the
+    spawn is answered (seconds, at most a minute a mesh): the user is told why it takes a
+    while. Returns the list of what was said, which the wait fills.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    said: list = []
+
+    def heard(msg) -> None:
+        for status in msg.status:
+            for kv in status.values:
+                if kv.key != 'decomposing':
+                    continue
+                meshes = re.sub(r' \(\d+ s of at most [\d.]+\)', '', kv.value)
+                if not said or said[-1] != meshes:
+                    said.append(meshes)
+                    print(f'the simulator is splitting concave collision meshes into convex '
+                          f'parts (once: they are cached): {kv.value}', flush=True)
+    node.create_subscription(DiagnosticArray, '/diagnostics', heard, 10)
+    return said
+
+
 def _spawn(node, args: argparse.Namespace) -> int:
     """Find the description, call the service, say what happened; return the exit status."""
     from .sim_client import SimClient, SimServiceError
@@ -118,6 +144,7 @@ def _spawn(node, args: argparse.Namespace) -> int:
     else:
         text = args.string
     sim = SimClient(namespace=args.sim, node=node, timeout_sec=args.timeout)
+    busy = _say_decomposing(node)
     try:
         name = sim.spawn(args.name, uri=uri, resource_string=text,
                          position=(args.x, args.y, args.z),
@@ -128,6 +155,12 @@ def _spawn(node, args: argparse.Namespace) -> int:
         print(f'spawn_entity answered {exc.code}: {exc.message}', file=sys.stderr)
         return exc.code if 0 < exc.code < 256 else EXIT_FAILED
     except TimeoutError as exc:
+        if busy:
+            print(f'{exc}: the simulator was still decomposing {busy[-1]}; the spawn goes on '
+                  'there (check with: ros2 service call /get_entities '
+                  'simulation_interfaces/srv/GetEntities), and the parts are cached for the '
+                  'next time: give a larger -timeout', file=sys.stderr)
+            return EXIT_FAILED
         print(f'{exc}; is the simulator running (ros2 run sim node)?', file=sys.stderr)
         return EXIT_FAILED
     print(f'spawned {name!r}')

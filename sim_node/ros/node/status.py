@@ -8,7 +8,8 @@ Nothing here asks the session for its state in a loop. The node's housekeeping t
 0.2 s, on the executor) drains the core's log lines (its threads never call rclpy) into the ROS
 logger and sends /diagnostics again once a second, as diagnostic_updater does, with the last
 state received, the loop's rate and the mesh cache's size (and what deleted robots keep in
-it); a refused joint command or goal goes out at once too.
+it), and the concave meshes being decomposed into convex parts, if any; a refused joint
+command or goal goes out at once too.
 """
 
 import collections
@@ -22,7 +23,7 @@ from msg_adapters import diagnostics
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ...core.models import asset_store
+from ...core.models import asset_store, decompose
 from ...session import LOADING_WORLD, NO_WORLD, PLAYING, Session, StateEvent
 
 #: How long a refused joint command stays in /diagnostics (wall seconds).
@@ -109,6 +110,11 @@ class Status:
             event = self._event
             cache = {'mesh_cache_mib': f'{asset_store.mesh_cache_bytes() / 2 ** 20:.1f}',
                      'mesh_cache_kept_mib': f'{kept / 2 ** 20:.1f}'}
+            busy = decompose.running()
+            if busy:  # a spawn waiting on a concave mesh's parts says why it takes a while
+                cache['decomposing'] = ', '.join(f'{label} ({sec:.0f} s of at most '
+                                                 f'{decompose.SECONDS:g})'
+                                                 for label, sec in busy)
             msg = diagnostics.diagnostics(loaded.loop.status(), self._name, event.state,
                                           event.reason, event.divergence, cache)
             for topic, (what, why, names, when, verdict) in list(self._refused.items()):

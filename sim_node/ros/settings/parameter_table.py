@@ -158,6 +158,16 @@ PARAMETERS = (
     Spec('mesh_cache_keep_mb', _W.mesh_cache_keep_mb, "the most deleted robots' meshes kept "
          'in that cache may hold (MiB; the oldest go first); kept MiB are on /diagnostics',
          limits=(0, 1_000_000), **RO),
+    Spec('mesh_decomposition', _W.mesh_decomposition, 'which concave collision meshes collide '
+         'as convex parts that follow them, as Gazebo collides meshes (MuJoCo collides a mesh as '
+         'its hull: a tray would be a solid block): objects (meshes spawned by URI, MJCF meshes '
+         'named in <custom><text name="decompose_meshes">, URDF models without joints), all '
+         "(robots' links too) or none (every mesh its hull; not 'off', which ROS reads as "
+         'false); decomposed once (CoACD, in a child process, at most 60 s a mesh) and cached '
+         'beside the converted meshes', **RO),
+    Spec('mesh_decomposition_threshold', _W.mesh_decomposition_threshold, "CoACD's concavity "
+         "threshold, a fraction of a mesh's size: lower follows a concave mesh closer, with more "
+         'parts (a tray: 0.05 gives 9-14, 0.1 gives 5)', limits=(0.001, 1.0), **RO),
     Spec('allow_second_simulator', False, 'start even when another simulator serves the same '
          'services in this namespace (they would answer calls at random; by default the newer '
          'of two exits with status 2, saying why)', **RO),

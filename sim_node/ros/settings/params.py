@@ -140,6 +140,7 @@ def world_config(node: Node) -> WorldConfig:
         max_bodies=p('max_bodies'), world_extent=p('world_extent'),
         divergence_policy=p('divergence_policy'), mesh_cache_mb=p('mesh_cache_mb'),
         mesh_cache_keep_sec=p('mesh_cache_keep_sec'), mesh_cache_keep_mb=p('mesh_cache_keep_mb'),
-        casters_roll=p('casters_roll'),
+        casters_roll=p('casters_roll'), mesh_decomposition=p('mesh_decomposition'),
+        mesh_decomposition_threshold=p('mesh_decomposition_threshold'),
         contact_entities=tuple(string_list(node, 'contact_entities')),
         contact_rate_hz=p('contact_rate_hz'))
