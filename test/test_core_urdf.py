@@ -665,8 +665,10 @@ def test_the_converted_mesh_is_in_metres_from_a_scene_with_transforms(world, tmp
     (tmp_path / 'scene.dae').write_bytes(collada_scene())
     spawn_file(world, tmp_path, robot(link('base', mesh_part('collision', 'scene.dae'))))
 
-    def area(m, d):
-        k = int(m.geom_dataid[[g for g in range(m.ngeom) if m.geom_type[g] == 7][-1]])
+    def area(m, d):  # of the mesh itself, not of the convex parts it collides as
+        k = int(m.geom_dataid[[g for g in range(m.ngeom) if m.geom_type[g] == 7 and '_part' not in
+                               mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_MESH,
+                                                 m.geom_dataid[g])][-1]])
         v = m.mesh_vert[m.mesh_vertadr[k]:m.mesh_vertadr[k] + m.mesh_vertnum[k]]
         f = m.mesh_face[m.mesh_faceadr[k]:m.mesh_faceadr[k] + m.mesh_facenum[k]]
         t = v[f]

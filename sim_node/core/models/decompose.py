@@ -9,13 +9,14 @@ mesh's separate shells first, each as its own hull, then CoACD for a shell its h
 fill with empty space), and keeps the geom itself as what is drawn and what weighs: its mass
 and inertia are those they were, the parts collide and weigh nothing.
 
-The work runs in a child process per mesh (two at a time), off the stepping thread, bounded
-in wall time (:data:`SECONDS`), CPU time and memory; while it runs, :func:`running` names it
+The work runs in a child process per mesh (two at a time), off the stepping thread, bounded in
+wall time (:data:`SECONDS`), CPU time and memory; while it runs, :func:`running` names it
 (/diagnostics shows it). A mesh that fails (its budget, a broken file) stays its hull, with a
-warning naming it. Results are kept by the mesh's content and the settings: in this process,
-and in the mesh cache folder's ``decomposed`` folder (:func:`.meshes.cache_dir`), so a second
-spawn, or the next node, does not redo it. :func:`configure` turns it off (hulls, as MuJoCo
-makes them) or sets the quality (the node's ``mesh_decomposition`` parameters).
+warning naming it, for the rest of this process. Results are kept by the mesh's content and the
+settings: in this process, and in the mesh cache folder's ``decomposed`` folder
+(:func:`.meshes.cache_dir`), so a second spawn, or the next node, does not redo it.
+:func:`configure` turns it off (hulls, as MuJoCo makes them) or sets the quality (the node's
+``mesh_decomposition`` parameters).
 """
 
 from concurrent.futures import ThreadPoolExecutor
@@ -55,8 +56,12 @@ FILL = 0.8
 MODES = ('objects', 'all', 'none')
 #: The most convex parts one mesh becomes (each a geom MuJoCo collides).
 MAX_PARTS = 64
-#: Wall time one mesh may take; its child has as much CPU time.
-SECONDS = 60.0
+#: Wall time one mesh may take (then it stays its hull); its child has as much CPU time, and
+#: this much address space (a 105,000-face tray's decomposition peaked at a fraction of it).
+#: A tray of 105,000 faces takes 12-17 s on a 2-core machine, a washer of 100,000 20 s; an
+#: open, patchy 200,000-face sphere 21-60 s (under load): past the budget, a hull.
+SECONDS = 30.0
+MEMORY_BYTES = 4 << 30
 #: The most bytes the decomposition cache folder keeps, least recently used out first.
 CACHE_BYTES = 512 << 20
 #: Geoms the parts are put in (hidden in MuJoCo's renderer and the viewer, as URDF collisions).
@@ -154,7 +159,7 @@ def _run(path: str, label: str, folder: Path) -> tuple:
     """Decompose in a child process; record the answer in `folder`; a failure keeps it whole."""
     tmp = Path(tempfile.mkdtemp(prefix='part', dir=folder.parent))
     job = {'src': path, 'out': str(tmp), 'threshold': _settings['threshold'], 'fill': FILL,
-           'max_parts': MAX_PARTS, 'seconds': int(SECONDS)}
+           'max_parts': MAX_PARTS, 'seconds': int(SECONDS), 'memory': MEMORY_BYTES}
     with _lock:
         _running[label] = start = time.monotonic()
         _runs[0] += 1
@@ -173,15 +178,15 @@ def _run(path: str, label: str, folder: Path) -> tuple:
         with _lock:
             _running.pop(label, None)
     took = time.monotonic() - start
-    if 'error' in answer:
+    if 'error' in answer:  # remembered by this process only: a busy machine's timeout
         log.warning('the collision mesh %s could not be decomposed into convex parts (%s): it '
                     'collides as its convex hull', label, answer['error'])
-        names = []
-    else:
-        names = answer.get('parts', [])
-        if names:
-            log.info('the collision mesh %s collides as %d convex parts (%d shells; %.1f s)',
-                     label, len(names), answer.get('shells', 1), took)
+        shutil.rmtree(tmp, ignore_errors=True)  # is not the next node's
+        return ()
+    names = answer.get('parts', [])
+    if names:
+        log.info('the collision mesh %s collides as %d convex parts (%d shells; %.1f s)',
+                 label, len(names), answer.get('shells', 1), took)
     try:
         (tmp / 'parts.json').write_text(json.dumps({'parts': names, 'answer': answer}))
         shutil.rmtree(folder, ignore_errors=True)
@@ -189,11 +194,17 @@ def _run(path: str, label: str, folder: Path) -> tuple:
     except OSError:
         shutil.rmtree(tmp, ignore_errors=True)
         return ()
-    _prune(folder.parent)
+    prune(folder.parent)
     return tuple(str(folder / name) for name in names)
 
 
-def _prune(root: Path, limit: int = CACHE_BYTES) -> None:
+def forget() -> None:
+    """Forget what this process decomposed: the next spawn reads the disk cache again."""
+    with _lock:
+        _done.clear()
+
+
+def prune(root: Path, limit: int = CACHE_BYTES) -> None:
     """Keep the decomposition cache under `limit` bytes, the least recently used out first."""
     try:
         entries = []

@@ -2,11 +2,11 @@
 A child process that splits a concave collision mesh into convex parts (no sim_node imports).
 
 Run once per mesh by :mod:`.decompose` as ``python decompose_worker.py`` with one JSON line on
-stdin (``{"src", "out", "threshold", "fill", "max_parts", "seconds"}``); it answers with one
-JSON line on stdout: ``{"whole": true}`` when the mesh is one shell its hull stands for (MuJoCo
-collides a mesh as its hull), ``{"parts": [file, ...], "shells", "decomposed"}`` with the parts
-written as binary STL in the folder ``out``, or ``{"error"}``; with ``"fills"``, the filled
-share of the hull of each shell that was not convex.
+stdin (``{"src", "out", "threshold", "fill", "max_parts", "seconds", "memory"}``); it answers
+with one JSON line on stdout: ``{"whole": true}`` when the mesh is one shell its hull stands
+for (MuJoCo collides a mesh as its hull), ``{"parts": [file, ...], "shells", "decomposed"}``
+with the parts written as binary STL in the folder ``out``, or ``{"error"}``; with
+``"fills"``, the filled share of the hull of each shell that was not convex.
 
 How: the mesh (binary STL or OBJ, read from its bytes) is welded (vertices at one place made
 one) and cut into its shells (faces joined by shared vertices). A shell that is closed and
@@ -54,11 +54,11 @@ MCTS_ITERATIONS = 50
 MCTS_DEPTH = 2
 
 
-def _limit(src: str, seconds: int) -> None:
-    """Sandbox this process as the mesh worker is (its own memory), with `seconds` of CPU."""
+def _limit(src: str, seconds: int, memory: int) -> None:
+    """Sandbox this process as the mesh worker is, with `memory` bytes and `seconds` of CPU."""
     import mesh_worker  # the sibling script: one sandbox for both workers
     mesh_worker.ALLOWED.add(os.path.realpath(src))
-    mesh_worker.sandbox(MEMORY_BYTES, 'the decomposition worker')
+    mesh_worker.sandbox(memory, 'the decomposition worker')
     resource.setrlimit(resource.RLIMIT_CPU, (seconds, seconds + 5))
 
 
@@ -265,11 +265,12 @@ def main() -> None:
         os.nice(NICE)
     except OSError:
         pass
-    _limit(job['src'], int(job['seconds']))
+    memory = int(job.get('memory', MEMORY_BYTES))
+    _limit(job['src'], int(job['seconds']), memory)
     try:
         answer = decompose(job)
     except MemoryError:
-        answer = {'error': f'it needed more than {MEMORY_BYTES >> 30} GiB'}
+        answer = {'error': f'it needed more than {memory / 2 ** 30:.2g} GiB'}
     except Exception as exc:  # noqa: B902 (any failure of an untrusted file is its answer)
         answer = {'error': f'{type(exc).__name__}: {str(exc)[:300]}'}
     sys.stdout.write(json.dumps(answer) + '\n')

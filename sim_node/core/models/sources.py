@@ -461,6 +461,9 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
             (converted,) = meshes.convert([(p.name, stored)], max_faces)
             prepare.hold_if_stored(reader, converted.path)
             file = converted.path
+            if converted.decimated:
+                log.warning('the mesh %s has %d faces, more than a spawn takes (%d): decimated '
+                            'to %d', p.name, converted.faces_in, max_faces, converted.faces)
         static = static or not mass
         spec, body = _new_body_spec(static)
         # A mesh file is cached across recompiles; raw vertex arrays would be reprocessed.

@@ -163,7 +163,7 @@ PARAMETERS = (
          'its hull: a tray would be a solid block): objects (meshes spawned by URI, MJCF meshes '
          'named in <custom><text name="decompose_meshes">, URDF models without joints), all '
          "(robots' links too) or none (every mesh its hull; not 'off', which ROS reads as "
-         'false); decomposed once (CoACD, in a child process, at most 60 s a mesh) and cached '
+         'false); decomposed once (CoACD, in a child process, at most 30 s a mesh) and cached '
          'beside the converted meshes', **RO),
     Spec('mesh_decomposition_threshold', _W.mesh_decomposition_threshold, "CoACD's concavity "
          "threshold, a fraction of a mesh's size: lower follows a concave mesh closer, with more "
