@@ -252,3 +252,30 @@ def test_a_realsense_publishes_its_streams_where_its_plugin_names_them(sim, watc
     topics = [name for name, _ in watch.node.get_topic_names_and_types()]
     assert not [t for t in topics if f'{PREFIX}color' in t or f'{PREFIX}depth' in t], topics
     assert f'/{PREFIX}/color/depth/image_raw' not in topics  # an image stream alone
+
+
+def test_an_openni_kinect_publishes_its_streams_where_its_plugin_names_them(sim, watch):
+    """FACE (``test_core_openni``): Go1's face camera, 2 m from a wall, its cloud cut at 1.5 m."""
+    import numpy as np
+    from sensor_msgs.msg import Image
+    from test_core_openni import FACE
+    sim.spawn('dog', resource_string=FACE, position=(3.0, -3.0, 0.0))  # the camera 1 m up
+    sim.spawn('wall', resource_string=BOX, position=(5.25, -3.0, 1.0))  # its face at x = 5
+    color = latest(watch, Image, '/camera_face/color/image_raw')
+    assert (color.header.frame_id, color.width) == ('dog/camera_optical_face', 160)
+    assert latest(watch, CameraInfo, '/camera_face/color/camera_info').header.frame_id == \
+        'dog/camera_optical_face'
+    depth = latest(watch, Image, '/camera_face/depth/image_raw')
+    assert (depth.header.frame_id, depth.encoding) == ('dog/camera_optical_face', '32FC1')
+    metres = np.frombuffer(bytes(depth.data), '<f4').reshape(120, 160)
+    assert metres[60, 80] == pytest.approx(2.0, abs=0.02)  # the wall, straight ahead
+    cloud = latest(watch, PointCloud2, '/cam1/point_cloud_face')
+    assert (cloud.header.frame_id, cloud.width, cloud.height) == ('dog/camera_optical_face',
+                                                                  160, 120)
+    offset = {f.name: f.offset for f in cloud.fields}['z']
+    rows = np.frombuffer(bytes(cloud.data), np.uint8).reshape(-1, cloud.point_step)
+    z = rows[:, offset:offset + 4].copy().view('<f4').reshape(120, 160)
+    assert np.isnan(z[60, 80])  # the wall at 2 m: past the plugin's 1.5 m cutoff
+    assert 0.1 < z[119, 80] < 1.5  # the floor just ahead, inside it
+    topics = [name for name, _ in watch.node.get_topic_names_and_types()]
+    assert not [t for t in topics if 'camera_face_ir' in t], topics

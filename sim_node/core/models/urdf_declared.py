@@ -12,7 +12,8 @@ elements :func:`.urdf.prepare` kept:
   ``force_torque`` on a joint a site on its child; ``contact`` reports on the link's
   collisions. What each tag declares (rates, sizes, sweeps, noise, frames, topics) is read by
   :mod:`.sensor_tags`; a sensor's ``<pose>`` places it on the link. The cameras a RealSense
-  plugin drives take the topics, frames and depth format it names (:mod:`.realsense`).
+  plugin drives take the topics, frames and depth format it names (:mod:`.realsense`), and
+  a depth camera with an OpenNI Kinect plugin the topics and cutoffs it names (:mod:`.openni`).
 * ``<ros2_control>`` joints: a joint whose command interfaces are velocity without position
   gets a velocity actuator (``kv`` the link's inertia over twice a 2 ms step: a 4 ms time
   constant, stable; ``ctrlrange`` from the interface's min/max or the URDF velocity limit,
@@ -29,7 +30,7 @@ from xml.etree import ElementTree as ET
 import mujoco
 import numpy as np
 
-from . import realsense, sensor_tags
+from . import openni, realsense, sensor_tags
 from ..base import loads, quat
 
 log = logging.getLogger(__name__)
@@ -122,8 +123,8 @@ def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
         # MuJoCo's camera looks along its -z with y up; Gazebo's along the link's x, z up.
         turn = quat.mul(orientation, quat.from_xyaxes((0, -1, 0), (0, 0, 1)))
         body.add_camera(name=name, pos=pos, quat=turn, fovy=fovy)
-        declared.append(sensor_tags.camera(sensor, name, [b.name for b in spec.bodies
-                                                          if b.name]))
+        declared.append(openni.named(sensor_tags.camera(
+            sensor, name, [b.name for b in spec.bodies if b.name]), sensor))
         return f'camera {name!r} on {body.name!r}'
     if kind == 'imu':
         site = body.add_site(name=f'{name}_imu', pos=pos, quat=orientation)
