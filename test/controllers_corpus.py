@@ -705,6 +705,89 @@ ackermann_steering_controller:
 """
 
 
+def gz_tricycle(yaml_path: str) -> str:
+    """
+    Return a tricycle as gz_ros2_control's tricycle demo builds it, for its example program.
+
+    A 1 kg chassis (2 x 1 x 0.5 m) on two free rear wheels (2 kg, 0.3 m in radius, 1 m apart,
+    damped 0.2) and one 15 kg front wheel 1.7 m ahead that steers (position, on a 5 g link)
+    and drives (velocity): most of its weight on the wheel that drives.
+    """
+    def rear(side: str, y: float) -> str:
+        return f"""
+  <link name="{side}_wheel"><inertial><mass value="2"/>
+      <inertia ixx="0.145833" iyy="0.145833" izz="0.125" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><cylinder length="0.08" radius="0.3"/></geometry></collision></link>
+  <joint name="{side}_wheel_joint" type="continuous"><parent link="chassis"/>
+    <child link="{side}_wheel"/><origin xyz="-0.8 {y} -0.2" rpy="-1.57 0 0"/>
+    <axis xyz="0 0 1"/><dynamics damping="0.2"/></joint>"""
+
+    joints = """
+    <joint name="steering_joint"><command_interface name="position"/>
+      <state_interface name="position"/></joint>
+    <joint name="traction_joint"><command_interface name="velocity"/>
+      <state_interface name="velocity"/><state_interface name="position"/></joint>"""
+    return f"""<robot name="tricycle_drive"><link name="base_link"/>
+  <link name="chassis"><inertial><mass value="1"/>
+      <inertia ixx="0.126164" iyy="0.416519" izz="0.481014" ixy="0" ixz="0" iyz="0"/>
+    </inertial><collision><geometry><box size="2 1 0.5"/></geometry></collision></link>
+  <joint name="chassis_joint" type="fixed"><parent link="base_link"/><child link="chassis"/>
+    <origin xyz="0.8 0 0.5"/></joint>{rear('left', 0.5)}{rear('right', -0.5)}
+  <link name="steering_link"><inertial><mass value="0.005"/>
+      <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="steering_joint" type="continuous"><parent link="chassis"/>
+    <child link="steering_link"/><origin xyz="0.9 0 -0.2"/><axis xyz="0 0 1"/></joint>
+  <link name="wheel_front_link"><inertial><mass value="15"/>
+      <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><cylinder length="0.08" radius="0.3"/></geometry></collision></link>
+  <joint name="traction_joint" type="continuous"><parent link="steering_link"/>
+    <child link="wheel_front_link"/><origin rpy="-1.57 1.57 0"/><axis xyz="0 0 1"/></joint>
+  {_gz_system('GazeboSimSystem', joints, yaml_path)}
+</robot>"""
+
+
+#: The tricycle demo's controllers YAML of the Jazzy line (tricycle_controller at 50 Hz, its
+#: traction and steering limits, the rear wheels on joint_states as extra joints).
+GZ_TRICYCLE_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 50
+    tricycle_controller:
+      type: tricycle_controller/TricycleController
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+
+joint_state_broadcaster:
+  ros__parameters:
+    extra_joints: ["right_wheel_joint", "left_wheel_joint"]
+
+tricycle_controller:
+  ros__parameters:
+    traction_joint_name: traction_joint
+    steering_joint_name: steering_joint
+    wheel_radius: 0.3
+    wheelbase: 1.7
+    odom_frame_id: odom
+    base_frame_id: base_link
+    publish_rate: 50.0
+    open_loop: false
+    enable_odom_tf: true
+    odom_only_twist: false
+    pose_covariance_diagonal: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    twist_covariance_diagonal: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    velocity_rolling_window_size: 10
+    traction:
+      max_acceleration: 5.0
+      max_deceleration: 8.0
+    steering:
+      min_position: -1.57
+      max_position: 1.57
+      max_velocity: 1.0
+    cmd_vel_timeout: 500
+    use_stamped_vel: false
+    publish_ackermann_command: true
+"""
+
+
 def gz_diff_drive(yaml_path: str) -> str:
     """
     Return a base as gz_ros2_control's diff-drive demo builds it, for its example program.

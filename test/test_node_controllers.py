@@ -682,6 +682,33 @@ def test_gz_ros2_controls_diff_drive_demo_goes_at_what_its_example_program_asks(
     assert turned / (b['stamp'] - a['stamp']) == pytest.approx(0.1, rel=0.05)
 
 
+def test_gz_ros2_controls_tricycle_demo_goes_at_what_its_example_program_asks(sim, watch):
+    # Issue 53, item 3: the tricycle demo (its front wheel steers by a position interface and
+    # drives by a velocity interface, carrying most of the weight; the rear wheels roll
+    # free), driven as example_tricycle_drive drives it: a TwistStamped of 0.2 m/s and
+    # 0.1 rad/s on /tricycle_controller/cmd_vel every 50 ms.
+    from geometry_msgs.msg import TwistStamped
+    path = corpus.write(FOLDER['path'], 'gz_tricycle.yaml', corpus.GZ_TRICYCLE_YAML)
+    sim.spawn('demo_tricycle', resource_string=corpus.gz_tricycle(path), namespace='demo_tc',
+              position=(6.0, 6.0, 0.01))
+    manager = '/demo_tc/controller_manager'
+    for controller in ('joint_state_broadcaster', 'tricycle_controller'):
+        assert corpus.spawner(sim, controller, manager=manager)[0] is None
+    cmd = TwistStamped()
+    cmd.twist.linear.x, cmd.twist.angular.z = 0.2, 0.1
+    odoms, poses = drive(  # the steering turns at 1 rad/s at most: 0.7 s to its angle
+        sim, watch, 'demo_tricycle', cmd, '/demo_tc/tricycle_controller/cmd_vel',
+        '/demo_tc/tricycle_controller/odom', seconds=7.0, first_pose=3.0)
+    speed, turn = steady(odoms)
+    assert speed == pytest.approx(0.2, rel=0.05)
+    assert turn == pytest.approx(0.1, rel=0.05)
+    (a, b) = poses
+    dt = b['stamp'] - a['stamp']
+    assert math.hypot(*b['linear'][:2]) == pytest.approx(0.2, rel=0.05)
+    turned = (_yaw(b) - _yaw(a) + math.pi) % (2 * math.pi) - math.pi
+    assert turned / dt == pytest.approx(0.1, rel=0.05)
+
+
 def test_a_spawned_arm_without_controllers_is_held_where_it_spawns(sim, watch):
     """
     Hold a one-link arm whose link hangs out sideways level from its spawn.
