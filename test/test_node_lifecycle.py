@@ -28,6 +28,12 @@ def test_bad_scene_parameter_exits_with_a_message(start_node):
     ('max_bodies:=1.5', "parameter max_bodies: '1.5' is a double, but it takes an integer"),
     ('divergence_policy:=explode', "divergence_policy must be one of ['pause', 'remove', "
                                    "'reset'], got 'explode'"),
+    ('mesh_decomposition:=sometimes', 'mesh_decomposition must be one of objects, all, none, '
+                                      "got 'sometimes'"),
+    ('mesh_decomposition:=off', "parameter mesh_decomposition: 'False' is a bool, but it takes "
+                                'a string'),  # ROS reads off as false: hence none
+    ('mesh_decomposition_threshold:=0', 'parameter mesh_decomposition_threshold: 0.0 is out of '
+                                        'its range, 0.001 to 1.0'),
 ])
 def test_a_wrong_parameter_ends_the_start_with_one_line_and_status_2(start_node, param, says):
     node = start_node(param)
