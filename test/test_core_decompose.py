@@ -225,6 +225,20 @@ def test_mjcf_meshes_a_model_marks_are_decomposed(meshes):
         sources.from_model_text(bad)
 
 
+def test_a_world_loaded_with_marked_meshes_gets_their_parts(meshes, tmp_path):
+    text = f"""<mujoco><asset><mesh name="tray" file="{meshes['tray']}"/></asset>
+      <custom><text name="decompose_meshes" data="tray"/></custom>
+      <worldbody><geom type="plane" size="5 5 0.1"/>
+        <body name="t"><geom type="mesh" mesh="tray"/></body></worldbody></mujoco>"""
+    spec, _ = sources.world_spec(text)  # what load_world reads
+    assert spec.compile().ngeom > 6
+    scene = tmp_path / 'scene.xml'  # and the scene parameter (World.from_file)
+    scene.write_text(text)
+    w = World.from_file(str(scene))
+    with w.locked() as (m, _):
+        assert m.ngeom > 6
+
+
 def test_the_parameter_reaches_the_world():
     World.from_file(str(SCENES / 'empty.xml'), WorldConfig(mesh_decomposition='none'))
     try:
