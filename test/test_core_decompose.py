@@ -10,6 +10,7 @@ Real MuJoCo, real CoACD in its child process.
 
 import logging
 import os
+from pathlib import Path
 import subprocess
 import sys
 
@@ -232,11 +233,19 @@ def test_a_world_loaded_with_marked_meshes_gets_their_parts(meshes, tmp_path):
         <body name="t"><geom type="mesh" mesh="tray"/></body></worldbody></mujoco>"""
     spec, _ = sources.world_spec(text)  # what load_world reads
     assert spec.compile().ngeom > 6
-    scene = tmp_path / 'scene.xml'  # and the scene parameter (World.from_file)
-    scene.write_text(text)
+    # And the scene parameter (World.from_file): its mesh found through meshdir, turned.
+    (tmp_path / 'meshes').mkdir()
+    (tmp_path / 'meshes' / 'tray.stl').write_bytes(Path(meshes['tray']).read_bytes())
+    scene = tmp_path / 'scene.xml'
+    scene.write_text(text.replace(meshes['tray'], 'tray.stl').replace(
+        '<asset>', '<compiler meshdir="meshes"/><asset>').replace(
+        '<body name="t">', '<body name="t" pos="0 0 0.5">').replace(
+        'mesh="tray"/>', 'mesh="tray" euler="0 0 90"/>'))
     w = World.from_file(str(scene))
-    with w.locked() as (m, _):
-        assert m.ngeom > 6
+    # Turned a quarter (its inside 0.36 m along y now), on a 0.5 m stand: a box beside the
+    # middle along y rests on its floor (unturned, the tray's wall would be under it).
+    w.spawn('box', box_source(), position=(0.0, 0.14, 0.8))
+    assert rest_height(w, 'box') == pytest.approx(0.5 + cm.TRAY_FLOOR + BOX / 2, abs=0.005)
 
 
 def test_the_parameter_reaches_the_world():

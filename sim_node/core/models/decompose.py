@@ -198,6 +198,13 @@ def _run(path: str, label: str, folder: Path) -> tuple:
     return tuple(str(folder / name) for name in names)
 
 
+def _resolved(spec: mujoco.MjSpec, file: str) -> str:
+    """Return where a mesh file is: as given when absolute, else as MuJoCo finds it."""
+    if os.path.isabs(file):
+        return file
+    return os.path.join(spec.modelfiledir or '', spec.meshdir or '', file)
+
+
 def forget() -> None:
     """Forget what this process decomposed: the next spawn reads the disk cache again."""
     with _lock:
@@ -240,8 +247,10 @@ def split_geoms(spec: mujoco.MjSpec, labels: dict, only: Optional[Sequence[str]]
             if mesh is None or not mesh.file or (only is not None and mesh.name not in only):
                 continue
             todo.append((body, geom, mesh))
-    files = sorted({m.file for _, _, m in todo})
-    found = dict(zip(files, _pool.map(lambda f: parts(f, labels.get(f, Path(f).name)), files)))
+    where = {m.file: _resolved(spec, m.file) for _, _, m in todo}
+    files = sorted(where)
+    found = dict(zip(files, _pool.map(
+        lambda f: parts(where[f], labels.get(f, Path(f).name)), files)))
     split = 0
     for body, geom, mesh in todo:
         pieces = found.get(mesh.file)
@@ -255,6 +264,7 @@ def split_geoms(spec: mujoco.MjSpec, labels: dict, only: Optional[Sequence[str]]
             part = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name,
                                  pos=list(geom.pos), quat=list(geom.quat), mass=0.0,
                                  group=PART_GROUP)
+            part.alt = geom.alt  # an MJCF euler, axisangle, ... as given
             for attr in ('contype', 'conaffinity', 'condim', 'priority', 'friction', 'solmix',
                          'solref', 'solimp', 'margin', 'gap', 'rgba'):
                 setattr(part, attr, getattr(geom, attr))
