@@ -10,6 +10,7 @@ four legs, touching), the ring one closed shell around a hole.
 from pathlib import Path
 
 import numpy as np
+from sim_node.core.models.collada_fast import binary_stl
 
 #: The tray: 0.4 m x 0.3 m, walls 0.02 m thick and 0.1 m high, floor 0.02 m thick.
 TRAY_SIZE, TRAY_WALL, TRAY_HEIGHT, TRAY_FLOOR = (0.4, 0.3), 0.02, 0.1, 0.02
@@ -18,14 +19,10 @@ TABLE_TOP, TABLE_UNDER, TABLE_THICK, TABLE_LEG = (1.0, 0.6), 0.7, 0.04, 0.05
 
 
 def write_stl(path: Path, triangles: np.ndarray) -> Path:
-    """Write triangles (n, 3, 3) as binary STL; return the path."""
-    fields = [('n', '<f4', 3), ('v', '<f4', (3, 3)), ('a', '<u2')]
-    record = np.zeros(len(triangles), dtype=fields)
-    record['v'] = triangles
-    with open(path, 'wb') as f:
-        f.write(b'test mesh'.ljust(80, b' '))
-        f.write(np.uint32(len(triangles)).tobytes())
-        f.write(record.tobytes())
+    """Write triangles (n, 3, 3) as binary STL (the package's own writer); return the path."""
+    corners = np.asarray(triangles, dtype=float).reshape(-1, 3)
+    faces = np.arange(len(corners)).reshape(-1, 3)
+    Path(path).write_bytes(binary_stl(corners, faces))
     return Path(path)
 
 

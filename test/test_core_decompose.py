@@ -231,8 +231,10 @@ def test_a_world_loaded_with_marked_meshes_gets_their_parts(meshes, tmp_path):
       <custom><text name="decompose_meshes" data="tray"/></custom>
       <worldbody><geom type="plane" size="5 5 0.1"/>
         <body name="t"><geom type="mesh" mesh="tray"/></body></worldbody></mujoco>"""
-    spec, _ = sources.world_spec(text)  # what load_world reads
-    assert spec.compile().ngeom > 6
+    spec, _ = sources.world_spec(text)  # what load_world reads, then makes a World of
+    loaded = World(spec)
+    with loaded.locked() as (m, _):
+        assert m.ngeom > 6
     # And the scene parameter (World.from_file): its mesh found through meshdir, turned.
     (tmp_path / 'meshes').mkdir()
     (tmp_path / 'meshes' / 'tray.stl').write_bytes(Path(meshes['tray']).read_bytes())

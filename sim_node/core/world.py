@@ -68,7 +68,7 @@ class World:
         guard.route_mujoco_warnings()
         asset_store.set_mesh_cache(config.mesh_cache_mb)
         decompose.configure(config.mesh_decomposition, config.mesh_decomposition_threshold)
-        sources.split_marked_meshes(spec)  # a scene file's (load_world's are split already)
+        sources.split_marked_meshes(spec)  # a scene file's, load_world's
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
         arena = ((config.arena_base_bytes, config.arena_bytes_per_body)

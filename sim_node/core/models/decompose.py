@@ -123,13 +123,9 @@ def parts(path: str, label: str) -> tuple:
     `label` names it in log lines, warnings and /diagnostics (the file the model names).
     """
     try:
-        with open(path, 'rb') as f:
-            faces = asset_store.mesh_faces(Path(path).suffix.lower(), f.read())
+        digest = asset_store.store().digest(path)  # read once per file, then remembered
     except OSError:
         return ()
-    if faces is not None and faces < 4:  # no inside: MuJoCo takes it whole or refuses it
-        return ()
-    digest = asset_store.store().digest(path)
     key = (digest, _key())
     with _lock:
         if key in _done:
@@ -137,9 +133,19 @@ def parts(path: str, label: str) -> tuple:
     folder = _folder() / f'{digest}_{key[1]}'
     found = _read(folder)
     if found is None:
-        found = _run(path, label, folder)
+        found = () if _too_few_faces(path) else _run(path, label, folder)
     with _lock:
         return _done.setdefault(key, found)
+
+
+def _too_few_faces(path: str) -> bool:
+    """Whether a mesh has no inside (under 4 faces): MuJoCo takes it whole or refuses it."""
+    try:
+        with open(path, 'rb') as f:
+            faces = asset_store.mesh_faces(Path(path).suffix.lower(), f.read())
+    except OSError:
+        return True
+    return faces is not None and faces < 4
 
 
 def _read(folder: Path) -> Optional[tuple]:

@@ -133,18 +133,6 @@ def _opposite(faces, edges):
     return faces[np.arange(len(faces)), np.argmax(off, axis=1)]
 
 
-def _write_stl(path: str, vertices, faces) -> None:
-    import numpy as np
-    tri = vertices[faces].astype(np.float32)
-    record = np.zeros(len(faces), dtype=[('n', '<f4', 3), ('v', '<f4', (3, 3)),
-                                         ('a', '<u2')])
-    record['v'] = tri
-    with open(path, 'wb') as f:
-        f.write(b'sim convex part'.ljust(80, b' '))
-        f.write(np.uint32(len(faces)).tobytes())
-        f.write(record.tobytes())
-
-
 def _volume(vertices, faces) -> float:
     """
     Return the volume a shell encloses: exact when it is closed; an open one as if closed.
@@ -239,11 +227,14 @@ def decompose(job: dict) -> dict:
     if (len(shells) == 1 and not decomposed) or not parts:
         return {'whole': True, 'fills': fills}
     names = []
+    import collada_fast  # the sibling module's STL writer, as the mesh worker writes
     import mesh_worker
     for i, (v, f) in enumerate(parts):
         name = f'part_{i:03d}.stl'
-        mesh_worker.ALLOWED.add(os.path.realpath(os.path.join(job['out'], name)))
-        _write_stl(os.path.join(job['out'], name), v, f)
+        path = os.path.join(job['out'], name)
+        mesh_worker.ALLOWED.add(os.path.realpath(path))
+        with open(path, 'wb') as out:
+            out.write(collada_fast.binary_stl(v, f))
         names.append(name)
     return {'parts': names, 'shells': len(shells), 'decomposed': decomposed, 'fills': fills}
 
@@ -252,6 +243,7 @@ def main() -> None:
     job = json.loads(sys.stdin.readline())
     try:  # the libraries load their own files before the hook
         import coacd  # noqa: F401
+        import collada_fast  # noqa: F401
         import fast_simplification  # noqa: F401
         import mujoco  # noqa: F401
         import numpy  # noqa: F401

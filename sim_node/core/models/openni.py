@@ -21,10 +21,9 @@ refuses or a cutoff that is not a distance is left out with a warning naming the
 
 from dataclasses import replace
 import logging
-import math
 from xml.etree import ElementTree as ET
 
-from .sensor_tags import MAX_RANGE, valid_topic
+from .sensor_tags import plugin_range, valid_topic
 from ..base.records import DeclaredCamera
 
 log = logging.getLogger(__name__)
@@ -63,22 +62,10 @@ def named(camera: DeclaredCamera, sensor: ET.Element) -> DeclaredCamera:
             given = ''
         topic = given or default
         topics[tag] = topic if topic.startswith('/') or not base else f'{base}/{topic}'
-    cut = []
-    for tag, default in zip(('pointCloudCutoff', 'pointCloudCutoffMax'), CUTOFFS):
-        text = (plugin.findtext(tag) or '').strip()
-        try:
-            value = float(text) if text else default
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and 0 <= value <= MAX_RANGE):
-            warn(tag, text, f'is not a distance of 0 to {MAX_RANGE:g} m')
-            value = default
-        cut.append(value)
-    if not cut[0] < cut[1]:
-        warn('pointCloudCutoff', tuple(cut), 'is not below pointCloudCutoffMax')
-        cut = list(CUTOFFS)
+    cut = plugin_range(plugin, ('pointCloudCutoff', 'pointCloudCutoffMax'), CUTOFFS,
+                       'pointCloudCutoff', warn)
     return replace(camera, topic=camera.topic or base, depth=True, points=True,
-                   points_clip=tuple(cut), image_topic=topics['imageTopicName'],
+                   points_clip=cut, image_topic=topics['imageTopicName'],
                    info_topic=topics['cameraInfoTopicName'],
                    depth_topic=topics['depthImageTopicName'],
                    points_topic=topics['pointCloudTopicName'])

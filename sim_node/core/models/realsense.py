@@ -29,11 +29,10 @@ plugin's own default). A value that is absurd is left out with a warning naming 
 
 from dataclasses import replace
 import logging
-import math
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from .sensor_tags import MAX_RANGE, MAX_RATE_HZ, valid_topic
+from .sensor_tags import MAX_RATE_HZ, plugin_number, plugin_range, valid_topic
 from ..base.records import DeclaredCamera, NO_TOPIC
 
 log = logging.getLogger(__name__)
@@ -107,28 +106,19 @@ def _named(d: DeclaredCamera, plugin: ET.Element, prefix: str, stream: str,
         frame = d.frame
     rate = d.rate_hz
     if rate is None:
-        rate = _positive(plugin, rate_tag, MAX_RATE_HZ, warn)
+        rate = plugin_number(plugin, rate_tag, MAX_RATE_HZ, warn)
     changes = {'topic': base or d.topic, 'info_topic': info, 'frame': frame, 'rate_hz': rate}
     if stream != 'depth':  # an image stream alone: no depth nor points beside it
         return replace(d, image_topic=full, depth_topic=NO_TOPIC, points=False, **changes)
-    near = _positive(plugin, 'rangeMinDepth', MAX_RANGE, warn, zero=True)
-    far = _positive(plugin, 'rangeMaxDepth', MAX_RANGE, warn)
-    clip = (DEPTH_RANGE[0] if near is None else near, DEPTH_RANGE[1] if far is None else far)
-    if not clip[0] < clip[1]:
-        warn('depth range', clip, 'is not near < far')
-        clip = DEPTH_RANGE
+    clip = plugin_range(plugin, ('rangeMinDepth', 'rangeMaxDepth'), DEPTH_RANGE, 'depth range',
+                        warn)
     cloud = (_text(plugin, 'pointCloud') or 'false').lower() in ('1', 'true')
     points_topic = _text(plugin, 'pointCloudTopicName') or 'depth/color/points'
     if not valid_topic(points_topic):
         warn('pointCloudTopicName', points_topic, 'is not a name ROS takes')
         points_topic = 'depth/color/points'
-    cut_near = _positive(plugin, 'pointCloudCutoff', MAX_RANGE, warn, zero=True)
-    cut_far = _positive(plugin, 'pointCloudCutoffMax', MAX_RANGE, warn)
-    cut = (POINTS_CUTOFF[0] if cut_near is None else cut_near,
-           POINTS_CUTOFF[1] if cut_far is None else cut_far)
-    if not cut[0] < cut[1]:
-        warn('point cloud cutoffs', cut, 'are not near < far')
-        cut = POINTS_CUTOFF
+    cut = plugin_range(plugin, ('pointCloudCutoff', 'pointCloudCutoffMax'), POINTS_CUTOFF,
+                       'point cloud cutoffs', warn)
     return replace(d, image_topic=NO_TOPIC, depth_topic=full, depth_mm=True, clip=clip,
                    depth=True, points=cloud, points_clip=cut,
                    points_topic=f'{prefix}/{points_topic}' if prefix else points_topic,
@@ -137,19 +127,3 @@ def _named(d: DeclaredCamera, plugin: ET.Element, prefix: str, stream: str,
 
 def _text(plugin: ET.Element, tag: str) -> str:
     return (plugin.findtext(tag) or '').strip()
-
-
-def _positive(plugin: ET.Element, tag: str, most: float, warn,
-              zero: bool = False) -> Optional[float]:
-    """Return the tag's number in (0, most] ([0, most] with `zero`); None if absent or absurd."""
-    text = _text(plugin, tag)
-    if not text:
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if math.isfinite(value) and (0 <= value if zero else 0 < value) and value <= most:
-        return value
-    warn(tag, text, f'is not in {"[" if zero else "("}0, {most:g}]')
-    return None

@@ -414,3 +414,40 @@ def _number(text: Optional[str], nan_ok: bool = False) -> Optional[float]:
     except ValueError:
         return math.nan if nan_ok and text and text.strip() else None
     return value if nan_ok or math.isfinite(value) else None
+
+
+def plugin_number(plugin: ET.Element, tag: str, most: float, warn,
+                  zero: bool = False) -> Optional[float]:
+    """
+    Return a plugin tag's number in (0, most] ([0, most] with `zero`); None if absent or absurd.
+
+    An absurd one is said with ``warn(tag, text, why)``. The camera plugins' own tags
+    (:mod:`.realsense`, :mod:`.openni`) are read with it.
+    """
+    text = (plugin.findtext(tag) or '').strip()
+    if not text:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if math.isfinite(value) and (0 <= value if zero else 0 < value) and value <= most:
+        return value
+    warn(tag, text, f'is not in {"[" if zero else "("}0, {most:g}]')
+    return None
+
+
+def plugin_range(plugin: ET.Element, tags: tuple, default: tuple, what: str, warn) -> tuple:
+    """
+    Return the (near, far) metres a plugin's two tags give (a depth range, a cloud's cutoffs).
+
+    Each absent or absurd one is `default`'s (warned by :func:`plugin_number`); a pair that is
+    not near < far is `default`, with ``warn(what, pair, why)``.
+    """
+    near = plugin_number(plugin, tags[0], MAX_RANGE, warn, zero=True)
+    far = plugin_number(plugin, tags[1], MAX_RANGE, warn)
+    pair = (default[0] if near is None else near, default[1] if far is None else far)
+    if not pair[0] < pair[1]:
+        warn(what, pair, 'is not near < far')
+        return default
+    return pair

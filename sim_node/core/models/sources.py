@@ -258,9 +258,7 @@ def world_spec(text: str, base_dir: Optional[str] = None,
         raise
     dropped = drop_unknown_elements(root, fail_on_unsupported_element) \
         if root.tag == 'mujoco' else []
-    spec = _spec_from(root)
-    split_marked_meshes(spec)
-    return spec, dropped
+    return _spec_from(root), dropped  # its marked meshes: split by World (split_marked_meshes)
 
 
 def from_model_text(text: str, base_dir: Optional[str] = None,

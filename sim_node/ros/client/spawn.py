@@ -107,7 +107,7 @@ def _say_decomposing(node) -> list:
     Print what the simulator says on /diagnostics it is decomposing while the spawn waits.
 
     A concave collision mesh seen for the first time is split into convex parts before the
-    spawn is answered (seconds, at most a minute a mesh): the user is told why it takes a
+    spawn is answered (seconds, at most 30 s a mesh): the user is told why it takes a
     while. Returns the list of what was said, which the wait fills.
     """
     from diagnostic_msgs.msg import DiagnosticArray
