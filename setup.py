@@ -36,7 +36,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'node = sim_node.ros.node.main:main',
+            'node = sim_node.ros.node.entry:main',
             'spawn = sim_node.ros.client.spawn:main',
         ],
         'gymnasium.envs': [
