@@ -54,7 +54,7 @@ bench-pacing: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/pacing.py
 
 # The node's resident memory over storms, spawns, deletes and world loads, against where it
-# began (issue 45: within 50 MiB), ~2 min
+# began (issue 45: within 50 MiB), with resets and a mixed storm (issue 52), ~2.5 min
 bench-soak: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/soak.py
 
