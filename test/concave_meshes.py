@@ -113,6 +113,12 @@ def bumpy(path: Path, subdivisions: int = 6) -> Path:
     return write_stl(path, v[f])
 
 
+def sphere(path: Path, radius: float = 0.1, subdivisions: int = 6) -> Path:
+    """Write a sphere of 20 * 4^n faces, every vertex on its hull (10 * 4^n + 2 of them)."""
+    v, f = _icosphere(subdivisions)
+    return write_stl(path, radius * v[f])
+
+
 def _icosphere(n: int):
     p = (1 + 5 ** 0.5) / 2
     v = np.array([(-1, p, 0), (1, p, 0), (-1, -p, 0), (1, -p, 0), (0, -1, p), (0, 1, p),

@@ -69,6 +69,7 @@ class World:
         asset_store.set_mesh_cache(config.mesh_cache_mb)
         decompose.configure(config.mesh_decomposition, config.mesh_decomposition_threshold)
         sources.split_marked_meshes(spec)  # a scene file's, load_world's
+        decompose.bound_hulls(spec)
         sources.warn_radian_like_ranges(spec, f'the scene {source}'.strip())
         editor.name_unnamed(spec)
         arena = ((config.arena_base_bytes, config.arena_bytes_per_body)

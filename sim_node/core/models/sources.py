@@ -164,6 +164,7 @@ def _finish(spec: mujoco.MjSpec, kind: str, description: str,
     """
     if not len(spec.worldbody.bodies) and not len(spec.worldbody.geoms):
         raise ResourceParseError(ERR_NO_BODY)
+    decompose.bound_hulls(spec)
     if compile_alone:
         try:
             spec.compile()
