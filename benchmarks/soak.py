@@ -8,9 +8,10 @@ one client spawns and deletes an installed mesh object 10 times, and the world i
 (``load_world``: the mobile scene, then the default one again). Then resets (issue 52): 200
 resets of the world's state, then 20 rounds of spawn, delete, reset, spawn (the second box stays
 until the next reset); and a storm of mixed calls (8 client processes, each 40 reads, spawns
-and deletes). After each part the node has SETTLE_SEC to give freed memory back (it trims on its own schedule). Printed: RSS after
-each part, and the peak; the verdicts: the resets leave RSS within 20 MiB of where they began,
-and the whole soak within 50 MiB of the baseline (issues 45 and 52).
+and deletes). After each part the node has SETTLE_SEC to give freed memory back (it trims on
+its own schedule). Printed: RSS after each part, and the peak; the verdicts: the resets leave
+RSS within 20 MiB of where they began, and the whole soak within 50 MiB of the baseline (issues
+45 and 52).
 """
 
 import os

@@ -258,8 +258,8 @@ def hull_vertices(w: World, entity: str) -> list:
                     f'{entity}/') and m.mesh_graphadr[i] >= 0]
 
 
-def test_a_finely_cut_sphere_collides_on_a_bounded_hull_and_rests_on_its_radius(world,
-                                                                                 tmp_path):
+def test_a_finely_cut_sphere_collides_on_a_bounded_hull_and_rests_on_its_radius(
+        world, tmp_path):
     # Every vertex of a sphere is on its hull: MuJoCo built all 40,962 into it (the compile
     # time of a 200k-face sphere: 1.8 s, 0.6 s bounded). Bounded, it still rests on its radius.
     decompose.configure('none')
