@@ -540,6 +540,31 @@ def test_a_xacro_file_spawns_with_its_arguments_and_find(world, tmp_path):
     assert 'right_base' in src.text
 
 
+def test_a_xacro_robot_expanded_again_starts_no_xacro_until_a_file_it_read_changes(tmp_path):
+    # A robot spawned again after its delete expanded its xacro again: a second process each
+    # time (TALOS: 0.7 s of its second spawn). Kept while what it read holds what it held.
+    part = tmp_path / 'my_pkg' / 'urdf' / 'part.xacro'
+    path = write_xacro(tmp_path, '<xacro:include filename="$(find my_pkg)/urdf/part.xacro"/>')
+    arm = ('<robot xmlns:xacro="http://www.ros.org/wiki/xacro"><link name="{name}"/><joint '
+           'name="j" type="fixed"><parent link="$(arg side)_base"/><child link="{name}"/>'
+           '</joint></robot>')
+    part.write_text(arm.format(name='arm_a'))
+
+    def spawned_text(**args) -> str:
+        return sources.from_file(str(path), allowed_roots=[str(tmp_path)],
+                                 xacro_args=args).text
+
+    before = xacro_files.runs()
+    first = spawned_text()
+    assert 'arm_a' in first and xacro_files.runs() == before + 1
+    assert spawned_text() == first and xacro_files.runs() == before + 1  # kept
+    assert 'right_base' in spawned_text(side='right')  # other arguments: expanded anew
+    assert xacro_files.runs() == before + 2
+    part.write_text(arm.format(name='arm_b'))  # an included file changes, same size
+    again = spawned_text()
+    assert 'arm_b' in again and 'arm_a' not in again and xacro_files.runs() == before + 3
+
+
 #: A property that doubles 39 times (2^39 characters), and macros that call the next ten times,
 #: ten deep (10^9 links): xacro bombs, in memory and in time.
 PROPERTY_BOMB = ('<xacro:property name="p0" value="a"/>' + ''.join(

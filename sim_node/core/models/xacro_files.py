@@ -7,8 +7,16 @@ escaped. So xacro never runs in the node: :func:`expand` runs it in a child proc
 writes, and a check of every file it opens against the readable folders; the text it returns is
 bounded. ``xacro`` (the ROS 2 release on the package index) must be installed where the node's
 Python finds it.
+
+An expansion is kept (:data:`CACHE_ENTRIES`, :data:`CACHE_BYTES`, least recently used out
+first) with the files it read, as the child names them; the same request is answered from it
+while every one of those files holds what it held (their contents' digests), so a robot spawned
+again does not start xacro again. A folder that appears later (a package ``$(find)`` would now
+find first) is not noticed: the files read are.
 """
 
+from collections import OrderedDict
+import hashlib
 import importlib.util
 import json
 import os
@@ -32,6 +40,13 @@ MAX_OUTPUT_BYTES = 20_000_000
 MEMORY_BYTES = 512 << 20
 CPU_SECONDS = 5
 _WORKER = Path(__file__).with_name('xacro_worker.py')
+#: Expansions this process keeps: how many, and the most URDF text in all.
+CACHE_ENTRIES = 32
+CACHE_BYTES = 64 << 20
+
+_cache: OrderedDict = OrderedDict()  # request -> (URDF text, ((file, digest), ...))
+_cache_lock = threading.Lock()
+_runs = [0]
 
 ERR_NO_XACRO = ('{what} is a xacro file, and the xacro package is not installed: pip install '
                 'xacro (or, on a ROS machine, apt install ros-jazzy-xacro), or spawn the URDF '
@@ -88,10 +103,20 @@ def expand(roots: Sequence[str], path: Optional[str] = None, text: str = '',
         spec.submodule_search_locations[0],
         *(importlib.util.find_spec(m).origin for m in ('yaml', 'defusedxml')
           if importlib.util.find_spec(m) is not None)]})
-    job = json.dumps({'file': str(path) if path else '', 'text': text, 'args': dict(args or {}),
-                      'roots': list(roots), 'paths': paths, 'memory_bytes': MEMORY_BYTES,
-                      'shares': _installed_shares(),
+    request = {'file': str(path) if path else '', 'text': text, 'args': dict(args or {}),
+               'roots': list(roots), 'shares': _installed_shares()}
+    key = json.dumps(request, sort_keys=True)
+    with _cache_lock:
+        kept = _cache.get(key)
+    if kept is not None and _digests(name for name, _ in kept[1]) == kept[1]:
+        with _cache_lock:
+            if key in _cache:
+                _cache.move_to_end(key)
+        return kept[0]
+    job = json.dumps({**request, 'paths': paths, 'memory_bytes': MEMORY_BYTES,
                       'cpu_seconds': CPU_SECONDS})
+    with _cache_lock:
+        _runs[0] += 1
     env = {'PATH': '/usr/bin:/bin', 'LANG': 'C.UTF-8', 'HOME': '/nonexistent'}
     proc = subprocess.Popen([sys.executable, '-I', '-S', str(_WORKER), job], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd='/',
@@ -115,7 +140,44 @@ def expand(roots: Sequence[str], path: Optional[str] = None, text: str = '',
         lines = [ln for ln in why.splitlines() if ln.startswith('error')]
         reason = lines[-1][len('error: '):] if lines else _signal_text(proc.returncode)
         raise ResourceParseError(ERR_FAILED.format(what=what, why=reason))
-    return text.decode('utf-8', errors='replace')
+    urdf = text.decode('utf-8', errors='replace')
+    _keep(key, urdf, why)
+    return urdf
+
+
+def runs() -> int:
+    """Return how many times this process has started xacro (a kept expansion starts none)."""
+    return _runs[0]
+
+
+def _digests(files) -> Optional[tuple]:
+    """Return ((file, digest of its content), ...), or None if one cannot be read."""
+    out = []
+    for name in files:
+        try:
+            with open(name, 'rb') as f:
+                out.append((name, hashlib.blake2b(f.read(), digest_size=16).hexdigest()))
+        except OSError:
+            return None
+    return tuple(out)
+
+
+def _keep(key: str, urdf: str, stderr: str) -> None:
+    """Keep an expansion with the digests of the files the child says it read."""
+    said = [ln for ln in stderr.splitlines() if ln.startswith('read: ')]
+    try:
+        files = json.loads(said[-1][len('read: '):]) if said else None
+    except ValueError:
+        files = None
+    read = _digests(files) if isinstance(files, list) else None
+    if read is None or len(urdf) > CACHE_BYTES:
+        return
+    with _cache_lock:
+        _cache[key] = (urdf, read)
+        _cache.move_to_end(key)
+        while len(_cache) > CACHE_ENTRIES or sum(len(t) for t, _ in _cache.values()) > \
+                CACHE_BYTES:
+            _cache.popitem(last=False)
 
 
 class _Bounded:

@@ -18,7 +18,9 @@ bound, so before it reads anything this process limits itself:
   does, then to the package's share folder where ROS is installed (which then becomes
   readable); ``$(env)`` sees an empty environment.
 
-It writes the URDF to stdout, or one line ``error: ...`` to stderr and exits 1.
+It writes the URDF to stdout and, last on stderr, one line ``read: [...]`` naming the files
+it read (a JSON list of real paths: :mod:`.xacro_files` keeps the URDF while none changes); or
+one line ``error: ...`` to stderr and exits 1.
 """
 
 import errno
@@ -45,7 +47,7 @@ def _inside(real: str, roots: list) -> bool:
     return any(real == r or real.startswith(r.rstrip('/') + '/') for r in roots)
 
 
-def _guard(roots: list, code_roots: list) -> None:
+def _guard(roots: list, code_roots: list, read: set) -> None:
     def hook(event: str, args: tuple) -> None:
         if event == 'open':
             path, mode = args[0], args[1] or 'r'
@@ -67,6 +69,7 @@ def _guard(roots: list, code_roots: list) -> None:
                 return  # it does not exist: open says so
             if not stat.S_ISREG(mode_bits):
                 raise PermissionError(errno.EACCES, 'not a regular file', name)
+            read.add(real)
         elif event.startswith(_BLOCKED):
             raise PermissionError(f'a description file may not do {event}')
     sys.addaudithook(hook)
@@ -116,7 +119,8 @@ def main() -> None:
     resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
     resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))
     resource.setrlimit(resource.RLIMIT_NPROC, (0, 0))
-    _guard(roots, code_roots)
+    read = set()
+    _guard(roots, code_roots, read)
     try:
         if job.get('file'):
             doc = xacro.process_file(job['file'], mappings=job['args'])
@@ -124,6 +128,7 @@ def main() -> None:
             doc = xacro.parse(job['text'])
             xacro.process_doc(doc, mappings=job['args'])
         sys.stdout.write(doc.toprettyxml(indent='  '))
+        sys.stderr.write('read: ' + json.dumps(sorted(read)) + '\n')
     except MemoryError:
         _fail(_TOO_MUCH.format(mib=memory >> 20))
     except RecursionError:
