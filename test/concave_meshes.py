@@ -119,6 +119,12 @@ def sphere(path: Path, radius: float = 0.1, subdivisions: int = 6) -> Path:
     return write_stl(path, radius * v[f])
 
 
+def patch(path: Path, radius: float = 0.1, subdivisions: int = 6, share: float = 0.4) -> Path:
+    """Write the first `share` of a sphere's faces: an open, ragged patch, convex everywhere."""
+    v, f = _icosphere(subdivisions)
+    return write_stl(path, radius * v[f[:int(share * len(f))]])
+
+
 def _icosphere(n: int):
     p = (1 + 5 ** 0.5) / 2
     v = np.array([(-1, p, 0), (1, p, 0), (-1, -p, 0), (1, -p, 0), (0, -1, p), (0, 1, p),

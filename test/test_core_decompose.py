@@ -125,6 +125,18 @@ def test_a_mesh_is_decomposed_once_then_read_from_the_cache(world, meshes):
     assert out.stdout.strip() == '0', out.stderr[-2000:]  # the next process read the disk
 
 
+def test_a_patch_of_a_convex_surface_stays_whole_at_once(world, tmp_path, caplog):
+    # A ragged 40% of a sphere fills 0.6 of its hull, measured from its opening: a 250,000-face
+    # one went to CoACD and spent its 30 s budget, then collided as its hull all the same. Its
+    # every shared edge folds outwards: its hull stands for it, as for a dome.
+    path = cm.patch(tmp_path / 'patch.stl', subdivisions=6, share=0.4)  # 32,768 faces
+    with caplog.at_level(logging.INFO, logger=decompose.__name__):
+        world.spawn('patch', sources.from_mesh(str(path), static=True))
+    assert colliding_parts(world, 'patch') and \
+        not any('_part' in g for g in colliding_parts(world, 'patch'))
+    assert 'collides as' not in caplog.text and 'could not be decomposed' not in caplog.text
+
+
 def test_off_keeps_the_hull_and_the_threshold_reaches_coacd(meshes):
     try:
         decompose.configure('none')

@@ -10,10 +10,11 @@ with the parts written as binary STL in the folder ``out``, or ``{"error"}``; wi
 
 How: the mesh (binary STL or OBJ, read from its bytes) is welded (vertices at one place made
 one) and cut into its shells (faces joined by shared vertices). A shell that is closed and
-convex at every edge is convex: it is one part as it is. A flat shell (a plate, a decal) has
-no inside and is left out (MuJoCo refuses a flat hull; a mesh of flat shells alone stays
-whole). A shell that fills at least `fill` of its hull's
-volume (an arm's link, a wheel with a hub: its hull is close to it). The others (a tray, a
+convex at every edge is convex: it is one part as it is; so is an open one convex at every edge
+two of its faces share (a patch of a convex surface: every vertex on its hull). A flat shell (a
+plate, a decal) has no inside and is left out (MuJoCo refuses a flat hull; a mesh of flat
+shells alone stays whole). A shell that fills at least `fill` of its hull's volume is one part
+too (an arm's link, a wheel with a hub: its hull is close to it). The others (a tray, a
 bin, a table, a shelf, a mug: a hull of mostly empty space) go to CoACD (collision-aware
 convex decomposition, Wei et al., SIGGRAPH 2022), whose concavity `threshold` (a fraction of
 the shell's size) decides how closely the parts follow it. An open shell (a cap, a crack, a
@@ -98,20 +99,28 @@ def _flat(vertices) -> bool:
     return s[-1] <= FLAT * max(s[0], 1e-300)
 
 
-def _convex(vertices, faces) -> bool:
-    """Whether a shell is closed, consistently wound and folds outwards at every edge."""
+def _convex(vertices, faces, open_ok: bool = False) -> bool:
+    """
+    Whether a shell is consistently wound and folds outwards at every edge two faces share.
+
+    Closed, too, unless `open_ok`: an open shell convex at every edge it shares is a patch of a
+    convex surface (a dome, a cap, a scan of a ball with its bottom missing), every vertex on
+    its hull, which its hull stands for as for a dome (a 250,000-face patch of a sphere went to
+    CoACD for 30 s and more, past the budget, to end as its hull all the same).
+    """
     import numpy as np
     a, b = faces, np.roll(faces, -1, axis=1)  # directed edges a->b of each face
     edges = np.stack([a.ravel(), b.ravel()], axis=1)
     key = np.sort(edges, axis=1)
     code = key[:, 0].astype(np.int64) * (int(faces.max()) + 1) + key[:, 1]
     order = np.argsort(code, kind='stable')
-    sorted_code = code[order]
-    if len(order) % 2 or not np.all(sorted_code[0::2] == sorted_code[1::2]):
-        return False  # an edge with one face (open) or more than two (non-manifold)
-    if len(order) > 2 and np.any(sorted_code[2::2] == sorted_code[1:-1:2]):
+    _, start, count = np.unique(code[order], return_index=True, return_counts=True)
+    if np.any(count > 2) or (not open_ok and np.any(count == 1)):
+        return False  # an edge of more than two faces (non-manifold), or of one (open)
+    pairs = start[count == 2]
+    if not len(pairs):
         return False
-    first, second = order[0::2], order[1::2]
+    first, second = order[pairs], order[pairs + 1]
     if not np.all(edges[first, 0] == edges[second, 1]):
         return False  # both faces run the edge the same way: winding flips
     tri = vertices[faces]
@@ -202,7 +211,7 @@ def decompose(job: dict) -> dict:
         v, f = _compact(vertices, faces[group])
         if _flat(v):
             continue  # no inside: MuJoCo would refuse it as a hull of its own
-        if _convex(v, f):
+        if _convex(v, f, open_ok=True):
             parts.append((v, f))
             continue
         fill = _volume(v, f) / max(_hull_volume(v), 1e-300)
