@@ -119,10 +119,25 @@ def sphere(path: Path, radius: float = 0.1, subdivisions: int = 6) -> Path:
     return write_stl(path, radius * v[f])
 
 
-def patch(path: Path, radius: float = 0.1, subdivisions: int = 6, share: float = 0.4) -> Path:
-    """Write the first `share` of a sphere's faces: an open, ragged patch, convex everywhere."""
+def patch(path: Path, radius: float = 0.1, subdivisions: int = 6, share: float = 0.4,
+          noise: float = 0.0, dent: float = 0.0) -> Path:
+    """
+    Write the first `share` of a sphere's faces: an open, ragged patch, convex everywhere.
+
+    :param noise: each vertex moved along its radius by up to this fraction (a decimation's
+        rounding folds edges inwards: the patch is convex only within it).
+    :param dent: the tenth of the patch around its middle pushed in by this fraction of the
+        radius (a dent: no longer convex).
+    """
     v, f = _icosphere(subdivisions)
-    return write_stl(path, radius * v[f[:int(share * len(f))]])
+    f = f[:int(share * len(f))]
+    scale = 1 + noise * np.random.default_rng(0).uniform(-1, 1, len(v))
+    if dent:
+        used = np.unique(f)
+        middle = v[used].mean(axis=0)
+        along = v @ (middle / np.linalg.norm(middle))
+        scale[along > np.quantile(along[used], 0.9)] -= dent
+    return write_stl(path, (radius * scale[:, None] * v)[f])
 
 
 def _icosphere(n: int):

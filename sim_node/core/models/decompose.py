@@ -73,8 +73,9 @@ PART_GROUP = 3
 #: MuJoCo compiled a 200,000-face sphere's in 1.8 s, bounded to 4096 vertices in 0.6 s, and its
 #: surface then lies at most 0.04 mm inside (a 0.1 m sphere: the gap between 4096 points).
 HULL_VERTICES = 4096
-# Of what a decomposition makes: a change invalidates the cache (2: open convex patches whole).
-_VERSION = 2
+# Of what a decomposition makes: a change invalidates the cache (2: open convex patches whole;
+# 3: and those rounding folds, their vertices on their hull).
+_VERSION = 3
 _WORKER = Path(__file__).with_name('decompose_worker.py')
 
 _settings = {'mode': 'objects', 'threshold': THRESHOLD}

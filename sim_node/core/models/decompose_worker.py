@@ -11,15 +11,16 @@ with the parts written as binary STL in the folder ``out``, or ``{"error"}``; wi
 How: the mesh (binary STL or OBJ, read from its bytes) is welded (vertices at one place made
 one) and cut into its shells (faces joined by shared vertices). A shell that is closed and
 convex at every edge is convex: it is one part as it is; so is an open one convex at every edge
-two of its faces share (a patch of a convex surface: every vertex on its hull). A flat shell (a
-plate, a decal) has no inside and is left out (MuJoCo refuses a flat hull; a mesh of flat
-shells alone stays whole). A shell that fills at least `fill` of its hull's volume is one part
-too (an arm's link, a wheel with a hub: its hull is close to it). The others (a tray, a
-bin, a table, a shelf, a mug: a hull of mostly empty space) go to CoACD (collision-aware
-convex decomposition, Wei et al., SIGGRAPH 2022), whose concavity `threshold` (a fraction of
-the shell's size) decides how closely the parts follow it. An open shell (a cap, a crack, a
-surface with no thickness) is measured as if its opening were closed (see :func:`_volume`): a
-dome is then a solid cap and stays whole, as does a tray of single faces (its closed box).
+two of its faces share, or whose every vertex lies on its hull (a patch of a convex surface,
+rounding and all: :func:`_on_hull`). A flat shell (a plate, a decal) has no inside and is left
+out (MuJoCo refuses a flat hull; a mesh of flat shells alone stays whole). A shell that fills
+at least `fill` of its hull's volume is one part too (an arm's link, a wheel with a hub: its
+hull is close to it). The others (a tray, a bin, a table, a shelf, a mug: a hull of mostly
+empty space) go to CoACD (collision-aware convex decomposition, Wei et al., SIGGRAPH 2022),
+whose concavity `threshold` (a fraction of the shell's size) decides how closely the parts
+follow it. An open shell (a cap, a crack, a surface with no thickness) is measured as if its
+opening were closed (see :func:`_volume`): a dome is then a solid cap and stays whole, as does
+a tray of single faces (its closed box).
 
 The file is untrusted, and CoACD's search may run long on a large mesh, so the process limits
 itself first, in the mesh worker's sandbox (:func:`.mesh_worker.sandbox`): address space, CPU
@@ -42,6 +43,14 @@ FLAT = 1e-6
 #: rounding only (a finely cut curve folds little at each edge: a washer of 12,500 segments
 #: folds 6e-8 of its size). A shell rounding makes look concave is kept whole by its fill.
 CONVEX_TOLERANCE = 1e-9
+#: An open shell each of whose vertices is the farthest of the shell along its own normal (or
+#: against it) within this fraction of the shell's size lies on its hull (:func:`_on_hull`): a
+#: patch of a convex surface. Not the edge rule alone: decimated in float32, a 250,000-face
+#: patch of a sphere folded some edges inwards by 1e-5 of its size. A dent or a bowl's inside
+#: lies deeper than this below its neighbours' reach.
+ON_HULL = 1e-3
+#: Vertices checked (a random choice), each against every vertex of the shell.
+ON_HULL_SAMPLE = 2000
 #: The hull a shell's fill is measured against is made of at most this many of its vertices
 #: (a random choice): qhull took 5 s for 20,000 points of a washer's rim, 0.2 s for 5,000.
 HULL_POINTS = 5000
@@ -135,6 +144,39 @@ def _convex(vertices, faces, open_ok: bool = False) -> bool:
     return bool(np.all(lift <= CONVEX_TOLERANCE * scale))
 
 
+def _open(faces) -> bool:
+    """Whether a shell has an edge of one face only (an opening)."""
+    import numpy as np
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
+                    axis=1)
+    _, count = np.unique(edges, axis=0, return_counts=True)
+    return bool(np.any(count == 1))
+
+
+def _on_hull(vertices, faces) -> bool:
+    """Whether a shell's vertices (a sample) each lie on its hull, by :data:`ON_HULL`."""
+    import numpy as np
+    tri = vertices[faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # weighted by area
+    at = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(at, faces[:, k], normal)
+    length = np.linalg.norm(at, axis=1)
+    usable = np.flatnonzero(length > 0)
+    if not len(usable):
+        return False
+    pick = usable if len(usable) <= ON_HULL_SAMPLE else np.random.default_rng(0).choice(
+        usable, ON_HULL_SAMPLE, replace=False)
+    tol = ON_HULL * np.ptp(vertices, axis=0).max()
+    for chunk in np.array_split(pick, max(1, len(pick) // 100)):
+        direction = at[chunk] / length[chunk, None]
+        own = np.einsum('ij,ij->i', vertices[chunk], direction)
+        reach = vertices @ direction.T  # (vertices, chunk)
+        if not np.all((reach.max(axis=0) - own <= tol) | (own - reach.min(axis=0) <= tol)):
+            return False
+    return True
+
+
 def _opposite(faces, edges):
     """Return, for each face, its vertex that is neither end of the given edge."""
     import numpy as np
@@ -211,7 +253,7 @@ def decompose(job: dict) -> dict:
         v, f = _compact(vertices, faces[group])
         if _flat(v):
             continue  # no inside: MuJoCo would refuse it as a hull of its own
-        if _convex(v, f, open_ok=True):
+        if _convex(v, f, open_ok=True) or (_open(f) and _on_hull(v, f)):
             parts.append((v, f))
             continue
         fill = _volume(v, f) / max(_hull_volume(v), 1e-300)
