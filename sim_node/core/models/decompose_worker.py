@@ -108,14 +108,14 @@ def _flat(vertices) -> bool:
     return s[-1] <= FLAT * max(s[0], 1e-300)
 
 
-def _convex(vertices, faces, open_ok: bool = False) -> bool:
+def _convex(vertices, faces) -> bool:
     """
     Whether a shell is consistently wound and folds outwards at every edge two faces share.
 
-    Closed, too, unless `open_ok`: an open shell convex at every edge it shares is a patch of a
-    convex surface (a dome, a cap, a scan of a ball with its bottom missing), every vertex on
-    its hull, which its hull stands for as for a dome (a 250,000-face patch of a sphere went to
-    CoACD for 30 s and more, past the budget, to end as its hull all the same).
+    Closed or open: an open shell convex at every edge it shares is a patch of a convex surface
+    (a dome, a cap, a scan of a ball with its bottom missing), every vertex on its hull, which
+    its hull stands for as for a dome (a 250,000-face patch of a sphere went to CoACD for 30 s
+    and more, past the budget, to end as its hull all the same).
     """
     import numpy as np
     a, b = faces, np.roll(faces, -1, axis=1)  # directed edges a->b of each face
@@ -124,8 +124,8 @@ def _convex(vertices, faces, open_ok: bool = False) -> bool:
     code = key[:, 0].astype(np.int64) * (int(faces.max()) + 1) + key[:, 1]
     order = np.argsort(code, kind='stable')
     _, start, count = np.unique(code[order], return_index=True, return_counts=True)
-    if np.any(count > 2) or (not open_ok and np.any(count == 1)):
-        return False  # an edge of more than two faces (non-manifold), or of one (open)
+    if np.any(count > 2):
+        return False  # an edge of more than two faces (non-manifold)
     pairs = start[count == 2]
     if not len(pairs):
         return False
@@ -144,13 +144,13 @@ def _convex(vertices, faces, open_ok: bool = False) -> bool:
     return bool(np.all(lift <= CONVEX_TOLERANCE * scale))
 
 
-def _open(faces) -> bool:
-    """Whether a shell has an edge of one face only (an opening)."""
+def _open_edges(faces):
+    """Return a shell's edges of one face only (its openings; none when it is closed), (n, 2)."""
     import numpy as np
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
                     axis=1)
-    _, count = np.unique(edges, axis=0, return_counts=True)
-    return bool(np.any(count == 1))
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    return unique[count == 1]
 
 
 def _on_hull(vertices, faces) -> bool:
@@ -184,19 +184,16 @@ def _opposite(faces, edges):
     return faces[np.arange(len(faces)), np.argmax(off, axis=1)]
 
 
-def _volume(vertices, faces) -> float:
+def _volume(vertices, faces, open_edges) -> float:
     """
     Return the volume a shell encloses: exact when it is closed; an open one as if closed.
 
     The faces are summed as cones from one point: any point for a closed shell; for an open
-    one, the centre of its open edges, so that a flat opening (a cap's rim, a bowl's) adds a
-    cone of no volume: the shell is measured as if its opening were closed.
+    one, the centre of its open edges (:func:`_open_edges`), so that a flat opening (a cap's
+    rim, a bowl's) adds a cone of no volume: the shell is measured as if its opening were
+    closed.
     """
     import numpy as np
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
-                    axis=1)
-    unique, count = np.unique(edges, axis=0, return_counts=True)
-    open_edges = unique[count == 1]
     origin = vertices[np.unique(open_edges)].mean(axis=0) if len(open_edges) \
         else vertices.mean(axis=0)
     tri = vertices[faces] - origin
@@ -253,10 +250,14 @@ def decompose(job: dict) -> dict:
         v, f = _compact(vertices, faces[group])
         if _flat(v):
             continue  # no inside: MuJoCo would refuse it as a hull of its own
-        if _convex(v, f, open_ok=True) or (_open(f) and _on_hull(v, f)):
+        if _convex(v, f):
             parts.append((v, f))
             continue
-        fill = _volume(v, f) / max(_hull_volume(v), 1e-300)
+        opening = _open_edges(f)
+        if len(opening) and _on_hull(v, f):
+            parts.append((v, f))
+            continue
+        fill = _volume(v, f, opening) / max(_hull_volume(v), 1e-300)
         fills.append(round(fill, 3))
         if fill >= job['fill']:  # its hull is close enough to it
             parts.append((v, f))
