@@ -44,7 +44,7 @@ _WORKER = Path(__file__).with_name('xacro_worker.py')
 CACHE_ENTRIES = 32
 CACHE_BYTES = 64 << 20
 
-_cache: OrderedDict = OrderedDict()  # request -> (URDF text, ((file, digest), ...))
+_cache: OrderedDict = OrderedDict()  # digest of the request -> (URDF, ((file, digest), ...))
 _cache_lock = threading.Lock()
 _runs = [0]
 
@@ -105,7 +105,10 @@ def expand(roots: Sequence[str], path: Optional[str] = None, text: str = '',
           if importlib.util.find_spec(m) is not None)]})
     request = {'file': str(path) if path else '', 'text': text, 'args': dict(args or {}),
                'roots': list(roots), 'shares': _installed_shares()}
-    key = json.dumps(request, sort_keys=True)
+    # Kept by digest: xacro text given as a resource_string may be 20 MB, not counted by the
+    # cache's bound were it the key itself.
+    key = hashlib.blake2b(json.dumps(request, sort_keys=True).encode(),
+                          digest_size=16).hexdigest()
     with _cache_lock:
         kept = _cache.get(key)
     if kept is not None and _digests(name for name, _ in kept[1]) == kept[1]:
