@@ -141,13 +141,15 @@ def test_a_patch_of_a_convex_surface_stays_whole_at_once(world, tmp_path, caplog
 
 def test_a_dented_patch_is_not_taken_for_a_convex_one(tmp_path, monkeypatch, caplog):
     # Its dent is below its neighbours' reach: it goes on to CoACD (which takes an open surface
-    # past any short budget: 30 s for this one; here 5 s, and the warning says it was tried).
+    # past any short budget: 30 s for this one here; the budget is 5 s, and the warning says it
+    # was tried). A machine fast enough to finish within it gives parts: tried all the same.
     path = cm.patch(tmp_path / 'dented.stl', subdivisions=4, share=0.4, dent=0.2)
     decompose.forget()
     monkeypatch.setattr(decompose, 'SECONDS', 5.0)
     with caplog.at_level(logging.WARNING, logger='sim_node'):
-        sources.from_mesh(str(path), static=True)
-    assert 'dented.stl could not be decomposed' in caplog.text, caplog.text
+        model = sources.from_mesh(str(path), static=True).spec.compile()
+    parts = [model.geom(g).name for g in range(model.ngeom) if '_part' in model.geom(g).name]
+    assert parts or 'dented.stl could not be decomposed' in caplog.text, caplog.text
 
 
 def test_off_keeps_the_hull_and_the_threshold_reaches_coacd(meshes):
