@@ -788,6 +788,77 @@ tricycle_controller:
 """
 
 
+def gz_bicycle(yaml_path: str) -> str:
+    """
+    Return a bicycle-model car built as gz_ros2_control's demos build theirs.
+
+    The Ackermann demo's chassis (100 kg) and wheels (11.3 kg, 0.3 m in radius), wheelbase
+    1.7 m, with one rear wheel in the middle driven by a velocity interface and one front
+    wheel in the middle steered by a position interface (as bicycle_steering_controller drives
+    them), two free rear wheels 1 m apart keeping it upright. No joint name says left or
+    right: the driven wheel is known by what it is.
+    """
+    inertial = ('<inertial><mass value="11.3"/><inertia ixx="0.26" iyy="0.26" izz="0.51" '
+                'ixy="0" ixz="0" iyz="0"/></inertial>')
+
+    def wheel(name: str, parent: str, xyz: str, rpy: str = '-1.57 0 0') -> str:
+        return f"""
+  <link name="{name}">{inertial}
+    <collision><geometry><cylinder length="0.08" radius="0.3"/></geometry></collision></link>
+  <joint name="{name}_joint" type="continuous"><parent link="{parent}"/><child link="{name}"/>
+    <origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="0 0 1"/><dynamics damping="0.2"/></joint>"""
+
+    joints = """
+    <joint name="rear_wheel_joint"><command_interface name="velocity"/>
+      <state_interface name="velocity"/><state_interface name="position"/></joint>
+    <joint name="steering_joint"><command_interface name="position"/>
+      <state_interface name="position"/></joint>"""
+    wheels = ''.join(wheel(n, 'chassis', f'-0.8 {y} -0.2')
+                     for n, y in (('rear_wheel', 0.0), ('outer_a', 0.5), ('outer_b', -0.5)))
+    return f"""<robot name="bicycle_drive"><link name="base_link"/>
+  <link name="chassis"><inertial><mass value="100"/>
+    <inertia ixx="10.4" iyy="35.4" izz="41.66" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><box size="2 1 0.5"/></geometry></collision></link>
+  <joint name="chassis_joint" type="fixed"><parent link="base_link"/><child link="chassis"/>
+    <origin xyz="0.8 0 0.5"/></joint>{wheels}
+  <link name="fork"><inertial><mass value="0.1"/>{_I}</inertial></link>
+  <joint name="steering_joint" type="revolute"><parent link="chassis"/><child link="fork"/>
+    <origin xyz="0.9 0 -0.2" rpy="1.57 0 0"/><axis xyz="0 1 0"/><dynamics damping="0.2"/>
+    <limit effort="1000" lower="-1.57" upper="1.57" velocity="30"/></joint>{wheel(
+        'front_wheel', 'fork', '0 0 0', '0 0 0')}
+  {_gz_system('GazeboSystem', joints, yaml_path)}
+</robot>"""
+
+
+#: bicycle_steering_controller's parameters of the Jazzy line for :func:`gz_bicycle` (10 Hz, as
+#: the Ackermann demo's manager; Twist references).
+GZ_BICYCLE_YAML = """controller_manager:
+  ros__parameters:
+    update_rate: 10
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    bicycle_steering_controller:
+      type: bicycle_steering_controller/BicycleSteeringController
+
+bicycle_steering_controller:
+  ros__parameters:
+    wheelbase: 1.7
+    front_wheel_radius: 0.3
+    rear_wheel_radius: 0.3
+    front_steering: true
+    reference_timeout: 2.0
+    rear_wheels_names: ['rear_wheel_joint']
+    front_wheels_names: ['steering_joint']
+    use_stamped_vel: false
+    open_loop: false
+    velocity_rolling_window_size: 10
+    base_frame_id: base_link
+    odom_frame_id: odom
+    enable_odom_tf: true
+    position_feedback: false
+"""
+
+
 def gz_diff_drive(yaml_path: str) -> str:
     """
     Return a base as gz_ros2_control's diff-drive demo builds it, for its example program.

@@ -113,7 +113,8 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     where an explicit velocity loop stays stable.
 
     :param only: the wheels that may be driven (a ros2_control robot's: its velocity
-        interfaces, whose own actuators this replaces, sized for a wheel's load); the others
+        interfaces, whose own actuators this replaces, sized for a wheel's load; besides the
+        wheels found by name, any of them that is a hinge turning a round body); the others
         roll freely. None: all.
     :param explicit: the world integrates actuator gains explicitly (Euler, RK4).
     :param timestep: the world's time step (default: the spawned model's own).
@@ -122,7 +123,13 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     step = timestep or spec.option.timestep
     wheels = wheel_joints(spec, plugin)
     if only is not None:
-        wheels = [j for j in wheels if j.name in only]
+        # A velocity interface's wheel by what it is, whatever its name: a hinge turning a
+        # round body (a bicycle's one rear wheel, a tricycle's front wheel say neither left
+        # nor right, and carry the robot's weight all the same).
+        named = {j.name for j in wheels}
+        wheels = [j for j in wheels if j.name in only] + [
+            j for j in spec.joints if j.name in only and j.name not in named and
+            j.type == mujoco.mjtJoint.mjJNT_HINGE and _spec_wheel_radius(j.parent) > 0]
         replaced = {j.name for j in wheels}
         for act in [a for a in spec.actuators if a.target in replaced]:
             spec.delete(act)
