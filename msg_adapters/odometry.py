@@ -2,7 +2,8 @@
 A mobile base's odometry as nav2 reads it: nav_msgs/Odometry and the odom TF (pure: no rclpy).
 
 The one Odometry builder: the node's own bases (``<entity>/odom``) and the base controllers
-(diff_drive_controller's ``~/odom``, the steering controllers') both send :func:`message`.
+(diff_drive_controller's ``~/odom``, the steering controllers') both send :func:`message`;
+a P3D plugin's ground truth is :func:`ground_truth`.
 
 REP 105: ``<entity>/odom`` is where the base started (its pose then, turned about z only); the
 odometry is the base's pose in it, twist in the base's own frame. The TF tree stays a tree: the
@@ -64,3 +65,26 @@ def transforms(stamp: float, world: str, odom: str, base: str, odom_pos: np.ndar
     t = convert.stamp(stamp)
     return [convert.transform(world, odom, odom_pos, odom_quat, t),
             convert.transform(odom, base, pos, quat_wxyz, t)]
+
+
+def ground_truth(sample, frame: str, child: str, noise: float) -> Odometry:
+    """
+    Return a P3D plugin's sample as gazebo_ros_p3d sends it.
+
+    The pose and the twist both in `frame` (the world's, or the plugin's reference link's:
+    not the child's own, as the plugin has it); covariance diagonals of ``noise ** 2``.
+
+    :param sample: a :class:`~sim_node.core.stepping.odometers.OdometerSample`.
+    """
+    msg = Odometry()
+    msg.header.stamp = convert.stamp(sample.time)
+    msg.header.frame_id, msg.child_frame_id = frame, child
+    msg.pose.pose = convert.pose_to_msg(sample.position, sample.quat_wxyz)
+    t = msg.twist.twist
+    t.linear.x, t.linear.y, t.linear.z = (float(v) for v in sample.linear)
+    t.angular.x, t.angular.y, t.angular.z = (float(v) for v in sample.angular)
+    var = float(noise) ** 2
+    for k in range(6):
+        msg.pose.covariance[7 * k] = var
+        msg.twist.covariance[7 * k] = var
+    return msg

@@ -279,3 +279,43 @@ def test_an_openni_kinect_publishes_its_streams_where_its_plugin_names_them(sim,
     assert 0.1 < z[119, 80] < 1.5  # the floor just ahead, inside it
     topics = [name for name, _ in watch.node.get_topic_names_and_types()]
     assert not [t for t in topics if 'camera_face_ir' in t], topics
+
+
+def test_a_p3d_plugin_publishes_its_links_ground_truth_as_gazebo_ros_p3d_does(sim, watch):
+    # Issue 53, item 4: TIAGo's and PR2's ground truth. A box on the floor, spawned under a
+    # namespace, with PR2's tags (frame map, offsets of 25.7 m, a noise of 0.01) and HyQ's
+    # (relative to a link, at 250 Hz): their topics under the namespace, their frames, the
+    # pose where the entity is plus the offsets, a rate of simulated time and the noise's
+    # covariance.
+    from nav_msgs.msg import Odometry
+    from test_core_p3d import plugin, robot
+    text = robot(
+        plugin('truth', 'base_link', '<topicName>base_pose_ground_truth</topicName>'
+               '<frameName>map</frameName><xyzOffsets>25.7 25.7 0</xyzOffsets>'
+               '<gaussianNoise>0.01</gaussianNoise><updateRate>100.0</updateRate>'),
+        plugin('mast', 'mast', '<frame_name>base_link</frame_name><update_rate>250</update_rate>'
+               '<ros><remapping>odom:=mast_truth</remapping></ros>'))
+    sim.spawn('probe', resource_string=text, position=(-2.0, 3.0, 0.1), namespace='truth')
+    got = []
+    sub = watch.node.create_subscription(Odometry, '/truth/base_pose_ground_truth', got.append,
+                                         20)
+    try:
+        wait_for(lambda: len(got) >= 20, timeout=20)
+    finally:
+        watch.node.destroy_subscription(sub)
+    msg = got[-1]
+    assert (msg.header.frame_id, msg.child_frame_id) == ('map', 'probe/base_link')
+    where = sim.entity_state('probe')['position']
+    p = msg.pose.pose.position
+    assert (p.x, p.y, p.z) == pytest.approx((where[0] + 25.7, where[1] + 25.7, where[2]),
+                                            abs=0.005)
+    assert list(msg.pose.covariance[::7]) == pytest.approx([1e-4] * 6)
+    assert list(msg.twist.covariance[::7]) == pytest.approx([1e-4] * 6)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in got[-10:]]
+    assert all(d == pytest.approx(0.01, abs=1e-6) for d in
+               [b - a for a, b in zip(stamps, stamps[1:])])  # 100 Hz of simulated time
+    mast = latest(watch, Odometry, '/truth/mast_truth')
+    assert (mast.header.frame_id, mast.child_frame_id) == ('probe/base_link', 'probe/mast')
+    m = mast.pose.pose.position
+    assert (m.x, m.y, m.z) == pytest.approx((0.3, 0.0, 0.2), abs=1e-6)
+    sim.delete('probe')

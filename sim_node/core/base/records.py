@@ -249,6 +249,35 @@ class DeclaredWrench:
 
 
 @dataclass(frozen=True)
+class DeclaredOdometer:
+    """
+    A link's true pose and twist as Gazebo's P3D plugin publishes them (:mod:`.models.p3d`).
+
+    Sampled in the stepping loop (:mod:`.stepping.odometers`) on its site at the link's
+    origin.
+
+    :param site: ``<entity>/<name>_p3d``; `body`: the link's body.
+    :param rate_hz: samples per simulated second (0: every step).
+    :param frame: the frame id of its messages: ``world``, ``map`` (the pose in the world) or
+        the `reference` link's frame (``<entity>/<link>``), its pose and twist then relative
+        to that link's body `reference` ('' : the world).
+    :param offset_pos, offset_quat: added to the position, turned before the orientation.
+    :param noise: the standard deviation of the noise on each twist component.
+    :param topic: as declared (relative names kept relative).
+    """
+
+    site: str
+    body: str
+    rate_hz: float = 0.0
+    frame: str = 'world'
+    reference: str = ''
+    offset_pos: tuple = (0.0, 0.0, 0.0)
+    offset_quat: tuple = (1.0, 0.0, 0.0, 0.0)
+    noise: float = 0.0
+    topic: str = 'odom'
+
+
+@dataclass(frozen=True)
 class DeclaredContact:
     """
     A contact sensor: the contacts of some collision geometry, reported at a rate.
@@ -319,6 +348,8 @@ class ModelInfo:
     imus: dict = field(default_factory=dict)
     #: Camera name -> :class:`DeclaredCamera` for their cameras.
     cameras_declared: dict = field(default_factory=dict)
+    #: Site name -> :class:`DeclaredOdometer` for their P3D plugins.
+    odometers: dict = field(default_factory=dict)
     #: Name -> :class:`DeclaredContact` for their contact sensors and the model's MuJoCo
     #: ``contact``/``touch`` sensors.
     contacts: dict = field(default_factory=dict)

@@ -14,9 +14,9 @@ import numpy as np
 
 from ..base.checks import closest_hint
 from ..base.errors import NotFoundError
-from ..base.records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredWrench, DYNAMIC,
-                            EFFORT, EntityRecord, GeomVisual, ModelInfo, POSITION, ROBOT, STATIC,
-                            VELOCITY)
+from ..base.records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredOdometer,
+                            DeclaredWrench, DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo,
+                            POSITION, ROBOT, STATIC, VELOCITY)
 from ..devices import catalog, contacts
 from ..models import description
 
@@ -152,6 +152,8 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
                   if isinstance(d, DeclaredWrench)},
         imus={d.site: d for rec in spawned.values() for d in rec.sensors
               if isinstance(d, DeclaredImu)},
+        odometers={d.site: d for rec in spawned.values() for d in rec.sensors
+                   if isinstance(d, DeclaredOdometer)},
         cameras_declared={d.camera: d for rec in spawned.values() for d in rec.sensors
                           if isinstance(d, DeclaredCamera)},
         contacts=contacts.declared(m, spawned),

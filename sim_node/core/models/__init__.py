@@ -9,9 +9,9 @@ checked copies MuJoCo reads, one per file identity), :mod:`.paths` (where a path
 MuJoCo's importer) with :mod:`.inertias` (its inertias repaired as Gazebo loads them),
 :mod:`.urdf_declared` (Gazebo sensors and ros2_control interfaces a URDF declares) with
 :mod:`.sensor_tags` (what a sensor's tag declares, read and checked), :mod:`.realsense` (the
-streams a RealSense Gazebo plugin names), :mod:`.openni` (those an OpenNI Kinect plugin names)
-and
-:mod:`.ros2_control` (a ``<ros2_control>`` block and its Gazebo plugin), :mod:`.controller_yaml`
+streams a RealSense Gazebo plugin names), :mod:`.openni` (those an OpenNI Kinect plugin names),
+:mod:`.p3d` (the ground truth a P3D plugin asks for) and :mod:`.ros2_control` (a
+``<ros2_control>`` block and its Gazebo plugin), :mod:`.controller_yaml`
 (a controllers YAML as a controller manager reads it),
 :mod:`.xacro_files` and :mod:`.xacro_worker` (xacro expanded in an isolated child process),
 :mod:`.meshes`, :mod:`.mesh_worker` and :mod:`.collada_fast` (meshes MuJoCo cannot read,

@@ -30,7 +30,7 @@ from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
 from ..base.records import (DeclaredCamera, DeclaredContact, DeclaredImu, DeclaredLaser,
-                            DeclaredWrench, NO_TOPIC)
+                            DeclaredOdometer, DeclaredWrench, NO_TOPIC)
 
 log = logging.getLogger(__name__)
 
@@ -231,6 +231,13 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
                        points_topic=_under(namespace, decl.points_topic))
     if isinstance(decl, DeclaredImu):
         return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
+                       topic=_under(namespace, decl.topic))
+    if isinstance(decl, DeclaredOdometer):
+        def body(link: str) -> str:
+            return entity if link == root else f'{entity}/{link}'
+        return replace(decl, site=f'{entity}/{decl.site}', body=body(decl.body),
+                       frame=f'{entity}/{decl.reference}' if decl.reference else decl.frame,
+                       reference=body(decl.reference) if decl.reference else '',
                        topic=_under(namespace, decl.topic))
     return entity_laser(decl, entity, namespace)
 

@@ -14,6 +14,8 @@ elements :func:`.urdf.prepare` kept:
   :mod:`.sensor_tags`; a sensor's ``<pose>`` places it on the link. The cameras a RealSense
   plugin drives take the topics, frames and depth format it names (:mod:`.realsense`), and
   a depth camera with an OpenNI Kinect plugin the topics and cutoffs it names (:mod:`.openni`).
+* ``<gazebo><plugin filename="libgazebo_ros_p3d.so">``: a link's true pose and twist as
+  odometry, on a site of the link (:mod:`.p3d`).
 * ``<ros2_control>`` joints: a joint whose command interfaces are velocity without position
   gets a velocity actuator (``kv`` the link's inertia over twice a 2 ms step: a 4 ms time
   constant, stable; ``ctrlrange`` from the interface's min/max or the URDF velocity limit,
@@ -30,7 +32,7 @@ from xml.etree import ElementTree as ET
 import mujoco
 import numpy as np
 
-from . import openni, realsense, sensor_tags
+from . import openni, p3d, realsense, sensor_tags
 from ..base import loads, quat
 
 log = logging.getLogger(__name__)
@@ -95,6 +97,7 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict,
         if text:
             done.append(text)
     declared = realsense.apply(declared, extensions, [b.name for b in spec.bodies if b.name])
+    done += p3d.add(spec, extensions, declared)
     return done, declared
 
 

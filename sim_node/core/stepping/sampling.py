@@ -12,6 +12,8 @@ Contact sensors (:class:`~..records.DeclaredContact`: declared, MuJoCo's, and th
 whose contacts were asked for, :class:`ContactRequest`) are sampled the same way, each a
 :class:`~..devices.contacts.ContactReport` in the same queue.
 
+P3D plugins' ground truth is too (:mod:`.odometers`).
+
 Laser scanners are too (:func:`laser_requests`), in two halves: at each due time the loop
 copies where the laser and every geom are (a :class:`LaserPose`, some microseconds), and the
 perception side casts the rays later against those poses, off the stepping thread and without
@@ -30,6 +32,7 @@ import zlib
 import mujoco
 import numpy as np
 
+from . import odometers
 from ..base.errors import InvalidArgumentError
 from ..devices import contacts
 
@@ -186,6 +189,7 @@ class Sampler:
             _Contacts(name, 1.0 / request.rate_hz,
                       info.body_root[info.geom_body] == roots[name], None)
             for name in request.entities if name in roots and name not in info.contacts]
+        self._odometers = odometers.entries(info)
         self._joints = []
         for key, names, rate, sensors, tick in joints:
             idx = [index.joint_index[n] for n in names if n in index.joint_index]
@@ -193,7 +197,8 @@ class Sampler:
                 self._joints.append(_Joints(key, 1.0 / rate, index.joint_qposadr[idx],
                                             index.joint_dofadr[idx], sensors, tick))
         self.writes: list = []  # the ticks' joint commands of the last collect
-        self._all = self._entries + self._contacts + self._joints + self._lasers
+        self._all = self._entries + self._contacts + self._joints + self._lasers + \
+            self._odometers
         self._samples = samples
         self._last = -math.inf
 
@@ -265,6 +270,10 @@ class Sampler:
                 acc += e.rng.normal(e.acc_noise[0], e.acc_noise[1])
             self._samples.append((e.site, t, quat, gyro, acc))
             e.next = (math.floor(t / e.period + DUE_TOLERANCE) + 1) * e.period
+        odo = [o for o in self._odometers if not t < o.next - DUE_TOLERANCE * o.period]
+        if odo:
+            odometers.bring_up_to_date(m, d)
+            self._samples.extend(o.take(m, d, t, self.generation) for o in odo)
         due = [la for la in self._lasers if not t < la.next - DUE_TOLERANCE * la.period]
         if due:
             self._take_poses(m, d, t, due)
@@ -359,7 +368,8 @@ def drain(samples: deque) -> list:
 
     Each is (site, simulated time, orientation wxyz, angular velocity, linear acceleration)
     of an IMU a robot file declares, at its own rate (a part the sensor lacks is None), a
-    contact sensor's :class:`~..devices.contacts.ContactReport`, or a :class:`JointSample`.
+    contact sensor's :class:`~..devices.contacts.ContactReport`, a :class:`JointSample`, or a
+    P3D plugin's :class:`~.odometers.OdometerSample`.
     """
     out = []
     while True:

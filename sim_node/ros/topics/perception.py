@@ -24,6 +24,7 @@ from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
 from .contacts import ContactPublishers
+from .odometers import OdometerPublishers
 from .scans import Scans
 from ...core.base import quat
 from ...core.base.config import PerceptionConfig
@@ -32,6 +33,7 @@ from ...core.cameras import CameraRig, select
 from ...core.devices.contacts import ContactReport
 from ...core.devices.rendering import RenderingUnavailableError
 from ...core.lidar import LaserScanner, scanner_sites, sweep_of
+from ...core.stepping.odometers import OdometerSample
 from ...core.stepping.sampling import JointSample
 from ...session import Loaded
 
@@ -92,6 +94,7 @@ class Perception:
                  frame_prefix: str, contact_entities: Callable[[], tuple] = tuple):
         self._node = node
         self.contacts = ContactPublishers(node, frame_prefix + world_frame, contact_entities)
+        self.odometers = OdometerPublishers(node, frame_prefix + world_frame, frame_prefix)
         self.joint_samples: Callable = lambda samples: None  # told the loop's JointSamples
         self.config = config
         self._world_frame = frame_prefix + world_frame
@@ -189,7 +192,7 @@ class Perception:
 
     def _publish_samples(self, info: ModelInfo) -> list:
         """
-        Publish the declared IMUs' samples the loop took, each with its simulated time.
+        Publish the samples of declared IMUs and P3D plugins the loop took, each at its time.
 
         Returns the joint samples among them, for the controllers (not run here: see
         :meth:`publish_sensors`).
@@ -199,9 +202,11 @@ class Perception:
             return []
         taken = sim.world.take_sensor_samples()
         for sample in taken:
-            if isinstance(sample, (ContactReport, JointSample)):
+            if isinstance(sample, (ContactReport, JointSample, OdometerSample)):
                 if isinstance(sample, ContactReport) and sample.generation == info.generation:
                     self.contacts.publish(sample, info)
+                elif isinstance(sample, OdometerSample):
+                    self.odometers.publish(sample, info)
                 continue
             site, t, q, gyro, acc = sample
             pub = self._sensor_pubs.get(('imu', site))
@@ -277,6 +282,7 @@ class Perception:
         for pub in gone:
             self._node.destroy_publisher(pub)
         self.contacts.sync(info)
+        self.odometers.sync(info)
 
     def _create_publisher(self, msg_type, topic: str, qos) -> Publisher:
         """
