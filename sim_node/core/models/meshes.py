@@ -45,7 +45,7 @@ IDLE_SEC = 60.0
 CACHE_BYTES = 2 << 30
 MAX_SOURCES = 100_000
 _WORKER = Path(__file__).with_name('mesh_worker.py')
-_VERSION = 2  # of what a conversion makes: a change invalidates the cache
+_VERSION = 3  # of what a conversion makes: a change invalidates the cache
 
 ERR_CONVERT = ('the mesh {value!r} could not be converted ({why}); check that it opens in a '
                'mesh viewer, or export it as binary STL')
