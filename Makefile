@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-mesh-corpus bench-respawn bench-sensors bench-controllers bench-laws snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-mesh-corpus bench-spawn-clock bench-respawn bench-sensors bench-controllers bench-laws snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -82,6 +82,10 @@ bench-meshes: setup
 # malformed): decided/refused in bounds, a few minutes
 bench-mesh-corpus: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/mesh_corpus.py
+
+# Robots of the corpus spawned and deleted at real-time factor 1: does /clock stand still?
+bench-spawn-clock: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/spawn_clock.py
 
 # A robot spawned again after its delete: first and second spawn against MuJoCo's compile
 bench-respawn: setup

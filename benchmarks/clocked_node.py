@@ -8,6 +8,22 @@ import threading
 import time
 
 
+def longest_still(samples: list) -> float:
+    """
+    Return the longest wall time (s) over which simulated time did not advance.
+
+    :param samples: (wall time, simulated time) of successive /clock messages.
+    """
+    still, start = 0.0, None
+    for (w0, c0), (w1, c1) in zip(samples, samples[1:]):
+        if c1 <= c0:
+            start = w0 if start is None else start
+            still = max(still, w1 - start)
+        else:
+            start = None
+    return still
+
+
 class ClockedNode:
     """
     ``node --ros-args -p <params>``, with a subscription to /clock spun on a thread.

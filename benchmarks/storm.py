@@ -23,6 +23,7 @@ import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from clocked_node import longest_still  # noqa: E402, I100
 from verdict import summary, verdict  # noqa: E402, I100
 
 CLIENTS = 8
@@ -97,13 +98,7 @@ class ClockWatch:
         s = [x for x in self.samples if t0 <= x[0] <= t1]
         gaps = sorted(b[0] - a[0] for a, b in zip(s, s[1:])) or [float('inf')]
         gap = gaps[-1]
-        still, start = 0.0, None
-        for (w0, c0), (w1, c1) in zip(s, s[1:]):
-            if c1 <= c0:
-                start = w0 if start is None else start
-                still = max(still, w1 - start)
-            else:
-                start = None
+        still = longest_still(s)
         over = sum(g > TARGET_MS / 1e3 for g in gaps)
         return 1e3 * gap, 1e3 * still, 1e3 * gaps[int(0.99 * (len(gaps) - 1))], over, len(gaps)
 

@@ -394,3 +394,51 @@ def test_a_missing_gl_backend_says_what_to_install():
     assert 'apt-get install libegl1' in out.stdout and 'libosmesa6' in out.stdout, out.stderr
     out = _python(code, {'MUJOCO_GL': 'glx'})
     assert "MUJOCO_GL='glx' cannot render headless" in out.stdout, out.stderr
+
+
+@pytest.mark.parametrize('grow', [False, True], ids=['same size', 'a larger camera'])
+def test_uploading_a_spawned_meshs_graphics_lets_every_other_thread_run(tmp_path, grow):
+    """
+    A new mesh's upload to the renderer holds no other thread up: the stepping loop steps on.
+
+    MuJoCo's bindings hold the GIL while they make an OpenGL context (they upload every mesh
+    and texture): at each spawn of a robot with meshes every thread stood still (/clock 100 to
+    290 ms, issue 52, item 1), and again when a robot's larger camera made a new renderer.
+    A thread ticking every millisecond is never held up longer than 50 ms while the rig
+    uploads a 200,000-face mesh and a 2048 x 2048 texture.
+    """
+    import threading
+    import time
+    import trimesh
+    sphere = trimesh.creation.icosphere(subdivisions=8, radius=0.2)
+    mesh = trimesh.Trimesh(sphere.vertices, sphere.faces[:200_000], process=False)
+    (tmp_path / 'dome.stl').write_bytes(mesh.export(file_type='stl'))
+    world = World.from_string(SCENE.replace('LENS', FOVY))
+    rig = CameraRig(world, 64, 48)
+    rig.capture()
+    dome = (f'<mujoco><asset><mesh name="dome" file="{tmp_path / "dome.stl"}"/>'
+            '<texture name="big" type="2d" builtin="checker" width="2048" height="2048" '
+            'rgb1="1 0 0" rgb2="0 1 0"/><material name="big" texture="big"/></asset>'
+            '<worldbody><body name="d"><geom type="mesh" mesh="dome" material="big"/></body>'
+            '</worldbody></mujoco>')
+    world.spawn('dome', sources.from_model_text(dome, str(tmp_path)), position=[0.0, 0.0, 0.5])
+    ticks, done = [time.perf_counter()], threading.Event()
+
+    def tick():
+        while not done.is_set():
+            time.sleep(0.001)
+            ticks.append(time.perf_counter())
+    ticker = threading.Thread(target=tick)
+    ticker.start()
+    try:
+        t0 = time.perf_counter()
+        frames = rig.capture(sizes={'side': (128, 96)} if grow else None)
+        spent = time.perf_counter() - t0
+    finally:
+        done.set()
+        ticker.join()
+    held = max(b - a for a, b in zip(ticks, ticks[1:]) if b >= t0)
+    assert spent > 0.1  # the upload is long enough to matter
+    assert held < 0.05, f'held up {held * 1000:.0f} ms of a {spent * 1000:.0f} ms capture'
+    assert frames[0].rgb.shape == ((96, 128, 3) if grow else (48, 64, 3))
+    assert (frames[0].rgb != frames[0].rgb[0, 0]).any()  # drawn

@@ -15,7 +15,6 @@ forward, x right, y down) is MuJoCo's camera frame (looking down -z, y up) turne
 about x.
 """
 
-import copy
 from dataclasses import dataclass
 import fnmatch
 import logging
@@ -191,8 +190,9 @@ class CameraRig:
             # Index the live model: the published model info may lag a recompile.
             self._cameras = select(catalog.cameras(m), self.patterns)
             if self._cameras:
-                self._model = copy.copy(m)  # the renderer uploads it outside the lock
-                self._last_model = self._model
+                # The renderer uploads it outside the lock; models are replaced, never changed
+                # in place, by edits (a copy held the lock 33 ms with a humanoid spawned).
+                self._model = self._last_model = m
                 self._scenes = [_new_scene(m) for _ in self._cameras]
                 for scene in self._scenes:
                     # The skybox is drawn as a surface some 50 m away: depth would read it as
@@ -271,7 +271,7 @@ class View:
                 view.azimuth, view.elevation = FREE_AZIMUTH_DEG, FREE_ELEVATION_DEG
                 view.distance = FREE_DISTANCE_EXTENTS * m.stat.extent
             self._generation, self._view = generation, view
-            self._scene, self._model = _new_scene(m), copy.copy(m)
+            self._scene, self._model = _new_scene(m), m
         mujoco.mjv_updateScene(m, d, self._option, None, self._view,
                                mujoco.mjtCatBit.mjCAT_ALL, self._scene)
 

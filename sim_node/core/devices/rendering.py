@@ -166,6 +166,78 @@ def _copy_visual_settings(model: mujoco.MjModel, con: mujoco.MjrContext) -> None
     con.fogRGBA[:] = vis.rgba.fog
 
 
+def make_context(model: mujoco.MjModel, shadow_size: int, size: tuple) -> mujoco.MjrContext:
+    """
+    Make an OpenGL context for `model` (current on this thread) with the GIL released.
+
+    MuJoCo's bindings hold the GIL while ``mjr_makeContext`` uploads a model's meshes and
+    textures: 266 ms for the default scene with robosuite's GR1 (Mesa), and with it every
+    other thread of the process stood still (the stepping loop: /clock stalled 100 to 290 ms
+    after each spawn of a robot with meshes, ``make bench-spawn-clock``). Called through
+    ctypes instead, which lets the GIL go, on the struct an empty :class:`mujoco.MjrContext`
+    holds (its address from its ``fogRGBA`` array, which follows five floats; checked by a
+    write through it that the bindings must read back, else the bindings make it).
+
+    The context is made from the world's own model: the shadow map side and the offscreen size
+    it needs are set on it for the call and set back (no physics reads them), so no copy of
+    the model is taken (33 ms holding the GIL, under the world lock, for that world).
+
+    The process's first context is made by the bindings, which raise what MuJoCo finds wrong
+    (a GL that cannot make one); once one was made, GL can, and later ones (new meshes, a
+    larger camera's renderer) go without the GIL.
+
+    :param shadow_size: side of the shadow map (0: the model's own); `size`: the least
+        offscreen (width, height).
+    """
+    quality, frame = model.vis.quality, model.vis.global_
+    saved = (quality.shadowsize, frame.offwidth, frame.offheight)
+    if shadow_size > 0:
+        quality.shadowsize = shadow_size
+    frame.offwidth, frame.offheight = max(size[0], saved[1]), max(size[1], saved[2])
+    try:
+        con = mujoco.MjrContext()
+        address = _struct_address(con) if _MADE else None
+        if address is None:
+            con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+            _MADE.append(True)
+            return con
+        _library().mjr_makeContext(ctypes.c_void_p(model._address), ctypes.c_void_p(address),
+                                   ctypes.c_int(int(mujoco.mjtFontScale.mjFONTSCALE_100)))
+        return con
+    finally:
+        quality.shadowsize, frame.offwidth, frame.offheight = saved
+
+
+def _struct_address(con: mujoco.MjrContext) -> Optional[int]:
+    """Return the address of the mjrContext `con` wraps, or None if it cannot be checked."""
+    try:
+        base = con.fogRGBA.ctypes.data - 5 * ctypes.sizeof(ctypes.c_float)
+    except (AttributeError, TypeError):
+        return None
+    probe = ctypes.c_float.from_address(base + 3 * ctypes.sizeof(ctypes.c_float))  # fogStart
+    old = probe.value
+    probe.value = 1234.5
+    same = con.fogStart == 1234.5
+    probe.value = old
+    return base if same else None
+
+
+_LIBRARY: list = []
+_MADE: list = []  # a context was made by the bindings in this process
+
+
+def _library() -> ctypes.CDLL:
+    """Return MuJoCo's library, the bindings' own (one per process), through ctypes."""
+    if not _LIBRARY:
+        folder = os.path.dirname(mujoco.__file__)
+        name = next(n for n in sorted(os.listdir(folder)) if n.startswith('libmujoco.so'))
+        lib = ctypes.CDLL(os.path.join(folder, name))
+        lib.mjr_makeContext.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+        lib.mjr_makeContext.restype = None
+        _LIBRARY.append(lib)
+    return _LIBRARY[0]
+
+
 class Renderer:
     """
     Renders prepared scenes of one model into colour and depth images.
@@ -185,7 +257,7 @@ class Renderer:
 
     def use_model(self, model: mujoco.MjModel, shadow_size: int = 0) -> None:
         """
-        Upload `model` (a copy this renderer may keep: its offscreen size is set here).
+        Upload `model`: the world's own (kept, read, never changed: see :func:`make_context`).
 
         :param model: the model of the scenes rendered from now on.
         :param shadow_size: side of the shadow map in texels; 0 keeps the model's own
@@ -193,10 +265,6 @@ class Renderer:
             1024 with Mesa's software renderer).
         """
         self._gl.make_current()
-        if shadow_size > 0:
-            model.vis.quality.shadowsize = shadow_size
-        model.vis.global_.offwidth = max(self.width, model.vis.global_.offwidth)
-        model.vis.global_.offheight = max(self.height, model.vis.global_.offheight)
         if self._con is not None and same_gl_assets(self._model, model):
             # Making a context holds the GIL for 75 ms (the default scene, Mesa), and with
             # it every other thread (the stepping loop: a stalled /clock at every spawn).
@@ -206,7 +274,7 @@ class Renderer:
             return
         if self._con is not None:
             self._con.free()
-        self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        self._con = make_context(model, shadow_size, (self.width, self.height))
         self.contexts_made += 1
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         self._con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
