@@ -3,16 +3,18 @@ Does time stand still while robots come and go? /clock over spawns and deletes o
 
 ``make bench-spawn-clock`` (about two minutes). A node on the default scene at real-time factor
 1 with the robot corpus readable (``ros_env/corpus.py``). A client in this process spawns robots
-by URI one after another, each deleted before the next, and the whole round twice (the second
-finds their meshes kept, :mod:`sim_node.core.models.asset_store`): the URDFs of
+by URI one after another, each deleted and spawned again at once (round 2: it finds its meshes
+kept, :mod:`sim_node.core.models.asset_store`), then deleted before the next: the URDFs of
 ``make bench-respawn`` (example-robot-data's heaviest: G1, TALOS, Panda, Go1, TIAGo, Allegro)
 and four robot-learning MJCF files (robosuite's GR1 and TIAGo, dm_control's dog, the kitchen).
 
 /clock is heard in this process. Per spawn and per delete: the call's wall time, the longest gap
 between two /clock messages and the longest wall time in which simulated time did not advance,
 both over the call and the 0.3 s after its reply (a swap that follows the reply counts).
-Verdicts (issue 52): the longest stillness over every spawn and delete within 50 ms; the
-longest gap between messages, for the record beside it (idle, before the round, for scale).
+Verdicts (issue 52): the longest stillness over every spawn and delete within 50 ms (the
+longest gap between messages beside it, and idle, for scale); every URDF robot's second spawn
+within 0.25 s over the wire, the issue's case (``make bench-respawn`` holds it to MuJoCo's
+compile in-process; the MJCF files' second spawns are printed beside it, for the record).
 """
 
 import os
@@ -27,6 +29,7 @@ from clocked_node import longest_still  # noqa: E402, I100
 from verdict import summary, verdict  # noqa: E402, I100
 
 TARGET_MS = 50.0
+TARGET_AGAIN_SEC = 0.25
 AFTER_SEC = 0.3
 URDFS = ('g1_description/urdf/g1_29dof_rev_1_0.urdf', 'talos_data/robots/talos_full_v2.urdf',
          'panda_description/urdf/panda.urdf', 'go1_description/urdf/go1.urdf',
@@ -86,8 +89,8 @@ def main() -> int:
               f' longest /clock gap {idle[0]:.1f} ms, still {idle[1]:.1f} ms', flush=True)
         print(f'{"robot":34s} {"round":>5s} {"spawn s":>8s} {"gap ms":>7s} {"still ms":>8s} '
               f'{"delete s":>8s} {"gap ms":>7s} {"still ms":>8s}')
-        for round_ in (1, 2):
-            for label, path in found:
+        for label, path in found:
+            for round_ in (1, 2):
                 t0 = time.perf_counter()
                 client.spawn(label, uri=path.as_uri(), position=(3.0, -3.0, 1.2))
                 t1 = time.perf_counter()
@@ -108,10 +111,18 @@ def main() -> int:
         client.close()
         node.close()
     gap = max(max(r[3][0], r[5][0]) for r in rows)
+    urdf = {Path(rel).stem for rel in URDFS}
+    again = max((r for r in rows if r[1] == 2 and r[0] in urdf), key=lambda r: r[2])
+    mjcf = max((r for r in rows if r[1] == 2 and r[0] not in urdf), key=lambda r: r[2])
     verdict(worst[1] <= TARGET_MS,
             f'longest stillness of simulated time over {len(rows)} spawns and deletes '
             f'{worst[1]:.1f} ms ({worst[2]}) (target <= {TARGET_MS:g} ms; idle {idle[1]:.1f}); '
             f'longest gap between /clock messages {gap:.1f} ms (idle {idle[0]:.1f})')
+    verdict(again[2] <= TARGET_AGAIN_SEC,
+            f'every URDF robot spawned again at once after its delete within {again[2]:.3f} s, '
+            f'the slowest {again[0]} (target <= {TARGET_AGAIN_SEC} s; the compile of the world it '
+            f'makes: make bench-respawn); the MJCF files, for the record, within '
+            f'{mjcf[2]:.3f} s ({mjcf[0]})')
     summary()
     return 0
 
