@@ -179,15 +179,22 @@ def client(rclpy_context):
     c.close()
 
 
-def write_mesh_model(folder: Path, faces: int) -> Path:
-    """Write an MJCF model of one mesh with `faces` faces (slow to compile) into `folder`."""
+def write_mesh_model(folder: Path, faces: int, meshes: int = 1) -> Path:
+    """
+    Write an MJCF model of a body with `meshes` meshes of `faces` faces into `folder`.
+
+    Slow to compile: MuJoCo processes each mesh (its hull, its inertia) on its own.
+    """
     import trimesh
     sphere = trimesh.creation.icosphere(subdivisions=7)  # 327,680 faces to cut from
     mesh = trimesh.Trimesh(sphere.vertices, sphere.faces[:faces], process=False)
     (folder / 'big.stl').write_bytes(mesh.export(file_type='stl'))
+    assets = ''.join(f'<mesh name="m{k}" file="big.stl" scale="{1 + k * 0.01} 1 1"/>'
+                     for k in range(meshes))
+    geoms = ''.join(f'<geom type="mesh" mesh="m{k}"/>' for k in range(meshes))
     (folder / 'big.xml').write_text(
-        '<mujoco><asset><mesh name="m" file="big.stl"/></asset><worldbody><body name="b">'
-        '<freejoint/><geom type="mesh" mesh="m"/></body></worldbody></mujoco>')
+        f'<mujoco><asset>{assets}</asset><worldbody><body name="b">'
+        f'<freejoint/>{geoms}</body></worldbody></mujoco>')
     return folder / 'big.xml'
 
 

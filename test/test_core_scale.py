@@ -85,10 +85,15 @@ def test_lag_is_reported_exactly_when_the_factor_is_not_kept():
 
 @pytest.fixture
 def slow_source(tmp_path):
-    """Return a model whose 150k-face mesh takes about a second or more to compile."""
+    """
+    Return a model whose four 150k-face meshes take about a second or more to compile.
+
+    One took about a second while MuJoCo built its hull on every vertex; with hulls bounded
+    (``decompose.bound_hulls``) it takes 0.3 s here, too short to tell a stall from a step.
+    """
     from conftest import write_mesh_model
     from sim_node.core.models import sources
-    model = write_mesh_model(tmp_path, 150_000)
+    model = write_mesh_model(tmp_path, 150_000, meshes=4)
     return sources.from_file(str(model), allowed_roots=[str(tmp_path)])
 
 
