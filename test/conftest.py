@@ -198,6 +198,36 @@ def write_mesh_model(folder: Path, faces: int, meshes: int = 1) -> Path:
     return folder / 'big.xml'
 
 
+class Ticker:
+    """
+    A thread ticking every millisecond while a block runs; ``held``: its longest wait (s).
+
+    What a call that holds the GIL costs every other thread of the process (the stepping
+    loop's): a call that lets the GIL go leaves the ticks a millisecond or two apart.
+    ``spent``: the block's wall time.
+    """
+
+    def __enter__(self) -> 'Ticker':
+        import threading
+        self._ticks, self._done = [time.perf_counter()], threading.Event()
+        self._thread = threading.Thread(target=self._tick)
+        self._thread.start()
+        self._t0 = time.perf_counter()
+        return self
+
+    def _tick(self) -> None:
+        while not self._done.is_set():
+            time.sleep(0.001)
+            self._ticks.append(time.perf_counter())
+
+    def __exit__(self, *exc) -> None:
+        self.spent = time.perf_counter() - self._t0
+        self._done.set()
+        self._thread.join()
+        t = self._ticks
+        self.held = max((b - a for a, b in zip(t, t[1:]) if b >= self._t0), default=0.0)
+
+
 #: How long a call may take before a test calls it hung: what would block for ever (a FIFO, a
 #: catastrophic pattern, a hostile file) is caught, and a busy host is never mistaken for one.
 #: It is no speed claim: how fast things are is measured by the benchmarks' verdicts.

@@ -407,8 +407,7 @@ def test_uploading_a_spawned_meshs_graphics_lets_every_other_thread_run(tmp_path
     A thread ticking every millisecond is never held up longer than 50 ms while the rig
     uploads a 200,000-face mesh and a 2048 x 2048 texture.
     """
-    import threading
-    import time
+    from conftest import Ticker
     import trimesh
     sphere = trimesh.creation.icosphere(subdivisions=8, radius=0.2)
     mesh = trimesh.Trimesh(sphere.vertices, sphere.faces[:200_000], process=False)
@@ -422,22 +421,9 @@ def test_uploading_a_spawned_meshs_graphics_lets_every_other_thread_run(tmp_path
             '<worldbody><body name="d"><geom type="mesh" mesh="dome" material="big"/></body>'
             '</worldbody></mujoco>')
     world.spawn('dome', sources.from_model_text(dome, str(tmp_path)), position=[0.0, 0.0, 0.5])
-    ticks, done = [time.perf_counter()], threading.Event()
-
-    def tick():
-        while not done.is_set():
-            time.sleep(0.001)
-            ticks.append(time.perf_counter())
-    ticker = threading.Thread(target=tick)
-    ticker.start()
-    try:
-        t0 = time.perf_counter()
+    with Ticker() as ticker:
         frames = rig.capture(sizes={'side': (128, 96)} if grow else None)
-        spent = time.perf_counter() - t0
-    finally:
-        done.set()
-        ticker.join()
-    held = max(b - a for a, b in zip(ticks, ticks[1:]) if b >= t0)
+    held, spent = ticker.held, ticker.spent
     assert spent > 0.1  # the upload is long enough to matter
     assert held < 0.05, f'held up {held * 1000:.0f} ms of a {spent * 1000:.0f} ms capture'
     assert frames[0].rgb.shape == ((96, 128, 3) if grow else (48, 64, 3))

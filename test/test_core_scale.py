@@ -348,3 +348,29 @@ def test_a_spawn_whose_world_changed_while_it_compiled_is_planned_again(slow_sou
         asset_store.set_mesh_cache(WorldConfig().mesh_cache_mb)
     names = [e.name for e in w.entities()]
     assert 'big' in names and 'victim' not in names
+
+
+@pytest.mark.slow  # fetches the ROS corpus once (as the node's corpus tests do)
+def test_deleting_a_robot_lets_every_other_thread_run():
+    """
+    A delete holds no other thread up while MuJoCo takes the robot out of the world's spec.
+
+    MuJoCo's bindings hold the GIL in ``MjSpec.delete``: TIAGo's frame took 26 ms, and a
+    thread ticking every millisecond was held 28 ms (the stepping loop with it: issue 52,
+    item 1). Through ctypes (``core/base/native.py``) the GIL goes meanwhile.
+    """
+    from conftest import Ticker
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'ros_env'))
+    import corpus
+    from sim_node.core.models import sources
+    tiago = next(m for m in corpus.ros_models() if m.path.name == 'tiago.urdf')
+    world = World.from_file(str(DEFAULT_SCENE))
+    held = []
+    for _ in range(3):
+        world.spawn('tiago', sources.from_file(str(tiago.path), [str(tiago.root)]),
+                    position=(0.0, 3.0, 0.1))
+        with Ticker() as ticker:
+            world.delete('tiago')
+        held.append(ticker.held)
+    assert 'tiago' not in world.entities()
+    assert min(held) < 0.015, [f'{h * 1000:.0f} ms' for h in held]

@@ -20,6 +20,7 @@ from typing import Optional
 import mujoco
 import numpy as np
 
+from ..base import native
 from ..base.errors import SimError
 
 log = logging.getLogger(__name__)
@@ -174,9 +175,10 @@ def make_context(model: mujoco.MjModel, shadow_size: int, size: tuple) -> mujoco
     textures: 266 ms for the default scene with robosuite's GR1 (Mesa), and with it every
     other thread of the process stood still (the stepping loop: /clock stalled 100 to 290 ms
     after each spawn of a robot with meshes, ``make bench-spawn-clock``). Called through
-    ctypes instead, which lets the GIL go, on the struct an empty :class:`mujoco.MjrContext`
-    holds (its address from its ``fogRGBA`` array, which follows five floats; checked by a
-    write through it that the bindings must read back, else the bindings make it).
+    ctypes instead (:func:`~..base.native.make_context`), which lets the GIL go, on the struct
+    an empty :class:`mujoco.MjrContext` holds (its address from its ``fogRGBA`` array, which
+    follows five floats; checked by a write through it that the bindings must read back,
+    else the bindings make it).
 
     The context is made from the world's own model: the shadow map side and the offscreen size
     it needs are set on it for the call and set back (no physics reads them), so no copy of
@@ -196,13 +198,10 @@ def make_context(model: mujoco.MjModel, shadow_size: int, size: tuple) -> mujoco
     frame.offwidth, frame.offheight = max(size[0], saved[1]), max(size[1], saved[2])
     try:
         con = mujoco.MjrContext()
-        address = _struct_address(con) if _MADE else None
-        if address is None:
-            con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
-            _MADE.append(True)
+        if _MADE and native.make_context(model, _struct_address(con)):
             return con
-        _library().mjr_makeContext(ctypes.c_void_p(model._address), ctypes.c_void_p(address),
-                                   ctypes.c_int(int(mujoco.mjtFontScale.mjFONTSCALE_100)))
+        con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        _MADE.append(True)
         return con
     finally:
         quality.shadowsize, frame.offwidth, frame.offheight = saved
@@ -222,20 +221,7 @@ def _struct_address(con: mujoco.MjrContext) -> Optional[int]:
     return base if same else None
 
 
-_LIBRARY: list = []
 _MADE: list = []  # a context was made by the bindings in this process
-
-
-def _library() -> ctypes.CDLL:
-    """Return MuJoCo's library, the bindings' own (one per process), through ctypes."""
-    if not _LIBRARY:
-        folder = os.path.dirname(mujoco.__file__)
-        name = next(n for n in sorted(os.listdir(folder)) if n.startswith('libmujoco.so'))
-        lib = ctypes.CDLL(os.path.join(folder, name))
-        lib.mjr_makeContext.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
-        lib.mjr_makeContext.restype = None
-        _LIBRARY.append(lib)
-    return _LIBRARY[0]
 
 
 class Renderer:
