@@ -184,8 +184,10 @@ def _diff(m, d, entity: str, left: list, right: list, found_by: str, plugin: dic
     axis = d.xaxis[left[0]]
     lc = np.mean([d.xanchor[j] for j in left], axis=0)
     rc = np.mean([d.xanchor[j] for j in right], axis=0)
-    separation = plugin.get('separation') or abs(float(np.dot(lc - rc, axis)))
-    radius = plugin.get('radius') or float(np.median(radii))
+    # Measured in the pose the base is in: to a nanometre, so that the same base measured in
+    # another pose (another model generation) is the same spec (1.2 m read 1.2000000000000002).
+    separation = plugin.get('separation') or round(abs(float(np.dot(lc - rc, axis))), 9)
+    radius = plugin.get('radius') or round(float(np.median(radii)), 9)
     if not (separation > 0 and radius > 0) or root == 0:
         return None
     return BaseSpec(

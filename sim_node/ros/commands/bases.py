@@ -77,14 +77,20 @@ class BaseControllers:
         found = {} if loaded is None or snap is None else loaded.world.bases()
         topics = {e.name: interface_base(e) for e in snap.info.entities} if snap else {}
         with self._lock:
+            # A base keeps its topics while its entity and their names stay: a subscription
+            # made anew is one a publisher must match again, and commands sent meanwhile were
+            # lost (a base's cmd_vel was made anew at every spawn and delete of anything).
             for entity in [e for e, b in self._bases.items()
-                           if found.get(e) != b.spec or topics.get(e) != b.topic_base]:
+                           if e not in found or topics.get(e) != b.topic_base]:
                 base = self._bases.pop(entity)
                 self._node.destroy_subscription(base.sub)
                 self._node.destroy_publisher(base.pub)
             for entity, spec in found.items():
-                if entity not in self._bases:
+                base = self._bases.get(entity)
+                if base is None:
                     self._bases[entity] = self._make(spec, topics[entity])
+                elif base.spec != spec:  # its wheels changed: its odometry starts again
+                    base.spec, base.odometry = spec, BaseOdometry(spec)
             elsewhere = frozenset(self._bases) if self._param('odom_tf') else frozenset()
         self._tf_elsewhere(elsewhere)
 
