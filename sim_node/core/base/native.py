@@ -56,16 +56,38 @@ def delete_frame(spec: mujoco.MjSpec, name: str) -> bool:
                                             ctypes.c_void_p(element)) == 0
 
 
-def make_context(model: mujoco.MjModel, context_address: Optional[int]) -> bool:
+def make_context(model: mujoco.MjModel) -> Optional[mujoco.MjrContext]:
     """
-    Make an OpenGL context for `model` into the mjrContext at `context_address`, GIL released.
+    Return an OpenGL context for `model` (current on this thread), made with the GIL released.
 
-    The struct must hold a default context (an empty :class:`mujoco.MjrContext`). False
-    (nothing done) when there is no address.
+    Made into the struct an empty :class:`mujoco.MjrContext` holds, the bindings' own object
+    (it frees the context when it goes). None (nothing made) when the model or that struct
+    gives no address: the caller makes it through the bindings.
     """
     address = getattr(model, '_address', None)
-    if not address or not context_address:
-        return False
-    library().mjr_makeContext(ctypes.c_void_p(address), ctypes.c_void_p(context_address),
+    con = mujoco.MjrContext()
+    struct = _context_address(con)
+    if not address or struct is None:
+        return None
+    library().mjr_makeContext(ctypes.c_void_p(address), ctypes.c_void_p(struct),
                               ctypes.c_int(int(mujoco.mjtFontScale.mjFONTSCALE_100)))
-    return True
+    return con
+
+
+def _context_address(con: mujoco.MjrContext) -> Optional[int]:
+    """
+    Return the address of the mjrContext `con` wraps, or None if it cannot be checked.
+
+    The bindings give none; its ``fogRGBA`` array is a view into it and follows five floats.
+    Checked by a write through the address that the bindings must read back (``fogStart``).
+    """
+    try:
+        base = con.fogRGBA.ctypes.data - 5 * ctypes.sizeof(ctypes.c_float)
+    except (AttributeError, TypeError):
+        return None
+    probe = ctypes.c_float.from_address(base + 3 * ctypes.sizeof(ctypes.c_float))  # fogStart
+    old = probe.value
+    probe.value = 1234.5
+    same = con.fogStart == 1234.5
+    probe.value = old
+    return base if same else None

@@ -176,9 +176,8 @@ def make_context(model: mujoco.MjModel, shadow_size: int, size: tuple) -> mujoco
     other thread of the process stood still (the stepping loop: /clock stalled 100 to 290 ms
     after each spawn of a robot with meshes, ``make bench-spawn-clock``). Called through
     ctypes instead (:func:`~..base.native.make_context`), which lets the GIL go, on the struct
-    an empty :class:`mujoco.MjrContext` holds (its address from its ``fogRGBA`` array, which
-    follows five floats; checked by a write through it that the bindings must read back,
-    else the bindings make it).
+    an empty :class:`mujoco.MjrContext` holds (where its address cannot be found, the
+    bindings make it).
 
     The context is made from the world's own model: the shadow map side and the offscreen size
     it needs are set on it for the call and set back (no physics reads them), so no copy of
@@ -197,28 +196,13 @@ def make_context(model: mujoco.MjModel, shadow_size: int, size: tuple) -> mujoco
         quality.shadowsize = shadow_size
     frame.offwidth, frame.offheight = max(size[0], saved[1]), max(size[1], saved[2])
     try:
-        con = mujoco.MjrContext()
-        if _MADE and native.make_context(model, _struct_address(con)):
-            return con
-        con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
-        _MADE.append(True)
+        con = native.make_context(model) if _MADE else None
+        if con is None:
+            con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+            _MADE.append(True)
         return con
     finally:
         quality.shadowsize, frame.offwidth, frame.offheight = saved
-
-
-def _struct_address(con: mujoco.MjrContext) -> Optional[int]:
-    """Return the address of the mjrContext `con` wraps, or None if it cannot be checked."""
-    try:
-        base = con.fogRGBA.ctypes.data - 5 * ctypes.sizeof(ctypes.c_float)
-    except (AttributeError, TypeError):
-        return None
-    probe = ctypes.c_float.from_address(base + 3 * ctypes.sizeof(ctypes.c_float))  # fogStart
-    old = probe.value
-    probe.value = 1234.5
-    same = con.fogStart == 1234.5
-    probe.value = old
-    return base if same else None
 
 
 _MADE: list = []  # a context was made by the bindings in this process
@@ -252,8 +236,9 @@ class Renderer:
         """
         self._gl.make_current()
         if self._con is not None and same_gl_assets(self._model, model):
-            # Making a context holds the GIL for 75 ms (the default scene, Mesa), and with
-            # it every other thread (the stepping loop: a stalled /clock at every spawn).
+            # Making a context takes 75 ms of this thread (the default scene, Mesa); made by
+            # the bindings it held the GIL, and with it every other thread (the stepping loop:
+            # a stalled /clock at every spawn), as the process's first one still does.
             # What it uploads did not change; only the numbers it copies from the model may.
             _copy_visual_settings(model, self._con)
             self._model = model
