@@ -54,7 +54,11 @@ class Odometer:
 
     def take(self, m: mujoco.MjModel, d: mujoco.MjData, t: float,
              generation: int) -> OdometerSample:
-        """Read the sample of this time (the data's poses and velocities brought up to date)."""
+        """
+        Read the sample of this time (the data's poses and velocities brought up to date).
+
+        Its next due time is the sampler's to set, as for every other sample.
+        """
         twist = np.empty(6)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self.site, twist, 0)
         pos = d.site_xpos[self.site].copy()
@@ -74,7 +78,6 @@ class Odometer:
         if decl.noise > 0:
             linear = linear + self.rng.normal(0.0, decl.noise, 3)
             angular = angular + self.rng.normal(0.0, decl.noise, 3)
-        self.next = (math.floor(t / self.period + 1e-6) + 1) * self.period
         return OdometerSample(self.name, t, generation, pos, q / np.linalg.norm(q),
                               np.array(linear, float), np.array(angular, float))
 

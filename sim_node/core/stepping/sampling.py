@@ -271,16 +271,21 @@ class Sampler:
             self._samples.append((e.site, t, quat, gyro, acc))
             e.next = (math.floor(t / e.period + DUE_TOLERANCE) + 1) * e.period
         odo = [o for o in self._odometers if not t < o.next - DUE_TOLERANCE * o.period]
+        due = [la for la in self._lasers if not t < la.next - DUE_TOLERANCE * la.period]
+        # After a step, the data's poses are those of the state before it: brought up to date
+        # once for all that are due (velocities too, for the odometers).
         if odo:
             odometers.bring_up_to_date(m, d)
-            self._samples.extend(o.take(m, d, t, self.generation) for o in odo)
-        due = [la for la in self._lasers if not t < la.next - DUE_TOLERANCE * la.period]
+        elif due:
+            mujoco.mj_kinematics(m, d)
+        for o in odo:
+            self._samples.append(o.take(m, d, t, self.generation))
+            o.next = (math.floor(t / o.period + DUE_TOLERANCE) + 1) * o.period
         if due:
             self._take_poses(m, d, t, due)
 
     def _take_poses(self, m: mujoco.MjModel, d: mujoco.MjData, t: float, due: list) -> None:
-        """Copy where the due lasers and every geom are now (poses of this state, not the last)."""
-        mujoco.mj_kinematics(m, d)  # after a step, poses are those of the state before it
+        """Copy where the due lasers and every geom are now (the data brought up to date)."""
         where = (d.geom_xpos.copy(), d.geom_xmat.copy(), d.xipos.copy(), d.ximat.copy(),
                  d.flexvert_xpos.copy())
         for la in due:
