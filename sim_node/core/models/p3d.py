@@ -27,7 +27,6 @@ a warning and its default used; a plugin with no body the model has is left out,
 
 import logging
 import math
-from typing import Optional
 from xml.etree import ElementTree as ET
 
 import mujoco
@@ -89,7 +88,7 @@ def read(plugin: ET.Element, site: str, body: str, links) -> DeclaredOdometer:
     offsets = []
     for tags in (('xyz_offsets', 'xyzOffsets'), ('rpy_offsets', 'rpyOffsets')):
         given = _text(plugin, *tags)
-        values = _floats(given)
+        values = sensor_tags.floats(given, 3)
         if given and values is None:
             warn(tags[0], given, 'is not three finite numbers', '0 0 0')
         offsets.append(values or (0.0, 0.0, 0.0))
@@ -104,15 +103,9 @@ def read(plugin: ET.Element, site: str, body: str, links) -> DeclaredOdometer:
 
 def _topic(plugin: ET.Element) -> str:
     """Return the topic as declared, relative names kept relative."""
-    ns = (plugin.findtext('ros/namespace') or plugin.findtext('robotNamespace') or '')
-    ns = ns.strip().rstrip('/')
-    topic = (plugin.findtext('topicName') or '').strip()
-    for remap in plugin.iter('remapping'):
-        src, _, dst = (remap.text or '').partition(':=')
-        if src.strip() in ('odom', '~/odom') and dst.strip():
-            topic = dst.strip()
-    topic = topic or 'odom'
-    topic = topic if topic.startswith('/') or not ns else f'{ns}/{topic}'
+    topic = sensor_tags.in_namespace(sensor_tags.plugin_namespace(plugin),
+                                     sensor_tags.plugin_output(plugin, ('odom', '~/odom'))
+                                     or 'odom')
     if not sensor_tags.valid_topic(topic):
         log.warning('URDF P3D plugin %r: topic %r is not a name ROS takes; odom is used',
                     plugin.get('name') or 'p3d', topic)
@@ -123,14 +116,6 @@ def _topic(plugin: ET.Element) -> str:
 def _text(plugin: ET.Element, *tags: str) -> str:
     return next((t.strip() for tag in tags for t in [plugin.findtext(tag)] if t and t.strip()),
                 '')
-
-
-def _floats(text: str) -> Optional[tuple]:
-    try:
-        values = tuple(float(v) for v in text.split())
-    except ValueError:
-        return None
-    return values if len(values) == 3 and all(map(math.isfinite, values)) else None
 
 
 def _number(plugin: ET.Element, warn, tags: tuple) -> float:

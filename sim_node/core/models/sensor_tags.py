@@ -154,22 +154,50 @@ def _topic(sensor: ET.Element, warn, outs: tuple = ('~/out', 'out'),
     plugin = sensor.find('plugin')
     topic = (sensor.findtext('topic') or sensor.findtext('contact/topic') or '').strip()
     if plugin is not None:
-        ns = (plugin.findtext('ros/namespace') or plugin.findtext('robotNamespace') or '')
-        ns = ns.strip().rstrip('/')
-        out = ''
-        for remap in plugin.iter('remapping'):
-            src, _, dst = (remap.text or '').partition(':=')
-            if src.strip() in outs and dst.strip():
-                out = dst.strip()
-        out = out or (plugin.findtext(old) or '').strip()
-        if not out and ns:
-            out = f'{plugin.get("name") or sensor.get("name")}/out'
-        if out:
-            topic = out if out.startswith('/') or not ns else f'{ns}/{out}'
+        named = plugin_output(plugin, outs, old)
+        if not named and plugin_namespace(plugin):
+            named = f'{plugin.get("name") or sensor.get("name")}/out'
+        topic = in_namespace(plugin_namespace(plugin), named) or topic
     if topic and not valid_topic(topic):
         warn('topic', topic, 'is not a name ROS takes')
         return ''
     return topic
+
+
+def plugin_namespace(plugin: ET.Element) -> str:
+    """Return a gazebo_ros plugin's namespace: ``<ros><namespace>``, ROS 1's ``robotNamespace``."""
+    ns = plugin.findtext('ros/namespace') or plugin.findtext('robotNamespace') or ''
+    return ns.strip().rstrip('/')
+
+
+def plugin_output(plugin: ET.Element, outs: tuple, old: str = 'topicName') -> str:
+    """
+    Return the topic a gazebo_ros plugin names for its output, or ''.
+
+    A ``<remapping>`` of one of `outs` (the names it publishes on), the last one, else ROS 1's
+    `old` element; not yet under the plugin's namespace (:func:`in_namespace`).
+    """
+    out = ''
+    for remap in plugin.iter('remapping'):
+        src, _, dst = (remap.text or '').partition(':=')
+        if src.strip() in outs and dst.strip():
+            out = dst.strip()
+    return out or (plugin.findtext(old) or '').strip()
+
+
+def in_namespace(namespace: str, topic: str) -> str:
+    """Return a plugin's `topic` under its `namespace`, unless absolute ('' stays '')."""
+    return topic if not topic or topic.startswith('/') or not namespace \
+        else f'{namespace}/{topic}'
+
+
+def floats(text: Optional[str], n: int) -> Optional[list]:
+    """Return `n` finite numbers a tag or attribute gives, or None."""
+    try:
+        values = [float(v) for v in (text or '').split()]
+    except ValueError:
+        return None
+    return values if len(values) == n and all(math.isfinite(v) for v in values) else None
 
 
 def valid_topic(name: str) -> bool:
@@ -233,11 +261,11 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
         return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
                        topic=_under(namespace, decl.topic))
     if isinstance(decl, DeclaredOdometer):
-        def body(link: str) -> str:
-            return entity if link == root else f'{entity}/{link}'
-        return replace(decl, site=f'{entity}/{decl.site}', body=body(decl.body),
+        return replace(decl, site=f'{entity}/{decl.site}',
+                       body=_link_body(entity, root, decl.body),
                        frame=f'{entity}/{decl.reference}' if decl.reference else decl.frame,
-                       reference=body(decl.reference) if decl.reference else '',
+                       reference=_link_body(entity, root, decl.reference)
+                       if decl.reference else '',
                        topic=_under(namespace, decl.topic))
     return entity_laser(decl, entity, namespace)
 
@@ -372,10 +400,14 @@ def entity_wrench(decl: DeclaredWrench, entity: str, namespace: str,
 
     :param root: the robot's root link: its body is the entity itself.
     """
-    def body(link: str) -> str:
-        return entity if link == root else f'{entity}/{link}'
-    return replace(decl, site=f'{entity}/{decl.site}', parent=body(decl.parent),
+    return replace(decl, site=f'{entity}/{decl.site}',
+                   parent=_link_body(entity, root, decl.parent),
                    frame_id=f'{entity}/{decl.frame_id}', topic=_under(namespace, decl.topic))
+
+
+def _link_body(entity: str, root: str, link: str) -> str:
+    """Return the body a robot's link is once spawned as `entity` (its root link: the entity)."""
+    return entity if link == root else f'{entity}/{link}'
 
 
 def _under(namespace: str, topic: str) -> str:

@@ -101,18 +101,10 @@ def add(spec: mujoco.MjSpec, extensions: list, limits: dict,
     return done, declared
 
 
-def _floats(text: Optional[str], n: int) -> Optional[list]:
-    try:
-        values = [float(v) for v in (text or '').split()]
-    except ValueError:
-        return None
-    return values if len(values) == n and all(math.isfinite(v) for v in values) else None
-
-
 def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
     kind = (sensor.get('type') or '').lower()
     name = _free_name(spec, sensor.get('name') or f'{body.name}_{kind}')
-    pose = _floats(sensor.findtext('pose'), 6) or [0.0] * 6
+    pose = sensor_tags.floats(sensor.findtext('pose'), 6) or [0.0] * 6
     pos, orientation = np.array(pose[:3]), quat.from_rpy(*pose[3:])
     if kind in CAMERAS:
         width = _number(sensor, './/image/width', 640.0)
@@ -159,7 +151,8 @@ def _force_torque(spec, joint: str, links: tuple, sensor: ET.Element, declared: 
         return ''
     name = _free_name(spec, sensor.get('name') or f'{joint}_ft')
     frame = (sensor.findtext('force_torque/frame') or 'child').strip().lower()
-    pose = (_floats(sensor.findtext('pose'), 6) if frame == 'sensor' else None) or [0.0] * 6
+    given = sensor_tags.floats(sensor.findtext('pose'), 6) if frame == 'sensor' else None
+    pose = given or [0.0] * 6
     site = body.add_site(name=f'{name}_ft', pos=pose[:3], quat=quat.from_rpy(*pose[3:]))
     for stype, suffix in ((mujoco.mjtSensor.mjSENS_FORCE, 'force'),
                           (mujoco.mjtSensor.mjSENS_TORQUE, 'torque')):
@@ -213,9 +206,9 @@ def _interfaces(extensions: list) -> dict:
                     lo = hi = None
                     for p in ci.findall('param'):
                         if p.get('name') == 'min':
-                            lo = _floats(p.text, 1)
+                            lo = sensor_tags.floats(p.text, 1)
                         elif p.get('name') == 'max':
-                            hi = _floats(p.text, 1)
+                            hi = sensor_tags.floats(p.text, 1)
                     out.setdefault(joint.get('name', ''), {})[(ci.get('name') or '').lower()] = (
                         lo[0] if lo else None, hi[0] if hi else None)
         elif ext.tag == 'transmission':
@@ -237,7 +230,7 @@ def joint_limits(root: ET.Element) -> dict:
             continue
         values = {}
         for key in ('velocity', 'effort'):
-            got = _floats(limit.get(key), 1)
+            got = sensor_tags.floats(limit.get(key), 1)
             values[key] = got[0] if got else 0.0
         out[joint.get('name', '')] = values
     return out
