@@ -32,6 +32,7 @@ class OdometerPublishers:
     def __init__(self, node: Node, world_frame: str, prefix: str):
         self._node, self._world, self._prefix = node, world_frame, prefix
         self._pubs: dict = {}  # site -> (topic, publisher)
+        self._frames: dict = {}  # (model generation, site) -> (frame id, child frame id)
         self._lock = threading.Lock()  # publish (publisher thread) and sync (model thread)
 
     def publish(self, sample, info: ModelInfo) -> None:
@@ -45,27 +46,35 @@ class OdometerPublishers:
                 if have is not None:
                     self._node.destroy_publisher(have[1])
                 have = self._pubs[sample.site] = (decl.topic, self._create(decl.topic))
-        frame = self._world if decl.frame == 'world' else \
-            self._prefix + decl.frame if decl.reference else decl.frame
-        child = self._prefix + self._link_frame(info, decl.body)
-        have[1].publish(om.ground_truth(sample, frame, child, decl.noise))
+            key = (info.generation, sample.site)  # found once a model, not at every sample
+            frames = self._frames.get(key)
+            if frames is None:
+                frames = self._frames[key] = self._frame_ids(info, decl)
+        have[1].publish(om.ground_truth(sample, *frames, decl.noise))
 
     def sync(self, info) -> None:
         """Destroy the publishers of plugins a new model no longer has."""
         keep = set(info.odometers if info is not None else ())
         with self._lock:
             gone = [self._pubs.pop(k)[1] for k in list(self._pubs) if k not in keep]
+            self._frames.clear()
         for pub in gone:
             self._node.destroy_publisher(pub)
 
-    @staticmethod
-    def _link_frame(info: ModelInfo, body: str) -> str:
-        """Return a body's frame on /tf: a URDF's root body goes by ``<entity>/<root link>``."""
-        if body in info.body_names:
-            alias = info.body_alias[info.body_names.index(body)]
-            if alias:
-                return alias
-        return body
+    def _frame_ids(self, info: ModelInfo, decl) -> tuple:
+        """
+        Return (frame id, child frame id) of a plugin's messages, as /tf names the frames.
+
+        The frame: the node's world frame for ``world``, ``map`` as it is, else the reference
+        link's frame. The child: the body's link; a URDF's root body goes by
+        ``<entity>/<root link>`` (its alias).
+        """
+        frame = self._world if decl.frame == 'world' else \
+            self._prefix + decl.frame if decl.reference else decl.frame
+        child = decl.body
+        if child in info.body_names:
+            child = info.body_alias[info.body_names.index(child)] or child
+        return frame, self._prefix + child
 
     def _create(self, topic: str):
         """Make a publisher without QoS event handlers (see Perception._create_publisher)."""
