@@ -152,7 +152,8 @@ def _read_stl(data: bytes):
     """
     Read a binary STL whose size is what its count says: (corners, faces, None); else None.
 
-    Its triangles as they are, each with its own three corners (:func:`_weld` joins them); an
+    Its triangles as they are, each with its own three corners (:func:`_weld` joins them), as
+    the float32 the file holds (the simplifier takes those: no round trip through float64); an
     ASCII file, or one whose count lies, goes to the full reader, which says what is wrong.
     """
     import numpy as np
@@ -163,7 +164,7 @@ def _read_stl(data: bytes):
         return None
     record = np.dtype([('normal', '<f4', 3), ('corners', '<f4', (3, 3)), ('attr', '<u2')])
     corners = np.frombuffer(data, dtype=record, count=n, offset=84)['corners'].reshape(-1, 3)
-    return corners.astype(float), np.arange(3 * n).reshape(-1, 3), None
+    return np.ascontiguousarray(corners), np.arange(3 * n).reshape(-1, 3), None
 
 
 def _weld(vertices, faces):
