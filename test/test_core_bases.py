@@ -107,14 +107,22 @@ def test_ground_truth_odometry_is_the_simulations_pose(world):
     odo = BaseOdometry(world.bases()['rover'])
     (p0, yaw0) = planar(world, 'rover')
     odo.from_pose(world.time, *planar(world, 'rover'))
-    drive(world, 'rover', 0.4, 0, 0.5, 2.0,
-          lambda: odo.from_pose(world.time, *planar(world, 'rover')))
+    twists = []
+
+    def sample():
+        odo.from_pose(world.time, *planar(world, 'rover'))
+        twists.append((odo.vx, odo.wz))
+    drive(world, 'rover', 0.4, 0, 0.5, 2.0, sample)
     p1, yaw1 = planar(world, 'rover')
     c, s = math.cos(yaw0), math.sin(yaw0)
     rel = np.array([[c, s], [-s, c]]) @ (p1 - p0)
     assert (odo.x, odo.y) == pytest.approx(tuple(rel), abs=1e-9)
     assert odo.yaw == pytest.approx(yaw1 - yaw0, abs=1e-9)
-    assert odo.vx == pytest.approx(0.4, rel=0.1) and odo.wz == pytest.approx(0.5, rel=0.1)
+    # The twist over the last second, once up to speed: a rover on two rubber points and a
+    # caster turns at 0.5 rad/s on average, but its yaw rate over one 20 ms sample swings by a
+    # fifth either way (the wheels' contacts slip and grip), so one sample is not the rate.
+    vx, wz = np.mean(twists[-50:], axis=0)
+    assert vx == pytest.approx(0.4, rel=0.1) and wz == pytest.approx(0.5, rel=0.1)
 
 
 def test_without_commands_for_half_a_second_the_base_stops(world):
