@@ -7,7 +7,6 @@ touches MjData: the world validates, applies and recompiles.
 """
 
 import logging
-import math
 from typing import Optional, Sequence
 import warnings
 
@@ -17,6 +16,7 @@ import numpy as np
 from ..base import native, quat
 from ..base.errors import ResourceParseError
 from ..base.records import EntityRecord
+from ..base.surfaces import restitution_to_solref
 from ..compiled.index import ModelIndex
 from ..control import bases, interfaces, wheels
 from ..models import sources
@@ -27,14 +27,6 @@ log = logging.getLogger(__name__)
 ERR_NO_BODY = ('the model has no body besides ground planes: put its geoms in a body to spawn '
                'them')
 
-# Contact time constant used with a restitution (s): long enough that a 1-5 ms step resolves
-# the bounce without gaining energy (shorter ones do, above e = 0.5).
-RESTITUTION_TIMECONST = 0.04
-MAX_RESTITUTION = 0.8
-# The damped spring of timeconst 0.04 s bounces higher than the textbook formula says at low e
-# (gravity acts during the long contact); this linear correction, measured for drops of
-# 0.3-3 m with 1-5 ms steps and every integrator, keeps the bounce within 0.06 of e.
-_RESTITUTION_CORRECTION = 0.12
 # Geoms with contact settings of their own win over geoms without (MuJoCo uses the higher
 # priority geom's solref and friction instead of mixing them): defined with the design, which
 # carries a geom's own settings across recompiles.
@@ -52,20 +44,6 @@ _NAMED_KINDS = ('meshes', 'skins', 'hfields', 'textures', 'materials', 'tendons'
                 'keys', 'flexes', 'frames')
 
 
-def restitution_to_solref(restitution: float) -> list:
-    """
-    Return MuJoCo solref (timeconst, dampratio) whose bounce has coefficient of restitution e.
-
-    A linear spring-damper gives e = exp(-zeta pi / sqrt(1 - zeta^2)), so
-    zeta = -ln(e') / sqrt(pi^2 + ln(e')^2), with e' = e - 0.12 (0.8 - e) correcting for the
-    long contact; e = 0 is critically damped (zeta = 1, MuJoCo's default).
-    """
-    e = min(max(restitution - _RESTITUTION_CORRECTION * (MAX_RESTITUTION - restitution), 1e-4),
-            MAX_RESTITUTION)
-    ln_e = math.log(e)
-    return [RESTITUTION_TIMECONST, min(1.0, -ln_e / math.sqrt(math.pi ** 2 + ln_e ** 2))]
-
-
 def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
     """
     Give every unnamed element that has state or is looked up a name unique in `spec`.
@@ -74,9 +52,15 @@ def name_unnamed(spec: mujoco.MjSpec, taken: Optional[set] = None) -> None:
     e.g. ``geom_3``: the world looks elements up by name, an edit carries the live state over
     by name (:mod:`.transfer`: an unnamed actuator would lose its control), and an attached copy
     gets them under its prefix, so a model can be spawned any number of times.
+
+    Joints, geoms and sites are gathered body by body, in the same order: MuJoCo's own lists of
+    them took 0.9 s for a world of 3,000 shapes (growing faster than the world), its bodies'
+    lists 0.1 s.
     """
-    groups = (('body', spec.bodies), ('joint', spec.joints), ('geom', spec.geoms),
-              ('site', spec.sites), ('actuator', spec.actuators),
+    bodies = spec.bodies
+    groups = (('body', bodies), ('joint', [j for b in bodies for j in b.joints]),
+              ('geom', [g for b in bodies for g in b.geoms]),
+              ('site', [s for b in bodies for s in b.sites]), ('actuator', spec.actuators),
               ('equality', spec.equalities))
     used = set(taken or ()) | {e.name for _, elems in groups for e in elems if e.name}
     for kind, elems in groups:

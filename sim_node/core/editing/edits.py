@@ -20,12 +20,13 @@ import mujoco
 import numpy as np
 
 from . import editor
-from .transaction import Transaction
+from .transaction import grouped, Transaction
 from ..base import checks, quat
 from ..base.checks import check_finite, check_pose
 from ..base.errors import (CapacityError, IncorrectStateError, InvalidArgumentError,
                            InvalidPoseError, NameNotUniqueError, NamespaceInvalidError)
 from ..base.records import ROBOT, STATIC
+from ..base.surfaces import MAX_RESTITUTION
 from ..compiled import state
 from ..control import bases, laws
 from ..models import sensor_tags, sources
@@ -104,6 +105,39 @@ class Edits:
         source.settle(spawned=True)
         self._hold_spawned(result, getattr(source.urdf_notes, 'ros2_control', None))
         return result
+
+    def spawn_world(self, entities: Sequence[tuple]) -> None:
+        """
+        Attach a loaded world's own entities, all in one build (a world being made).
+
+        `entities` are ``(name, source, position (3,), quat wxyz (4,))``: the models of an SDF
+        world made on their own (:attr:`.models.sources.WorldSource.entities`), placed where
+        the world file puts them (no overlap check: the file says where). Their records are the
+        world's (:attr:`Spawned.world`): a delete or a reset of the spawned leaves them.
+        All or nothing: the first that fails refuses the world.
+        """
+        def plan() -> Edit:
+            edits = []
+            for name, source, pos, q in entities:
+                pos, q = check_pose(pos, q)
+                checks.check_name(name)
+                edit = self._plan_spawn_locked(name, source, pos, q, '', False, True)
+                spawned = edit.redesign
+
+                def redesign(nxt, applied, spawned=spawned, name=name):
+                    nxt = spawned(nxt, applied)
+                    return nxt.with_spawned(name, replace(nxt.spawned[name], world=True))
+                edits.append(replace(edit, redesign=redesign))
+            return grouped(edits)
+        try:
+            self.transaction.change(plan)
+        except BaseException:
+            for _, source, _, _ in entities:
+                source.settle(spawned=False)
+            raise
+        for name, source, _, _ in entities:
+            source.settle(spawned=True)
+            self._hold_spawned(name, getattr(source.urdf_notes, 'ros2_control', None))
 
     def _hold_spawned(self, name: str, control) -> None:
         """
@@ -206,7 +240,7 @@ class Edits:
 
         def plan() -> Edit:  # compiled outside the world lock (_change)
             root = self.live.index.entity_of_body(parent)
-            if root not in self.live.design.spawned:
+            if root not in self.live.design.deletable():
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=root))
             self._check_capacity_locked(1)
             full = f'{root}/{name}'
@@ -226,7 +260,7 @@ class Edits:
         """
         def plan() -> Edit:
             self.live.index.entity(name)
-            if name not in self.live.design.spawned:
+            if name not in self.live.design.deletable():
                 raise IncorrectStateError(ERR_NOT_SPAWNED.format(name=name))
             return self._plan_removal_locked([name])
 
@@ -235,10 +269,10 @@ class Edits:
     def remove_spawned(self) -> None:
         """Remove every entity spawned since load (a reset of the spawned), outside the lock."""
         with self.live.lock:
-            anything = bool(self.live.design.spawned)
+            anything = bool(self.live.design.deletable())
         if anything:
             self.transaction.change(
-                lambda: self._plan_removal_locked(list(self.live.design.spawned)))
+                lambda: self._plan_removal_locked(self.live.design.deletable()))
 
     def _plan_removal_locked(self, names: Sequence[str]) -> Edit:
         """Return the edit that removes spawned entities `names`."""
@@ -319,9 +353,9 @@ class Edits:
     @staticmethod
     def _check_restitution(restitution: float) -> float:
         (e,) = check_finite('restitution', [restitution], 1)
-        if not 0.0 <= e <= editor.MAX_RESTITUTION:
+        if not 0.0 <= e <= MAX_RESTITUTION:
             raise InvalidArgumentError(
-                f'restitution must be in [0, {editor.MAX_RESTITUTION}], got {restitution}')
+                f'restitution must be in [0, {MAX_RESTITUTION}], got {restitution}')
         return float(e)
 
     def _weld(self, name: str) -> None:

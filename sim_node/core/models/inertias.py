@@ -60,7 +60,7 @@ def repair(root: ET.Element, links: list, joint_of: dict, repairs: list, root_mo
         if inertial is None or mass <= 0:
             continue
         alone = moving and group_mass(name) == mass  # nothing welded to it carries inertia
-        fixed = _valid_inertia(_inertia(inertial), alone)
+        fixed = valid_inertia(_inertia(inertial), alone)
         if fixed is not None:
             _set_inertial(link, inertial, mass, fixed)
             rebalanced.append(name)
@@ -87,7 +87,7 @@ def _inertia(inertial: ET.Element) -> np.ndarray:
                      [g('ixz'), g('iyz'), g('izz')]])
 
 
-def _valid_inertia(inertia: np.ndarray, moving: bool) -> Optional[np.ndarray]:
+def valid_inertia(inertia: np.ndarray, moving: bool) -> Optional[np.ndarray]:
     """Return the nearest inertia MuJoCo accepts, or None when this one is accepted."""
     moments, axes = np.linalg.eigh(inertia)
     top = max(float(moments.max()), MIN_INERTIA if moving else 0.0)

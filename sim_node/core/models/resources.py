@@ -89,7 +89,7 @@ def split_options(uri: str) -> Tuple[str, SpawnOptions]:
 
 def source_scenes_dir() -> Path:
     """Return the scenes folder of a source checkout (used when the package is not installed)."""
-    return Path(__file__).resolve().parent.parent / 'scenes'
+    return Path(__file__).resolve().parents[3] / 'scenes'
 
 
 def installed_scenes_dir() -> Path:
