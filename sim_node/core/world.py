@@ -14,6 +14,7 @@ writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
 
 import contextlib
 import math
+from pathlib import Path
 import time
 from typing import Callable, Iterator, Mapping, Optional, Sequence, TypeVar
 
@@ -33,7 +34,7 @@ from .editing import editor
 from .editing.edits import Edits
 from .editing.transaction import Transaction
 from .editing.writes import Writes
-from .models import asset_store, decompose, description, sources
+from .models import asset_store, decompose, description, resources, sdf_files, sources
 from .stepping import guard, sampling
 from .stepping.design import Design
 from .stepping.live import Live
@@ -58,9 +59,18 @@ class World:
     """
 
     def __init__(self, spec: mujoco.MjSpec, config: WorldConfig = WorldConfig(),
-                 source: str = ''):
+                 source: str = '', entities: Sequence[tuple] = (), name: str = ''):
+        """
+        Make the world of `spec`; `source` says where it came from.
+
+        :param entities: ``(name, source, position, quat wxyz)`` of the world's own models made
+            on their own (an SDF world's, :attr:`.models.sources.WorldSource.entities`):
+            attached as the world is made, kept by deletes and resets of the spawned.
+        :param name: the name the world gives itself ('' : none).
+        """
         self.config = config
         self.source = source
+        self.name = name
         # Disable MuJoCo's whole-world auto-reset on NaN: divergence is ours to report.
         spec.option.disableflags |= _NO_AUTORESET
         if config.timestep > 0:
@@ -84,11 +94,30 @@ class World:
         self._edits = Edits(live, self._transaction)
         self._writes = Writes(live, self._transaction)
         self._motion = Motion(live)
+        if entities:
+            self._edits.spawn_world(entities)
 
     @classmethod
-    def from_file(cls, path: str, config: WorldConfig = WorldConfig()) -> 'World':
-        """Load an MJCF (or URDF) scene file."""
-        sources.check_path(path, None)
+    def from_file(cls, path: str, config: WorldConfig = WorldConfig(),
+                  places: Optional[sdf_files.Places] = None) -> 'World':
+        """
+        Load an MJCF, URDF or SDF scene file.
+
+        :param places: where an SDF world's ``model://`` URIs lead (None: the environment's
+            model paths and the models this package ships).
+        """
+        real = sources.check_path(path, None)
+        if real.suffix.lower() in sdf_files.SUFFIXES:
+            plan = sources.world_source(sources.read_model_text(real), str(Path(path).parent),
+                                        places=places or sdf_files.Places.of(
+                                            scenes_dir=resources.installed_scenes_dir()))
+            try:
+                made = cls(plan.spec, config, str(path), plan.entities, plan.name)
+            except BaseException:
+                plan.settle(False)
+                raise
+            plan.settle(True)
+            return made
         try:
             spec = mujoco.MjSpec.from_file(str(path))
         except ValueError as exc:
@@ -284,7 +313,7 @@ class World:
     def spawned_names(self) -> list:
         """Return the entities spawned since load (the ones that can be deleted)."""
         with self._live.lock:
-            return list(self._live.design.spawned)
+            return self._live.design.deletable()
 
     def joint_names(self) -> list:
         """Hinge and slide joints, the ones joint commands and joint_states cover."""

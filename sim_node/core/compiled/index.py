@@ -261,7 +261,7 @@ def _entity_records(m: mujoco.MjModel, names: tuple, root_of: np.ndarray,
             name=name, category=category, root_body=root,
             body_ids=tuple(int(b) for b in np.nonzero(root_of == root)[0]),
             geom_ids=tuple(int(g) for g in np.nonzero(groot == root)[0]),
-            spawned=own is not None,
+            spawned=own is not None and not own.world,
             description=own.description if own is not None else 'from the scene',
             has_free_joint=has_free, namespace=own.namespace if own is not None else ''))
     return tuple(recs)

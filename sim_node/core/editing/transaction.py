@@ -135,7 +135,7 @@ class Transaction:
     def _commit_group(self, edits: list, generation: int, design: Design,
                       old: mujoco.MjModel) -> bool:
         """Build and commit `edits` as one; False (nothing changed) if anything fails."""
-        group = _grouped(edits)
+        group = grouped(edits)
         try:
             nxt, model = design.build(group)
             return (model.nbody <= self.live.config.max_bodies and
@@ -301,7 +301,7 @@ class _Pending:
         return self.result
 
 
-def _grouped(edits: Sequence[Edit]) -> Edit:
+def grouped(edits: Sequence[Edit]) -> Edit:
     """Return one edit that makes `edits` in order: applies, checks and tables."""
     def apply(spec: mujoco.MjSpec) -> list:
         return [e.apply(spec) for e in edits]

@@ -17,5 +17,13 @@ streams a RealSense Gazebo plugin names), :mod:`.openni` (those an OpenNI Kinect
 :mod:`.meshes`, :mod:`.mesh_worker` and :mod:`.collada_fast` (meshes MuJoCo cannot read,
 converted in child processes), :mod:`.decompose` and :mod:`.decompose_worker` (concave
 collision meshes split into convex parts in a child process), :mod:`.description` (a URDF of
-a compiled model, for robot_description).
+a compiled model, for robot_description). SDF worlds and models, as Gazebo reads them:
+:mod:`.sdf_files` (where ``model://``, Fuel and relative URIs lead; a model folder's file),
+:mod:`.sdf_read` (the text read safely, its includes expanded, bounded), :mod:`.sdf_frames`
+(poses and frames: ``relative_to``, placement frames, nested models), :mod:`.sdf_shapes`
+(geometry and materials as geoms and assets), :mod:`.sdf_parts` (a link's inertial,
+collisions, visuals, lights), :mod:`.sdf_joints` (joints, their couplings, loops closed),
+:mod:`.sdf_model` (a model's links as a tree of bodies), :mod:`.sdf_world` (a world as one
+document, its models with records attached as spawns), :mod:`.sdf_systems` (the gz-sim systems
+named, run or not) and :mod:`.sdf_elements` (every element: read, approximated or ignored).
 """

@@ -1,5 +1,5 @@
 """
-What can be spawned: MJCF or URDF (text or file), primitives and mesh files.
+What can be spawned: MJCF, URDF or SDF (text or file), primitives and mesh files.
 
 Each builder returns a :class:`SpawnSource`: an MjSpec (one or more top-level bodies: a
 standalone model file works as it is) whose files are checked copies.
@@ -18,10 +18,12 @@ import xml.etree.ElementTree as ET
 
 import mujoco
 
-from . import assets, decompose, meshes, prepare, urdf, xacro_files
+from . import assets, decompose, meshes, prepare, sdf_read, sdf_world, urdf, xacro_files
 from .assets import Reader
 from .paths import inside_roots  # noqa: F401 (this module's too)
 from .prepare import compile_error, WORLD_GEOMS_BODY  # noqa: F401 (named by scripts)
+from .sdf_files import Places
+from .sdf_frames import version_of
 from .urdf import Prepared
 from ..base.config import WorldConfig
 from ..base.errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
@@ -29,7 +31,7 @@ from ..base.errors import (FeatureUnsupportedError, InvalidArgumentError, Missin
                            UnsupportedElementsError, UnsupportedFormatError)
 
 MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
-MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf', '.xacro')
+MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf', '.xacro', '.sdf', '.world')
 PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
 
 #: Elements MuJoCo's XML reader expands before it checks its schema, which does not list them.
@@ -41,11 +43,13 @@ ERR_IGNORE_ASSETS = ('loading a world without its missing or unsupported assets 
                      '(ignore_missing_or_unsupported_assets): {err}')
 ERR_EMPTY = 'the resource is empty: give MJCF or URDF text, a file, a primitive or a mesh'
 ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
-ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF) or '
-                '<robot> (URDF)')
+ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF), '
+                '<robot> (URDF) or <sdf> (SDF)')
 ERR_NO_BODY = 'the model has no body and no geom: nothing to spawn'
 ERR_NOT_XML = ('unsupported format: the text is not XML (it starts {start!r}); give MJCF '
-               '(<mujoco>) or URDF (<robot>)')
+               '(<mujoco>), URDF (<robot>) or SDF (<sdf>)')
+ERR_SDF_WORLD = ('the SDF holds a world and no model to spawn: load it with load_world (or the '
+                 'scene parameter)')
 ERR_FILE_MISSING = 'file not found: {path}'
 ERR_FILE_NOT_REGULAR = 'not a regular file: {path}'
 ERR_FILE_OUTSIDE = ('{path} is not inside the directories this node may read (its resource_paths '
@@ -266,15 +270,21 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
                     allowed_roots: Optional[Sequence[str]] = None,
                     max_bytes: int = _LIMITS.max_resource_bytes,
                     max_faces: int = _LIMITS.max_mesh_faces, fixed: bool = False,
-                    max_bodies: Optional[int] = None) -> SpawnSource:
+                    max_bodies: Optional[int] = None,
+                    places: Optional[Places] = None) -> SpawnSource:
     """
-    Parse MJCF or URDF text (URDF through MuJoCo's own importer, prepared by :mod:`.urdf`).
+    Parse MJCF, URDF or SDF text into what a spawn attaches.
+
+    URDF through MuJoCo's own importer, prepared by :mod:`.urdf`; SDF by :mod:`.sdf_world`.
 
     :param base_dir: directory relative file names resolve against (None: only absolute).
     :param allowed_roots: directories files may be read from (None: anywhere).
     :param fixed: a URDF's root stays where it is spawned even when it would float.
     :param max_bodies: a URDF with more links is refused before MuJoCo reads it.
+    :param places: where an SDF model's ``model://`` URIs lead (None: the allowed roots).
     """
+    if sdf_read.is_sdf(text):
+        return from_sdf_text(text, base_dir, allowed_roots, max_bytes, fixed, places)
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     if root.tag == 'robot' and xacro_files.is_xacro('', text):
         text = xacro_files.expand(allowed_roots if allowed_roots is not None else ['/'],
@@ -313,6 +323,122 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     return source
 
 
+def _empty_or_large(text: str, max_bytes: int) -> None:
+    if not text or not text.strip():
+        raise NoResourceError(ERR_EMPTY)
+    _check_size(len(text.encode()), max_bytes)
+
+
+def from_sdf_text(text: str, base_dir: Optional[str] = None,
+                  allowed_roots: Optional[Sequence[str]] = None,
+                  max_bytes: int = _LIMITS.max_resource_bytes, fixed: bool = False,
+                  places: Optional[Places] = None) -> SpawnSource:
+    """
+    Parse an SDF model (the first top-level ``<model>``, its includes expanded) to spawn.
+
+    :param fixed: the model is static where it is spawned (``?static=true``).
+    :raises UnsupportedFormatError: the SDF holds a world and no model (load_world loads it).
+    """
+    _empty_or_large(text, max_bytes)
+    places = places or Places.of(allowed_roots or ())
+    reader = assets.Reader(allowed_roots, _budget(max_bytes, URDF_MAX_INPUT_FACES))
+    try:
+        expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader, places)
+        model = expanded.root.find('model')
+        if model is None:
+            raise UnsupportedFormatError(ERR_SDF_WORLD if expanded.world is not None else
+                                         sdf_world.ERR_NO_MODEL.format(what=''))
+        name = model.get('name', '')
+        spec, notes = sdf_world.model(model, version_of(model, expanded.version), reader,
+                                      places, fixed)
+    except BaseException:
+        reader.settle(keep=False)
+        raise
+    for text_ in notes.repairs:
+        log.warning('SDF model %r: %s', name, text_)
+    return SpawnSource(spec=spec, kind='sdf', description=f'SDF model {name[:100]}',
+                       text=text, name=sdf_world.entity_name(name), reader=reader,
+                       urdf_notes=notes)
+
+
+@dataclass
+class WorldSource:
+    """
+    A world to load: its spec, the entities to attach as it is made, what it said.
+
+    :param entities: ``(name, SpawnSource, position (3,), quat wxyz (4,))`` of the models
+        made on their own (an SDF world's models with sensors or systems, its URDF includes).
+    :param name: the name the world gives itself ('' : none; MJCF's is its file's).
+    :param dropped: the elements not read (named in the answer, or refused with
+        ``fail_on_unsupported_element``).
+    :param real_time_factor: the pace the world file asks for (None: it asks none).
+    :param systems: plugins the world names that this simulator does not run.
+    """
+
+    spec: mujoco.MjSpec
+    entities: list = field(default_factory=list)
+    name: str = ''
+    dropped: list = field(default_factory=list)
+    real_time_factor: Optional[float] = None
+    systems: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    reader: Optional[Reader] = None
+
+    def settle(self, loaded: bool) -> None:
+        """Say the world was loaded, or refused: a refused one's copied files go."""
+        for _, source, _, _ in self.entities:
+            source.settle(loaded)
+        if self.reader is not None:
+            self.reader.settle(keep=loaded)
+
+
+def world_source(text: str, base_dir: Optional[str] = None,
+                 allowed_roots: Optional[Sequence[str]] = None,
+                 max_bytes: int = _LIMITS.max_resource_bytes,
+                 max_faces: int = _LIMITS.max_mesh_faces,
+                 fail_on_unsupported_element: bool = False,
+                 ignore_missing_assets: bool = False,
+                 places: Optional[Places] = None) -> WorldSource:
+    """
+    Return the world of untrusted MJCF, URDF or SDF text (load_world, the scene parameter).
+
+    MJCF and URDF as :func:`world_spec` reads them; SDF by :mod:`.sdf_world`. Elements not read
+    are named in :attr:`WorldSource.dropped`, or with `fail_on_unsupported_element` refused.
+    """
+    if not sdf_read.is_sdf(text):
+        spec, dropped = world_spec(text, base_dir, allowed_roots, max_bytes, max_faces,
+                                   fail_on_unsupported_element, ignore_missing_assets)
+        return WorldSource(spec, dropped=dropped)
+    _empty_or_large(text, max_bytes)
+    places = places or Places.of(allowed_roots or ())
+    reader = assets.Reader(allowed_roots, _budget(max_bytes, URDF_MAX_INPUT_FACES))
+    made: list = []
+    try:
+        try:
+            expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader,
+                                       places)
+            plan = sdf_world.world(expanded, reader, places)
+        except (MissingAssetsError, UnsupportedAssetsError) as exc:
+            if ignore_missing_assets:
+                raise FeatureUnsupportedError(ERR_IGNORE_ASSETS.format(err=exc)) from None
+            raise
+        if plan.not_read and fail_on_unsupported_element:
+            raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(
+                tags=element_list(plan.not_read)))
+        for e in plan.entities:
+            source = (from_file(e.urdf, allowed_roots, fixed=e.static) if e.urdf else
+                      SpawnSource(spec=e.spec, kind='sdf', description=e.description,
+                                  name=e.name, urdf_notes=e.notes))
+            made.append((e.name, source, e.pose[0], e.pose[1]))
+    except BaseException:
+        reader.settle(keep=False)
+        for _, source, _, _ in made:
+            source.settle(False)
+        raise
+    return WorldSource(plan.spec, made, plan.name, plan.not_read, plan.real_time_factor,
+                       plan.systems, plan.notes, reader)
+
+
 def split_marked_meshes(spec: mujoco.MjSpec) -> int:
     """
     Give the MJCF meshes a model marks convex parts (:mod:`.decompose`); return how many.
@@ -343,13 +469,15 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = _LIMITS.max_resource_bytes,
               max_faces: int = _LIMITS.max_mesh_faces, fixed: bool = False,
               xacro_args: Optional[dict] = None, max_bodies: Optional[int] = None,
-              **mesh_options) -> SpawnSource:
+              places: Optional[Places] = None, **mesh_options) -> SpawnSource:
     """
-    Load an MJCF, URDF or xacro file, or a mesh file (STL, OBJ, PLY, GLB, DAE), as one entity.
+    Load an MJCF, URDF, xacro or SDF file, or a mesh file (STL, OBJ, PLY, GLB, DAE), as one entity.
 
-    :param fixed: a URDF's root stays where it is spawned (see :mod:`.urdf`).
+    :param fixed: a URDF's root stays where it is spawned (see :mod:`.urdf`); an SDF model is
+        static.
     :param xacro_args: ``{name: value}`` for a xacro file's ``$(arg name)``.
     :param max_bodies: a URDF with more links is refused before MuJoCo reads it.
+    :param places: where an SDF model's ``model://`` URIs lead.
     """
     p = check_path(path, allowed_roots, max_bytes)
     suffix = p.suffix.lower()
@@ -370,7 +498,7 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
     # own loader does (a link to a model file keeps its folder's meaning).
     return from_model_text(text, base_dir=str(Path(path).parent), allowed_roots=allowed_roots,
                            max_bytes=max_bytes, max_faces=max_faces, fixed=fixed,
-                           max_bodies=max_bodies)
+                           max_bodies=max_bodies, places=places)
 
 
 def check_rgba(rgba: Sequence[float]) -> list:

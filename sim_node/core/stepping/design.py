@@ -86,6 +86,10 @@ class Spawned:
     #: A URDF's ros2_control declaration (:class:`~.models.ros2_control.Ros2Control`), its
     #: namespace the spawn's when one was given.
     ros2_control: Optional[object] = None
+    #: Part of the loaded world (an SDF world's model made on its own), not spawned since: a
+    #: delete refuses it and a reset of the spawned keeps it, as for the world's other
+    #: entities.
+    world: bool = False
 
 
 @dataclass(frozen=True)
@@ -198,6 +202,10 @@ class Design:
         return cls(keep, arena, baked=_bake_textures(keep, model, ())), model
 
     # ---------------------------------------------------------------- reading
+
+    def deletable(self) -> list:
+        """Return the names of the entities spawned since load (not the world's own)."""
+        return [n for n, rec in self.spawned.items() if not rec.world]
 
     def frame_of(self, name: str) -> Optional[str]:
         """Return the frame a spawned entity hangs from (None: an entity of the scene)."""
