@@ -46,6 +46,7 @@ loop lock and never held while calling a listener; a mailbox's lock is a leaf.
 """
 
 import contextlib
+from dataclasses import replace
 import logging
 from pathlib import Path
 import threading
@@ -58,6 +59,7 @@ from .core.base.errors import (AlreadyInStateError, IncorrectStateError, Incorre
 from .core.base.memory import HeapTrimmer
 from .core.base.records import RESET_ALL
 from .core.loop import SimLoop
+from .core.models.sdf_files import Places
 from .core.world import World
 from .listeners import Listener, Mailbox, StateListener
 
@@ -255,12 +257,23 @@ class Session:
         self._start_thread()
         return old
 
-    def load_file(self, path: str, config: WorldConfig = WorldConfig(),
-                  stopped: bool = False) -> Loaded:
-        """Load an MJCF or URDF scene file (see :meth:`load`)."""
+    def load_file(self, path: str, config: Optional[WorldConfig] = None,
+                  stopped: bool = False, places: Optional[Places] = None,
+                  paced_by_file: bool = False) -> Loaded:
+        """
+        Load an MJCF, URDF or SDF scene file (see :meth:`load`).
+
+        The world is named by its file, or by the name an SDF world gives itself. Without a
+        `config` (or with `paced_by_file`), the real-time factor an SDF world's ``<physics>``
+        asks paces it.
+
+        :param places: where an SDF world's ``model://`` URIs lead (see :meth:`World.from_file`).
+        """
         p = Path(path)
-        return self.load(World.from_file(str(p), config), p.stem, p.resolve().as_uri(),
-                         stopped)
+        world = World.from_file(str(p), config or WorldConfig(), places)
+        if (config is None or paced_by_file) and world.real_time_factor is not None:
+            config = replace(world.config, real_time_factor=world.real_time_factor)
+        return self.load(world, world.name or p.stem, p.resolve().as_uri(), stopped, config)
 
     @contextlib.contextmanager
     def loading(self) -> Iterator[None]:

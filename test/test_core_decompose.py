@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from sim_node.core.base.config import WorldConfig
 from sim_node.core.base.errors import InvalidArgumentError, ResourceParseError
-from sim_node.core.models import decompose, sources
+from sim_node.core.models import decompose, sources, world_sources
 from sim_node.core.world import World
 
 BOX = 0.06  # side of the box dropped into the tray (m)
@@ -258,7 +258,7 @@ def test_a_world_loaded_with_marked_meshes_gets_their_parts(meshes, tmp_path):
       <custom><text name="decompose_meshes" data="tray"/></custom>
       <worldbody><geom type="plane" size="5 5 0.1"/>
         <body name="t"><geom type="mesh" mesh="tray"/></body></worldbody></mujoco>"""
-    spec, _ = sources.world_spec(text)  # what load_world reads, then makes a World of
+    spec, _ = world_sources.world_spec(text)  # what load_world reads, then makes a World of
     loaded = World(spec)
     with loaded.locked() as (m, _):
         assert m.ngeom > 6

@@ -34,7 +34,8 @@ from .editing import editor
 from .editing.edits import Edits
 from .editing.transaction import Transaction
 from .editing.writes import Writes
-from .models import asset_store, decompose, description, resources, sdf_files, sources
+from .models import (asset_store, decompose, description, resources, sdf_files, sources,
+                     world_sources)
 from .stepping import guard, sampling
 from .stepping.design import Design
 from .stepping.live import Live
@@ -64,13 +65,16 @@ class World:
         Make the world of `spec`; `source` says where it came from.
 
         :param entities: ``(name, source, position, quat wxyz)`` of the world's own models made
-            on their own (an SDF world's, :attr:`.models.sources.WorldSource.entities`):
+            on their own (an SDF world's, :attr:`.models.world_sources.WorldSource.entities`):
             attached as the world is made, kept by deletes and resets of the spawned.
         :param name: the name the world gives itself ('' : none).
         """
         self.config = config
         self.source = source
         self.name = name
+        #: The pace the world's file asks for (an SDF world's ``<real_time_factor>``; None: it
+        #: asks none): a loop made without a configuration of its own takes it.
+        self.real_time_factor: Optional[float] = None
         # Disable MuJoCo's whole-world auto-reset on NaN: divergence is ours to report.
         spec.option.disableflags |= _NO_AUTORESET
         if config.timestep > 0:
@@ -108,15 +112,16 @@ class World:
         """
         real = sources.check_path(path, None)
         if real.suffix.lower() in sdf_files.SUFFIXES:
-            plan = sources.world_source(sources.read_model_text(real), str(Path(path).parent),
-                                        places=places or sdf_files.Places.of(
-                                            scenes_dir=resources.installed_scenes_dir()))
+            places = places or sdf_files.Places.of(scenes_dir=resources.installed_scenes_dir())
+            plan = world_sources.world_source(sources.read_model_text(real),
+                                              str(Path(path).parent), places=places)
             try:
                 made = cls(plan.spec, config, str(path), plan.entities, plan.name)
             except BaseException:
                 plan.settle(False)
                 raise
             plan.settle(True)
+            made.real_time_factor = plan.real_time_factor
             return made
         try:
             spec = mujoco.MjSpec.from_file(str(path))

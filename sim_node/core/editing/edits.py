@@ -111,7 +111,7 @@ class Edits:
         Attach a loaded world's own entities, all in one build (a world being made).
 
         `entities` are ``(name, source, position (3,), quat wxyz (4,))``: the models of an SDF
-        world made on their own (:attr:`.models.sources.WorldSource.entities`), placed where
+        world made on their own (:attr:`.models.world_sources.WorldSource.entities`), placed where
         the world file puts them (no overlap check: the file says where). Their records are the
         world's (:attr:`Spawned.world`): a delete or a reset of the spawned leaves them.
         All or nothing: the first that fails refuses the world.

@@ -1,7 +1,8 @@
 """
-Reading what users bring: model files and text (MJCF, URDF, xacro), their meshes and assets.
+Reading what users bring: model files and text (MJCF, URDF, xacro, SDF), meshes and assets.
 
-:mod:`.sources` (what can be spawned), :mod:`.prepare` (model text made ready for MuJoCo: URDF
+:mod:`.sources` (what can be spawned), :mod:`.world_sources` (what can be loaded as a world),
+:mod:`.prepare` (model text made ready for MuJoCo: URDF
 meshes converted, skins inlined, loose world geometry gathered), :mod:`.assets` (untrusted
 model text: safe XML, includes, every file resolved and checked once), :mod:`.asset_store` (the
 checked copies MuJoCo reads, one per file identity), :mod:`.paths` (where a path really leads),

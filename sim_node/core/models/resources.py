@@ -15,10 +15,11 @@ before anything opens them.
 from dataclasses import dataclass
 import os
 from pathlib import Path
-from typing import Optional, Sequence, Tuple
+from typing import Mapping, Optional, Sequence, Tuple
 from urllib.parse import unquote, urlparse
 
-from . import sources
+from . import sdf_files, sources
+from .sdf_files import Places
 from ..base.errors import (FeatureUnsupportedError, MissingAssetsError, NoResourceError,
                            NotFoundError, UnsupportedFormatError)
 
@@ -31,20 +32,32 @@ class Readable:
     """
     The folders requests may read files from.
 
-    :param roots: resolved folders: the installed scenes (unless left out) and resource paths.
+    :param roots: resolved folders: the installed scenes (unless left out), the resource paths,
+        and Gazebo's model folders of the environment (``GZ_SIM_RESOURCE_PATH`` and its older
+        names, Fuel's cache: :class:`.sdf_files.Places`), which whoever starts the node sets
+        as they set its parameters.
     :param scenes_dir: the installed scenes folder (``package://sim/...`` reads its parent).
+    :param places: where SDF's ``model://`` and Fuel URIs lead.
     """
 
     roots: Tuple[str, ...]
     scenes_dir: Path
+    places: Places = Places()
 
     @classmethod
     def of(cls, resource_paths: Sequence[str], scenes_dir: Path,
-           builtin: bool = True) -> 'Readable':
-        """`resource_paths` added to the installed scenes and objects (`builtin`: kept)."""
+           builtin: bool = True, environ: Optional[Mapping] = None) -> 'Readable':
+        """
+        `resource_paths` added to the installed scenes and objects (`builtin`: kept).
+
+        With them, the model folders Gazebo would search (:meth:`.sdf_files.Places.of` of
+        `environ`, None: this process's environment).
+        """
         own = [str(scenes_dir)] if builtin else []
-        return cls(tuple(str(Path(r).resolve()) for r in own + list(resource_paths) if r),
-                   Path(scenes_dir))
+        places = Places.of(resource_paths, environ, scenes_dir if builtin else None)
+        roots = [str(Path(r).resolve()) for r in own + list(resource_paths) if r]
+        roots += [str(Path(r).resolve()) for r in places.roots()]
+        return cls(tuple(dict.fromkeys(roots)), Path(scenes_dir), places)
 
     def redact(self, text: str) -> str:
         """Say `text` without where the server keeps its files (see :func:`redact`)."""
@@ -100,13 +113,15 @@ def installed_scenes_dir() -> Path:
         return source_scenes_dir()
 
 
-def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Path:
+def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path,
+                places: Optional[Places] = None) -> Path:
     """
     Resolve a spawn or world URI to a checked file path.
 
     The file must lie inside the resource paths (``package://sim/...``: inside this package's
     share folder); only then is its existence checked, so a refused path says nothing about
-    what exists on the server.
+    what exists on the server. A Gazebo model folder is its model's file; ``model://`` and
+    Fuel URIs lead where `places` say (None: the resource paths).
 
     :raises NoResourceError: empty URI.
     :raises NotFoundError: no such file, package or spawnable.
@@ -120,6 +135,8 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
     uri = uri.strip()
     parsed = urlparse(uri)
     roots = list(resource_paths)
+    if sdf_files.is_model_uri(uri):
+        return resolve_model(uri, roots, places or Places.of(roots))
     if parsed.scheme == 'package':
         rel = unquote(parsed.path).lstrip('/')
         if parsed.netloc == PACKAGE:
@@ -146,8 +163,46 @@ def resolve_uri(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> Pa
         exists = False
     if not exists:
         raise NotFoundError(f'no file at {uri}; get_spawnables lists what can be spawned')
+    if path.is_dir():  # a model folder (Gazebo's): the file its model.config names
+        path = model_folder_file(path, roots)
     sources.check_path(str(path), roots)
     return path
+
+
+def model_folder_file(folder: Path, roots: Sequence[str]) -> Path:
+    """
+    Return the file of a Gazebo model folder.
+
+    The one its model.config names for the newest SDF version (:func:`.sdf_files.model_file`),
+    else its model.sdf.
+
+    :raises MissingAssetsError: no model.config entry and no model.sdf, or outside `roots`.
+    """
+    config = folder / 'model.config'
+    data = None
+    if config.is_file():
+        data = sources.check_path(str(config), roots).read_bytes()
+    return sdf_files.model_file(folder, data)
+
+
+def resolve_model(uri: str, roots: Sequence[str], places: Places) -> Path:
+    """
+    Return the file a ``model://`` or Fuel URI names, inside `roots`.
+
+    A model folder gives its model.config's file; ``model://name/path`` a file inside it.
+
+    :raises MissingAssetsError: no such model (where it was looked for is said), or outside
+        the readable folders.
+    """
+    for candidate in sdf_files.candidates(uri, None, places):
+        if not sources.inside_roots(str(candidate), roots):
+            raise MissingAssetsError(sources.ERR_FILE_OUTSIDE.format(path=uri))
+        if candidate.is_dir():
+            return model_folder_file(candidate, roots)
+        if candidate.exists():
+            sources.check_path(str(candidate), roots)
+            return candidate
+    raise NotFoundError(f'no file at {uri}; get_spawnables lists what can be spawned')
 
 
 def _package_share(package: str) -> Path:
@@ -186,9 +241,10 @@ def resolve_world(uri: str, resource_paths: Sequence[str], scenes_dir: Path) -> 
     if uri and uri.strip() and urlparse(uri.strip()).scheme == '' and \
             not os.path.isabs(uri.strip()):
         name = uri.strip()
-        names = [n for n, _ in list_worlds(scenes_dir)]
-        if name in names:
-            return scenes_dir / f'{name}.xml'
+        found = dict(_world_files(scenes_dir))
+        if name in found:
+            return found[name]
+        names = list(found)
         raise NotFoundError(f'no world named {name[:200]!r}; worlds: {_names_hint(names)} '
                             '(or give a package:// or file:// uri)')
     return resolve_uri(uri, resource_paths, scenes_dir)
@@ -220,9 +276,14 @@ def redact(text: str, resource_paths: Sequence[str], scenes_dir: Path,
 
 def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
                     extra_sources: Optional[Sequence[str]] = None,
-                    unrecognised: Optional[list] = None) -> list:
+                    unrecognised: Optional[list] = None,
+                    places: Optional[Places] = None) -> list:
     """
     Return (uri, description) of the installed objects and of files under the resource paths.
+
+    A Gazebo model folder (its ``model.config``) is one entry, ``model://<name>`` where it lies
+    on a model path of `places`, its files none; an SDF world file is none (load_world loads
+    it), nor is a model folder that holds only a light (``model://sun``).
 
     :param extra_sources: more folders (inside the resource paths) to list.
     :param unrecognised: if given, an extra source that cannot be listed is skipped and why is
@@ -238,10 +299,22 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
             if unrecognised is None:
                 raise
             unrecognised.append(f'{src!r}: {exc}')
+    model_paths = {Path(p).resolve() for p in (places.model_paths if places else ())}
     for folder in folders:
         if not folder.is_dir():
             continue
+        models = sorted(c.parent for c in folder.rglob('model.config'))
+        for m in models:
+            if m in seen or not _has_model(m):
+                continue
+            seen.add(m)
+            uri = (f'model://{m.name}' if m.resolve().parent in model_paths
+                   else m.resolve().as_uri())
+            out.append((uri, f'Gazebo model {m.name}'))
         for f in sorted(folder.rglob('*')):
+            if any(p in models for p in f.parents) or (
+                    f.suffix.lower() in sdf_files.SUFFIXES and not _has_model(f)):
+                continue
             if f.suffix.lower() in SPAWNABLE_SUFFIXES and f.is_file() and f not in seen:
                 seen.add(f)
                 if f.parent == scenes_dir and _bodiless_world(f):
@@ -252,6 +325,20 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
                     uri = f.resolve().as_uri()
                 out.append((uri, f'{f.suffix[1:].upper()} file {f.name}'))
     return out
+
+
+def _has_model(path: Path) -> bool:
+    """Whether an SDF file (or a model folder's files) holds a model, not only a world or light."""
+    files = [path] if path.is_file() else sorted(path.glob('*.sdf'))
+    for f in files:
+        try:
+            with open(f, 'rb') as stream:
+                head = stream.read(1 << 16)
+        except OSError:
+            continue
+        if b'<model' in head and b'<world' not in head:
+            return True
+    return False
 
 
 def _bodiless_world(path: Path) -> bool:
@@ -273,10 +360,15 @@ def check_folder(folder: str, resource_paths: Sequence[str]) -> Path:
     return real
 
 
+def _world_files(scenes_dir: Path) -> list:
+    """(name, path) of every world file at the top of the installed scenes folder."""
+    return [(f.stem, f) for f in sorted(scenes_dir.glob('*'))
+            if f.suffix in ('.xml',) + sdf_files.SUFFIXES and f.is_file()]
+
+
 def list_worlds(scenes_dir: Path) -> list:
-    """(name, uri) for every scene file at the top of the installed scenes folder."""
-    return [(f.stem, f'package://{PACKAGE}/scenes/{f.name}')
-            for f in sorted(scenes_dir.glob('*.xml'))]
+    """(name, uri) for every world file (MJCF, SDF) at the top of the installed scenes folder."""
+    return [(name, f'package://{PACKAGE}/scenes/{f.name}') for name, f in _world_files(scenes_dir)]
 
 
 def resolve_scene(scene: str, scenes_dir: Path) -> Path:
@@ -287,8 +379,8 @@ def resolve_scene(scene: str, scenes_dir: Path) -> Path:
     p = Path(scene)
     if p.is_file():
         return p
-    candidate = scenes_dir / f'{scene}.xml'
-    if candidate.is_file():
-        return candidate
-    names = [n for n, _ in list_worlds(scenes_dir)]
+    found = dict(_world_files(scenes_dir))
+    if scene in found:
+        return found[scene]
+    names = list(found)
     raise MissingAssetsError(f'no scene {scene!r}: give a file path or one of {names}')

@@ -137,7 +137,8 @@ def candidates(uri: str, folder: Optional[Path], places: Places) -> list:
     if re.match(r'^[a-z][a-z0-9+.-]*://', low):
         raise MissingAssetsError(ERR_SCHEME.format(uri=uri[:200]))
     if os.path.isabs(uri):  # pybullet's files write '/meshes/x.stl' for one beside them
-        return [Path(uri)] + ([folder / uri.lstrip('/')] if folder is not None else [])
+        beside = folder / uri.lstrip('/') if folder is not None else None
+        return [beside, Path(uri)] if beside is not None and beside.exists() else [Path(uri)]
     out = [folder / uri] if folder is not None else []
     return out + [Path(p) / uri for p in places.model_paths]
 

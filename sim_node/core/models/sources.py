@@ -8,11 +8,9 @@ touches a live world.
 """
 
 from dataclasses import dataclass, field
-import functools
 import logging
 import math
 from pathlib import Path
-import re
 from typing import Optional, Sequence
 import xml.etree.ElementTree as ET
 
@@ -26,21 +24,13 @@ from .sdf_files import Places
 from .sdf_frames import version_of
 from .urdf import Prepared
 from ..base.config import WorldConfig
-from ..base.errors import (FeatureUnsupportedError, InvalidArgumentError, MissingAssetsError,
-                           NoResourceError, ResourceParseError, UnsupportedAssetsError,
-                           UnsupportedElementsError, UnsupportedFormatError)
+from ..base.errors import (InvalidArgumentError, NoResourceError, ResourceParseError,
+                           UnsupportedAssetsError, UnsupportedFormatError)
 
 MESH_SUFFIXES = ('.stl', '.obj', '.ply', '.glb', '.gltf', '.dae')
 MODEL_SUFFIXES = ('.xml', '.mjcf', '.urdf', '.xacro', '.sdf', '.world')
 PRIMITIVES = ('box', 'sphere', 'cylinder', 'capsule')
 
-#: Elements MuJoCo's XML reader expands before it checks its schema, which does not list them.
-_EXPANDED_FIRST = frozenset({'include', 'mujocoinclude', 'frame', 'replicate', 'composite'})
-ERR_UNKNOWN_ELEMENTS = ('the world uses elements MuJoCo does not know: {tags} (asked to fail on '
-                        'unsupported elements; without fail_on_unsupported_element they are '
-                        'left out)')
-ERR_IGNORE_ASSETS = ('loading a world without its missing or unsupported assets is not supported '
-                     '(ignore_missing_or_unsupported_assets): {err}')
 ERR_EMPTY = 'the resource is empty: give MJCF or URDF text, a file, a primitive or a mesh'
 ERR_TOO_LARGE = 'resource of {size} bytes is over the limit of {limit} bytes'
 ERR_ROOT_TAG = ('unsupported format: the root element is <{tag}>; expected <mujoco> (MJCF), '
@@ -66,7 +56,7 @@ DECOMPOSE_TEXT = 'decompose_meshes'
 ERR_MARKED_MESH = ('<custom><text name="decompose_meshes"> names meshes the model does not have: '
                    '{names}; name <mesh> elements of this model')
 # Default budgets: the configuration's (the node passes its own WorldConfig's).
-_LIMITS = WorldConfig()
+LIMITS = WorldConfig()
 #: Most faces a URDF mesh may have as it comes (over MuJoCo's limit it is decimated).
 URDF_MAX_INPUT_FACES = 4_000_000
 
@@ -136,7 +126,7 @@ class SpawnSource:
 
 
 def check_path(path: str, allowed_roots: Optional[Sequence[str]],
-               max_bytes: int = _LIMITS.max_resource_bytes) -> Path:
+               max_bytes: int = LIMITS.max_resource_bytes) -> Path:
     """
     Check that `path` is a readable regular file inside `allowed_roots` (None: anywhere).
 
@@ -144,8 +134,8 @@ def check_path(path: str, allowed_roots: Optional[Sequence[str]],
     device would block MuJoCo forever, and a path outside the roots would let a caller read any
     file; both are refused before anything opens the file. Returns the resolved path.
     """
-    budget = _budget(max_bytes, _LIMITS.max_mesh_faces)
-    real, _ = assets.Reader(allowed_roots, budget).resolve(str(path), [Path(path)], {
+    limits = budget(max_bytes, LIMITS.max_mesh_faces)
+    real, _ = assets.Reader(allowed_roots, limits).resolve(str(path), [Path(path)], {
         'outside': ERR_FILE_OUTSIDE.format(path=path),
         'missing': ERR_FILE_MISSING.format(path=path),
         'not_regular': ERR_FILE_NOT_REGULAR.format(path=path), 'too_large': ERR_TOO_LARGE})
@@ -179,7 +169,7 @@ def _finish(spec: mujoco.MjSpec, kind: str, description: str,
 
 def check_model_text(text: str, base_dir: Optional[str] = None,
                      allowed_roots: Optional[Sequence[str]] = None,
-                     max_bytes: int = _LIMITS.max_resource_bytes) -> ET.Element:
+                     max_bytes: int = LIMITS.max_resource_bytes) -> ET.Element:
     """
     Check MJCF/URDF text before MuJoCo sees it: size, safe XML, root tag.
 
@@ -197,12 +187,13 @@ def check_model_text(text: str, base_dir: Optional[str] = None,
     return root
 
 
-def _budget(max_bytes: int, max_faces: int) -> assets.Budget:
-    return assets.Budget(max_file_bytes=max_bytes, max_total_bytes=_LIMITS.max_model_bytes,
-                         max_mesh_faces=max_faces, max_mesh_bytes=_LIMITS.max_mesh_bytes)
+def budget(max_bytes: int, max_faces: int) -> assets.Budget:
+    """Return what one model may read: `max_bytes` a file, the configured totals, `max_faces`."""
+    return assets.Budget(max_file_bytes=max_bytes, max_total_bytes=LIMITS.max_model_bytes,
+                         max_mesh_faces=max_faces, max_mesh_bytes=LIMITS.max_mesh_bytes)
 
 
-def _spec_from(root: ET.Element) -> mujoco.MjSpec:
+def spec_from(root: ET.Element) -> mujoco.MjSpec:
     """Return the spec of a sandboxed document: it names only checked copies of files."""
     try:
         return mujoco.MjSpec.from_string(ET.tostring(root, encoding='unicode'))
@@ -210,66 +201,10 @@ def _spec_from(root: ET.Element) -> mujoco.MjSpec:
         raise compile_error(exc) from None
 
 
-@functools.lru_cache(maxsize=1)
-def mjcf_elements() -> frozenset:
-    """Every element name MuJoCo's MJCF reader knows: its schema's, and those it expands first."""
-    names = re.findall(r'^\s*(?:\(world\))?(\w+) \(.\)', mujoco.mj_printSchema(False, False),
-                       re.M)
-    return frozenset(names) | {'worldbody'} | _EXPANDED_FIRST
-
-
-def element_list(tags: Sequence[str]) -> str:
-    """Name up to ten element tags as ``<a>, <b>``, each cut to 50 characters."""
-    return ', '.join(f'<{t[:50]}>' for t in tags[:10])
-
-
-def drop_unknown_elements(root: ET.Element, fail: bool) -> list:
-    """
-    Remove the elements of an MJCF document MuJoCo knows nowhere; return their names.
-
-    With `fail`, refuse the document instead (:class:`UnsupportedElementsError`). A known
-    element in the wrong place is left for MuJoCo to refuse (RESOURCE_PARSE_ERROR).
-    """
-    known = mjcf_elements()
-    found = sorted({e.tag for e in root.iter() if e.tag not in known})
-    if found and fail:
-        raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(tags=element_list(found)))
-    for parent in list(root.iter()):
-        for child in [c for c in parent if c.tag not in known]:
-            parent.remove(child)
-    return found
-
-
-def world_spec(text: str, base_dir: Optional[str] = None,
-               allowed_roots: Optional[Sequence[str]] = None,
-               max_bytes: int = _LIMITS.max_resource_bytes,
-               max_faces: int = _LIMITS.max_mesh_faces,
-               fail_on_unsupported_element: bool = False,
-               ignore_missing_assets: bool = False) -> tuple:
-    """
-    Return (spec of a whole world (load_world), unknown elements dropped) from untrusted text.
-
-    Files are read here. Elements MuJoCo does not know are dropped, or with
-    `fail_on_unsupported_element` refused (LoadWorld's two modes). Missing or unusable assets
-    always fail: `ignore_missing_assets` (loading without them) is not supported and says so.
-    """
-    root = check_model_text(text, base_dir, allowed_roots, max_bytes)
-    try:
-        assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
-                       _budget(max_bytes, max_faces))
-    except (MissingAssetsError, UnsupportedAssetsError) as exc:
-        if ignore_missing_assets:
-            raise FeatureUnsupportedError(ERR_IGNORE_ASSETS.format(err=exc)) from None
-        raise
-    dropped = drop_unknown_elements(root, fail_on_unsupported_element) \
-        if root.tag == 'mujoco' else []
-    return _spec_from(root), dropped  # its marked meshes: split by World (split_marked_meshes)
-
-
 def from_model_text(text: str, base_dir: Optional[str] = None,
                     allowed_roots: Optional[Sequence[str]] = None,
-                    max_bytes: int = _LIMITS.max_resource_bytes,
-                    max_faces: int = _LIMITS.max_mesh_faces, fixed: bool = False,
+                    max_bytes: int = LIMITS.max_resource_bytes,
+                    max_faces: int = LIMITS.max_mesh_faces, fixed: bool = False,
                     max_bodies: Optional[int] = None,
                     places: Optional[Places] = None) -> SpawnSource:
     """
@@ -291,19 +226,19 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
                                   text=text)
         root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     is_urdf = root.tag == 'robot'
-    budget = _budget(max_bytes, URDF_MAX_INPUT_FACES if is_urdf else max_faces)
-    reader = assets.Reader(allowed_roots, budget)
+    limits = budget(max_bytes, URDF_MAX_INPUT_FACES if is_urdf else max_faces)
+    reader = assets.Reader(allowed_roots, limits)
     prepared = None
     try:
         if is_urdf:
             prepared = urdf.prepare(root, max_bodies, fixed)
         found = assets.sandbox(root, Path(base_dir) if base_dir else None, allowed_roots,
-                               budget, reader)
+                               limits, reader)
         if is_urdf:
             prepare.convert_urdf_meshes(root, found, reader)
         else:
             prepare.gather_world_geoms(root)
-        spec = _spec_from(root)
+        spec = spec_from(root)
         if is_urdf:
             urdf.finish(spec, prepared, {e.get('filename'): value for e, value, _ in found})
         else:
@@ -323,7 +258,8 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     return source
 
 
-def _empty_or_large(text: str, max_bytes: int) -> None:
+def check_text_size(text: str, max_bytes: int) -> None:
+    """Refuse empty text (NO_RESOURCE) and text over `max_bytes` (UNSUPPORTED_ASSETS)."""
     if not text or not text.strip():
         raise NoResourceError(ERR_EMPTY)
     _check_size(len(text.encode()), max_bytes)
@@ -331,20 +267,25 @@ def _empty_or_large(text: str, max_bytes: int) -> None:
 
 def from_sdf_text(text: str, base_dir: Optional[str] = None,
                   allowed_roots: Optional[Sequence[str]] = None,
-                  max_bytes: int = _LIMITS.max_resource_bytes, fixed: bool = False,
+                  max_bytes: int = LIMITS.max_resource_bytes, fixed: bool = False,
                   places: Optional[Places] = None) -> SpawnSource:
     """
     Parse an SDF model (the first top-level ``<model>``, its includes expanded) to spawn.
 
+    A world of one model (pybullet's model files wrap theirs so) spawns that model.
+
     :param fixed: the model is static where it is spawned (``?static=true``).
     :raises UnsupportedFormatError: the SDF holds a world and no model (load_world loads it).
     """
-    _empty_or_large(text, max_bytes)
+    check_text_size(text, max_bytes)
     places = places or Places.of(allowed_roots or ())
-    reader = assets.Reader(allowed_roots, _budget(max_bytes, URDF_MAX_INPUT_FACES))
+    reader = assets.Reader(allowed_roots, budget(max_bytes, URDF_MAX_INPUT_FACES))
     try:
         expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader, places)
         model = expanded.root.find('model')
+        inside = expanded.world.findall('model') if expanded.world is not None else []
+        if model is None and len(inside) == 1:  # a world wrapped round one model (pybullet's)
+            model = inside[0]
         if model is None:
             raise UnsupportedFormatError(ERR_SDF_WORLD if expanded.world is not None else
                                          sdf_world.ERR_NO_MODEL.format(what=''))
@@ -359,84 +300,6 @@ def from_sdf_text(text: str, base_dir: Optional[str] = None,
     return SpawnSource(spec=spec, kind='sdf', description=f'SDF model {name[:100]}',
                        text=text, name=sdf_world.entity_name(name), reader=reader,
                        urdf_notes=notes)
-
-
-@dataclass
-class WorldSource:
-    """
-    A world to load: its spec, the entities to attach as it is made, what it said.
-
-    :param entities: ``(name, SpawnSource, position (3,), quat wxyz (4,))`` of the models
-        made on their own (an SDF world's models with sensors or systems, its URDF includes).
-    :param name: the name the world gives itself ('' : none; MJCF's is its file's).
-    :param dropped: the elements not read (named in the answer, or refused with
-        ``fail_on_unsupported_element``).
-    :param real_time_factor: the pace the world file asks for (None: it asks none).
-    :param systems: plugins the world names that this simulator does not run.
-    """
-
-    spec: mujoco.MjSpec
-    entities: list = field(default_factory=list)
-    name: str = ''
-    dropped: list = field(default_factory=list)
-    real_time_factor: Optional[float] = None
-    systems: list = field(default_factory=list)
-    notes: list = field(default_factory=list)
-    reader: Optional[Reader] = None
-
-    def settle(self, loaded: bool) -> None:
-        """Say the world was loaded, or refused: a refused one's copied files go."""
-        for _, source, _, _ in self.entities:
-            source.settle(loaded)
-        if self.reader is not None:
-            self.reader.settle(keep=loaded)
-
-
-def world_source(text: str, base_dir: Optional[str] = None,
-                 allowed_roots: Optional[Sequence[str]] = None,
-                 max_bytes: int = _LIMITS.max_resource_bytes,
-                 max_faces: int = _LIMITS.max_mesh_faces,
-                 fail_on_unsupported_element: bool = False,
-                 ignore_missing_assets: bool = False,
-                 places: Optional[Places] = None) -> WorldSource:
-    """
-    Return the world of untrusted MJCF, URDF or SDF text (load_world, the scene parameter).
-
-    MJCF and URDF as :func:`world_spec` reads them; SDF by :mod:`.sdf_world`. Elements not read
-    are named in :attr:`WorldSource.dropped`, or with `fail_on_unsupported_element` refused.
-    """
-    if not sdf_read.is_sdf(text):
-        spec, dropped = world_spec(text, base_dir, allowed_roots, max_bytes, max_faces,
-                                   fail_on_unsupported_element, ignore_missing_assets)
-        return WorldSource(spec, dropped=dropped)
-    _empty_or_large(text, max_bytes)
-    places = places or Places.of(allowed_roots or ())
-    reader = assets.Reader(allowed_roots, _budget(max_bytes, URDF_MAX_INPUT_FACES))
-    made: list = []
-    try:
-        try:
-            expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader,
-                                       places)
-            plan = sdf_world.world(expanded, reader, places)
-        except (MissingAssetsError, UnsupportedAssetsError) as exc:
-            if ignore_missing_assets:
-                raise FeatureUnsupportedError(ERR_IGNORE_ASSETS.format(err=exc)) from None
-            raise
-        if plan.not_read and fail_on_unsupported_element:
-            raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(
-                tags=element_list(plan.not_read)))
-        for e in plan.entities:
-            source = (from_file(e.urdf, allowed_roots, fixed=e.static) if e.urdf else
-                      SpawnSource(spec=e.spec, kind='sdf', description=e.description,
-                                  name=e.name, urdf_notes=e.notes))
-            made.append((e.name, source, e.pose[0], e.pose[1]))
-    except BaseException:
-        reader.settle(keep=False)
-        for _, source, _, _ in made:
-            source.settle(False)
-        raise
-    return WorldSource(plan.spec, made, plan.name, plan.not_read, plan.real_time_factor,
-                       plan.systems, plan.notes, reader)
 
 
 def split_marked_meshes(spec: mujoco.MjSpec) -> int:
@@ -466,8 +329,8 @@ def read_model_text(path: Path) -> str:
 
 
 def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
-              max_bytes: int = _LIMITS.max_resource_bytes,
-              max_faces: int = _LIMITS.max_mesh_faces, fixed: bool = False,
+              max_bytes: int = LIMITS.max_resource_bytes,
+              max_faces: int = LIMITS.max_mesh_faces, fixed: bool = False,
               xacro_args: Optional[dict] = None, max_bodies: Optional[int] = None,
               places: Optional[Places] = None, **mesh_options) -> SpawnSource:
     """
@@ -564,15 +427,15 @@ def primitive(shape: str, size: Sequence[float], mass: Optional[float] = 1.0,
 def from_mesh(path: str, mass: Optional[float] = 1.0,
               rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), scale: float = 1.0,
               static: bool = False, allowed_roots: Optional[Sequence[str]] = None,
-              max_bytes: int = _LIMITS.max_resource_bytes,
-              max_faces: int = _LIMITS.max_mesh_faces) -> SpawnSource:
+              max_bytes: int = LIMITS.max_resource_bytes,
+              max_faces: int = LIMITS.max_mesh_faces) -> SpawnSource:
     """
     Load a mesh file as one body: STL and OBJ as MuJoCo reads them, others converted.
 
     PLY, GLB, glTF, DAE and ASCII STL are converted to binary STL (scenes merged into one
     mesh) in a child process (:mod:`.meshes`); a mesh over `max_faces` is decimated.
     """
-    p = check_path(path, allowed_roots, max(max_bytes, _LIMITS.max_mesh_bytes))
+    p = check_path(path, allowed_roots, max(max_bytes, LIMITS.max_mesh_bytes))
     suffix = p.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise UnsupportedAssetsError(ERR_MESH_SUFFIX.format(suffix=suffix))
@@ -580,7 +443,7 @@ def from_mesh(path: str, mass: Optional[float] = 1.0,
     if not (math.isfinite(scale) and scale > 0):
         raise InvalidArgumentError(f'scale must be positive and finite, got {scale}')
     colour = check_rgba(rgba)
-    reader = assets.Reader(allowed_roots, _budget(max_bytes, URDF_MAX_INPUT_FACES))
+    reader = assets.Reader(allowed_roots, budget(max_bytes, URDF_MAX_INPUT_FACES))
     try:
         stored = reader.read(p.name, [p], 'mesh')
         file = stored.path

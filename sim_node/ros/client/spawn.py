@@ -2,7 +2,8 @@
 ``ros2 run sim spawn``: bring a robot into the running simulation, as Gazebo's ``create`` does.
 
 One of ``-topic <robot_description topic>`` (what robot_state_publisher publishes, transient
-local: a late subscriber gets it), ``-file <path>`` or ``-string <URDF or MJCF text>``; then
+local: a late subscriber gets it), ``-file <path>`` (URDF, xacro, MJCF or SDF: a Gazebo
+model's ``model.sdf``) or ``-string <URDF, MJCF or SDF text>``; then
 ``-name``, ``-x -y -z`` (m), ``-R -P -Y`` (rad), ``-namespace`` (the entity's ROS namespace),
 ``-allow_renaming``, ``-sim <namespace of the simulator's services>`` and ``-timeout`` (s, for
 the topic and the services). It calls the standard SpawnEntity service and exits 0 on success;
@@ -32,8 +33,8 @@ def _parser() -> argparse.ArgumentParser:
                                 prefix_chars='-', allow_abbrev=False)
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument('-topic', help='a topic with the robot description (std_msgs/String)')
-    source.add_argument('-file', help='a URDF, xacro or MJCF file the simulator may read')
-    source.add_argument('-string', help='the description itself (URDF or MJCF text)')
+    source.add_argument('-file', help='a URDF, xacro, MJCF or SDF file the simulator may read')
+    source.add_argument('-string', help='the description itself (URDF, MJCF or SDF text)')
     p.add_argument('-name', default='', help='the entity name (default: the robot name)')
     for axis in ('x', 'y', 'z', 'R', 'P', 'Y'):
         p.add_argument(f'-{axis}', type=float, default=0.0)

@@ -16,6 +16,7 @@ carry no QoS event handlers, so they are never in an executor's wait set and may
 from any thread. ``docs/threading.md`` has the whole picture.
 """
 
+from dataclasses import replace
 import os
 from pathlib import Path
 import signal
@@ -79,6 +80,7 @@ class SimNode(Node):
                        int(p('record_max_mb') * 2 ** 20)), self._sim_time,
                 lambda text: self.get_logger().error(text))
         self.frames = params.frames(self)
+        self._factor_given = p('real_time_factor') != 1.0  # else an SDF world's own paces it
         # resource_paths adds to the installed scenes and objects (builtin_resources: false
         # leaves only resource_paths).
         self.readable = resources.Readable.of(params.string_list(self, 'resource_paths'),
@@ -151,8 +153,18 @@ class SimNode(Node):
         """Return a parameter's value."""
         return self.get_parameter(name).value
 
-    def world_config(self) -> WorldConfig:
-        return params.world_config(self)
+    def world_config(self, file_factor: Optional[float] = None) -> WorldConfig:
+        """
+        Return the configuration a world is made with, from the node's parameters.
+
+        `file_factor`: the real-time factor the world's file asks (an SDF world's
+        ``<real_time_factor>``); it paces the world unless the node was started with a factor
+        other than 1 or was given one since.
+        """
+        config = params.world_config(self)
+        if file_factor is not None and not self._factor_given:
+            config = replace(config, real_time_factor=float(file_factor))
+        return config
 
     def _on_set_parameters(self, changed) -> SetParametersResult:
         if self.status.syncing_thread == threading.get_ident():
@@ -161,6 +173,7 @@ class SimNode(Node):
         try:
             for prm in changed if loaded is not None else ():
                 if prm.name == 'real_time_factor':
+                    self._factor_given = True
                     loaded.loop.set_real_time_factor(float(prm.value))
                 elif prm.name == 'paused':
                     self.session.pause() if prm.value else self.session.play()
@@ -194,7 +207,8 @@ class SimNode(Node):
                          self.trajectories.on_model, self.descriptions.on_model,
                          self.bases.on_model, self.controllers.on_model):
             self.session.add_listener(listener)
-        self.session.load_file(str(path), self.world_config())
+        self.session.load_file(str(path), self.world_config(), places=self.readable.places,
+                               paced_by_file=not self._factor_given)
         if self.param('viewer'):
             self.window = Window(self.session, on_closed=lambda: self.get_logger().info(
                 'the viewer window was closed; the simulation goes on'),

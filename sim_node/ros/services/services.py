@@ -18,22 +18,20 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from simulation_interfaces import srv as si_srv
 from simulation_interfaces.action import SimulateSteps
-from simulation_interfaces.msg import (EntityCategory, EntityInfo, Resource, Result,
-                                       SimulationState, SimulatorFeatures, Spawnable,
-                                       WorldResource)
+from simulation_interfaces.msg import (EntityCategory, EntityInfo, Result, SimulationState,
+                                       SimulatorFeatures, Spawnable)
 
+from .worlds import MAX_RESOURCE_STRING_BYTES, Worlds
 from ..control.controller_manager import with_update_rate
 from ..settings.params import Frames
 from ..settings.qos import FEEDBACK_QOS, SERVICE_QOS
 from ... import session as lifecycle
 from ...core import query
-from ...core.base.errors import (FeatureUnsupportedError, IncorrectTransitionError, NotFoundError,
-                                 SimError)
+from ...core.base.errors import IncorrectTransitionError, NotFoundError, SimError
 from ...core.models import resources, sources
 from ...core.world import World
 from ...session import Loaded, Session
 
-MAX_RESOURCE_STRING_BYTES = 5_000_000
 #: Most steps simulate_steps runs between two looks for a cancel (a few ms of physics).
 SIMULATE_CHUNK_STEPS = 200
 #: Between a goal's last feedback and its result (s). rclpy's ActionClient takes a ready
@@ -53,7 +51,7 @@ _REQUESTED = {SimulationState.STATE_PLAYING: lifecycle.PLAYING,
 
 
 #: The handlers that change which entities there are.
-EDITS = ('_spawn', '_spawn_many', '_delete', '_reset', '_load_world', '_unload_world')
+EDITS = ('_spawn', '_spawn_many', '_delete', '_reset', 'load_world', 'unload_world')
 
 
 class Services:
@@ -80,6 +78,7 @@ class Services:
         self.after_edit: Callable[[], None] = lambda: None
         #: Called after a reset, after `after_edit` (the robots' controllers start again).
         self.after_reset: Callable[[], None] = lambda: None
+        worlds = Worlds(node, session, readable, world_config, on_state_change)
         group = ReentrantCallbackGroup()
         table = {
             'get_simulator_features': (si_srv.GetSimulatorFeatures, self._features),
@@ -96,10 +95,10 @@ class Services:
             'step_simulation': (si_srv.StepSimulation, self._step),
             'get_simulation_state': (si_srv.GetSimulationState, self._get_sim_state),
             'set_simulation_state': (si_srv.SetSimulationState, self._set_sim_state),
-            'get_available_worlds': (si_srv.GetAvailableWorlds, self._worlds),
-            'load_world': (si_srv.LoadWorld, self._load_world),
-            'unload_world': (si_srv.UnloadWorld, self._unload_world),
-            'get_current_world': (si_srv.GetCurrentWorld, self._current_world),
+            'get_available_worlds': (si_srv.GetAvailableWorlds, worlds.available_worlds),
+            'load_world': (si_srv.LoadWorld, worlds.load_world),
+            'unload_world': (si_srv.UnloadWorld, worlds.unload_world),
+            'get_current_world': (si_srv.GetCurrentWorld, worlds.current_world),
         }
         if hasattr(si_srv, 'SpawnEntities'):
             table['spawn_entities'] = (si_srv.SpawnEntities, self._spawn_many)
@@ -157,12 +156,14 @@ class Services:
             f.AVAILABLE_WORLDS]
         if hasattr(si_srv, 'SpawnEntities'):
             response.features.features.append(f.SPAWNING_ENTITIES)
-        response.features.spawn_formats = ['mjcf', 'urdf'] + [
+        response.features.spawn_formats = ['mjcf', 'urdf', 'sdf'] + [
             s[1:] for s in sources.MESH_SUFFIXES]
         response.features.custom_info = (
-            'MuJoCo simulator. Spawn: uri = spawnable name, package://sim/..., file:// inside '
-            'resource_paths (MJCF, URDF, STL, OBJ, PLY, GLB, DAE) or resource_string (MJCF or '
-            'URDF text). initial_pose.header.frame_id: empty or the world frame, or an entity.')
+            'MuJoCo simulator. Spawn: uri = spawnable name, package://sim/..., model:// (Gazebo '
+            'models on GZ_SIM_RESOURCE_PATH and resource_paths), file:// inside resource_paths '
+            '(MJCF, URDF, SDF, STL, OBJ, PLY, GLB, DAE) or resource_string (MJCF, URDF or SDF '
+            'text). initial_pose.header.frame_id: empty or the world frame, or an entity. '
+            'load_world takes MJCF and SDF worlds.')
         return response
 
     # ---- spawning
@@ -170,16 +171,18 @@ class Services:
     def _source_for(self, uri: str, resource_string: str,
                     max_bodies: int) -> sources.SpawnSource:
         roots = list(self._readable.roots)
+        places = self._readable.places
         if resource_string and not uri:  # the standard: a uri, when given, wins
             # from_model_text refuses text over max_bytes (UNSUPPORTED_ASSETS) before parsing.
             return sources.from_model_text(resource_string, base_dir=None,
                                            allowed_roots=roots,
                                            max_bytes=MAX_RESOURCE_STRING_BYTES,
-                                           max_bodies=max_bodies)
+                                           max_bodies=max_bodies, places=places)
         uri, options = resources.split_options(uri)  # ?static=true, xacro name:=value
-        path = resources.resolve_uri(uri, roots, self._readable.scenes_dir)
+        path = resources.resolve_uri(uri, roots, self._readable.scenes_dir, places)
         return sources.from_file(str(path), allowed_roots=roots, fixed=options.fixed,
-                                 xacro_args=options.xacro_args, max_bodies=max_bodies)
+                                 xacro_args=options.xacro_args, max_bodies=max_bodies,
+                                 places=places)
 
     def _spawn_one(self, world: World, name: str, allow_renaming: bool, uri: str,
                    resource_string: str, namespace: str, initial_pose) -> str:
@@ -294,7 +297,8 @@ class Services:
         unrecognised = []  # the standard: named in error_message, and the call succeeds
         for uri, desc in resources.list_spawnables(list(self._readable.roots),
                                                    self._readable.scenes_dir,
-                                                   list(request.sources), unrecognised):
+                                                   list(request.sources), unrecognised,
+                                                   self._readable.places):
             response.spawnables.append(Spawnable(uri=uri, description=desc))
         response.result = convert.ok()
         if unrecognised:
@@ -398,75 +402,6 @@ class Services:
         result.result = convert.ok()
         return result
 
-    # ---- worlds
-
-    def _worlds(self, request, response):
-        if len(request.filter.tags):
-            raise FeatureUnsupportedError('world tag filters are not supported (WORLD_TAGS is '
-                                          'not listed): worlds carry no tags')
-        for name, uri in resources.list_worlds(self._readable.scenes_dir):
-            response.worlds.append(WorldResource(name=name, description=f'scene {name}',
-                                                 world_resource=_resource(uri)))
-        failed = []
-        for src in request.additional_sources:
-            try:
-                folder = resources.check_folder(src, list(self._readable.roots))
-            except SimError as exc:
-                if not request.continue_on_error:
-                    raise
-                failed.append(str(exc))  # the standard: go on, and succeed with the rest
-                continue
-            for f in sorted(folder.glob('*.xml')):
-                response.worlds.append(WorldResource(name=f.stem, description=str(f),
-                                                     world_resource=_resource(f.as_uri())))
-        response.result = convert.ok()
-        response.result.error_message = '; '.join(failed)
-        return response
-
-    def _load_world(self, request, response):
-        """Read, check and compile the world (LOADING_WORLD meanwhile), then swap it in."""
-        with self._session.loading():
-            world, name, uri, dropped = self._read_world(request)
-            # The standard: a loaded world is left STOPPED (at its initial state, not stepping).
-            self._session.load(world, name, uri, stopped=True)
-        self._on_state_change()
-        response.world = WorldResource(name=name, world_resource=_resource(uri))
-        response.result = convert.ok()
-        if dropped:
-            note = f'left out elements MuJoCo does not know: {sources.element_list(dropped)}'
-            self._node.get_logger().warning(f'load_world {name}: {note}')
-            response.result.error_message = note
-        return response
-
-    def _read_world(self, request) -> tuple:
-        """Return (world, name, uri, elements left out) of a load_world request."""
-        roots = list(self._readable.roots)
-        # The same checks as a spawn: safe XML, budgets, and every file read here, from inside
-        # the resource paths (MuJoCo opens nothing itself).
-        modes = {'fail_on_unsupported_element': request.fail_on_unsupported_element,
-                 'ignore_missing_assets': request.ignore_missing_or_unsupported_assets}
-        if request.resource_string and not request.uri:  # the standard: a uri, when given, wins
-            spec, dropped = sources.world_spec(request.resource_string, None, roots,
-                                               MAX_RESOURCE_STRING_BYTES, **modes)
-            name, uri = 'resource_string', ''
-        else:
-            path = resources.resolve_world(request.uri, roots, self._readable.scenes_dir)
-            spec, dropped = sources.world_spec(sources.read_model_text(path), str(path.parent),
-                                               roots, **modes)
-            name, uri = path.stem, request.uri
-        return World(spec, self._world_config(), source=name), name, uri, dropped
-
-    def _unload_world(self, request, response):
-        self._session.unload()  # the publishers clear /tf_static and markers (ModelTopics)
-        response.result = convert.ok()
-        return response
-
-    def _current_world(self, request, response):
-        loaded = self._session.require()
-        response.world = WorldResource(name=loaded.name, world_resource=_resource(loaded.uri))
-        response.result = convert.ok()
-        return response
-
 
 #: Interfaces whose features GetSimulatorFeatures does not list: (service, type, feature).
 UNSUPPORTED = (('set_entity_info', si_srv.SetEntityInfo, 'ENTITY_INFO_SETTING'),
@@ -481,7 +416,3 @@ def _unsupported(feature: str):
         return response
     handler.__name__ = f'unsupported_{feature.lower()}'
     return handler
-
-
-def _resource(uri: str) -> Resource:
-    return Resource(uri=uri, resource_string='')
