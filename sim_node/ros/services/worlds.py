@@ -3,8 +3,8 @@ The world services: get_available_worlds, load_world, unload_world, get_current_
 
 A world is read and checked as a spawn is (safe XML, budgets, every file read here from inside
 the readable folders), MJCF or SDF (:func:`~sim_node.core.models.world_sources.world_source`),
-built and compiled while the state is LOADING_WORLD, then swapped in, STOPPED as the standard says; a
-world that fails to load leaves the running one as it was. An SDF world's own models with
+built and compiled while the state is LOADING_WORLD, then swapped in, STOPPED as the standard
+says; a world that fails to load leaves the running one as it was. An SDF world's own models with
 sensors or systems come along as its entities; its ``<real_time_factor>`` paces it unless the
 node was given a factor of its own (:meth:`SimNode.world_config <sim_node.ros.node.node>`).
 """
