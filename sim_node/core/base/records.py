@@ -361,6 +361,9 @@ class ModelInfo:
     #: under its namespace) where it names simulated or topic-based hardware: the robots whose
     #: joints their own controllers publish and drive (a real robot's hardware: not here).
     ros2_control: dict = field(default_factory=dict)
+    #: Entity -> (its namespace, the gz-sim systems its SDF declares:
+    #: :class:`~.control.gz_systems.GzSystem`), for the entities that declare any.
+    gz_systems: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -161,7 +161,9 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         geom_body=m.geom_bodyid.copy(),
         ros2_control={n: rec.ros2_control for n, rec in spawned.items()
                       if rec.ros2_control is not None
-                      and (rec.ros2_control.simulated or rec.ros2_control.topic_based)})
+                      and (rec.ros2_control.simulated or rec.ros2_control.topic_based)},
+        gz_systems={n: (rec.namespace, rec.systems) for n, rec in spawned.items()
+                    if rec.systems})
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,

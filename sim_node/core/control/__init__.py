@@ -18,5 +18,5 @@ started and cancelled, bases found and driven, pushes and gains, each under the 
 and claims), :mod:`.diff_drive` and :mod:`.steering` (diff_drive_controller's and the
 steering controllers' kinematics), :mod:`.limits` (their speed and angle limits per update
 period), :mod:`.laws` (the controllers' laws, run on the stepping side at their update rate of
-simulated time).
+simulated time) and :mod:`.gz_systems` (the laws of an SDF model's gz-sim systems).
 """

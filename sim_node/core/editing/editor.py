@@ -19,6 +19,7 @@ from ..base.records import EntityRecord
 from ..base.surfaces import restitution_to_solref
 from ..compiled.index import ModelIndex
 from ..control import bases, interfaces, wheels
+from ..control.gz_systems import velocity_joints
 from ..models import sources
 from ..stepping import design
 
@@ -116,15 +117,20 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     control = getattr(source.urdf_notes, 'ros2_control', None)
     # A ros2_control robot's wheels: those its velocity interfaces drive (held as a base's
     # wheels are, the gain set by the robot's mass); the others roll freely, as in Gazebo.
+    # An SDF model's gz-sim systems hold the velocities they command as Gazebo does too.
     only = None if control is None or not control.simulated else {
         j.name for j in control.joints().values() if 'velocity' in j.command}
+    held = {j.replace('::', '/') for s in getattr(source.urdf_notes, 'systems', ())
+            for j in velocity_joints(s)}
+    if held:
+        only = (only or set()) | held
     added = wheels.add_wheel_actuators(
         child, plugin, explicit=spec.option.integrator in EXPLICIT, only=only,
         timestep=spec.option.timestep)
     if added:
         log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
                  name, ', '.join(added))
-    if source.kind == 'urdf':  # a URDF's <mimic> joints: as stiff as a step allows
+    if source.kind in ('urdf', 'sdf'):  # <mimic> joints: as stiff as a step allows
         interfaces.stiffen_mimics(child, spec.option.timestep)
     alone = wheels.Alone(child, source.assets)  # compiled once, if a rule below needs it
     servos = interfaces.add_position_servos(

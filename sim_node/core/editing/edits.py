@@ -202,7 +202,8 @@ class Edits:
                            ros2_control=control,
                            drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
                                                             ())),
-                           sensors=sensors)
+                           sensors=sensors,
+                           systems=tuple(getattr(source.urdf_notes, 'systems', ())))
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,

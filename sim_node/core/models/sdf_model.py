@@ -70,6 +70,8 @@ class Built:
     decompose: dict = field(default_factory=dict)
     mesh_colour: list = field(default_factory=list)
     root_link: str = ''
+    #: The model's joints by their SDF names (a nested model's ``nested::joint``).
+    joint_names: list = field(default_factory=list)
     static: bool = False
     moving_joints: int = 0
     notes: list = field(default_factory=list)
@@ -124,7 +126,7 @@ def build(model: ET.Element, version: tuple, out: Assets, entity: str = '',
     if not links:
         raise ResourceParseError(ERR_NO_LINK.format(model=scope.name))
     names = _Names(entity)
-    built = Built(name=scope.name)
+    built = Built(name=scope.name, joint_names=[j.scoped for j in joints])
     built.static = all(link.static for link in links.values())
     canonical = scope.canonical() or next(iter(links))
     tree, closures = _tree(links, joints, canonical)

@@ -136,10 +136,13 @@ def world(expanded: Expanded, reader, places, topics_of=None) -> WorldPlan:
                 if built.decompose or (built.moving_joints == 0 and decompose.mode() != 'none'):
                     _mark(built, doc)
                 continue
-        spec, notes = model(elem, version, reader, places, static, topics)
+        spec, notes = model(elem, version, reader, places, static, topics, name)
         plan.entities.append(Entity(mname, pose, spec, notes, static=static,
                                     description=f'SDF model {mname}'))
     _finish_assets(doc, out, colour_geoms)
+    step = float(doc.find('option').get('timestep', '0.002'))
+    for eq in equality.iter('joint'):  # mimics and screws without give, as Gazebo's
+        eq.set('solref', f'{2 * step:.6g} 1')
     for extra in (contact, equality):
         if len(extra):
             doc.append(extra)
@@ -266,11 +269,12 @@ def _spec(doc: ET.Element) -> mujoco.MjSpec:
 
 
 def model(elem: ET.Element, version: tuple, reader, places, static: bool = False,
-          topics=None) -> tuple:
+          topics=None, world: str = 'default') -> tuple:
     """
     Return (spec in the model's own names, its :class:`.urdf.Prepared` notes) of a model.
 
     :param static: the spawn (or an include) makes it static whatever its file says.
+    :param world: the name of the world it goes into (gz-sim's default topics hold it).
     """
     if static:
         for old in elem.findall('static'):
@@ -292,6 +296,7 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
     notes = Prepared(root_link=built.root_link, static=built.static,
                      joint_limits=dict(built.joint_limits), joint_links=dict(built.joint_links),
                      collisions=dict(built.collisions), extensions=extensions)
+    notes.systems, notes.unknown = _systems(elem, extensions[-1], built, world, notes.repairs)
     notes.ros2_control = ros2_control.read(extensions)
     if notes.ros2_control is not None:
         notes.ros2_control = notes.ros2_control.with_speeds(notes.joint_limits)
@@ -310,6 +315,22 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
     notes.repairs = list(built.notes) + list(out.notes)
     decompose.bound_hulls(spec)
     return spec, notes
+
+
+def _systems(elem: ET.Element, plugins: ET.Element, built, world: str, said: list) -> tuple:
+    """Return (the systems a model declares that are run here, those that are not)."""
+    model, out = entity_name(elem.get('name', '')), []
+    for plugin in plugins:
+        kind = sdf_systems.system_name(plugin)
+        try:
+            system = sdf_systems.read(kind, plugin, model, built.joint_names,
+                                      built.root_link.replace('/', '::'), world)
+        except ValueError as exc:
+            said.append(f'{exc}: the system is not run')
+            continue
+        if system is not None:
+            out.append(system)
+    return tuple(out), sdf_systems.model_systems(elem)
 
 
 def _model_plugin(model: ET.Element, plugin: ET.Element) -> bool:

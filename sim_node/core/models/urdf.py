@@ -121,6 +121,8 @@ class Prepared:
     #: Its ``<ros2_control>`` blocks and Gazebo control plugin (:mod:`.ros2_control`), or None.
     ros2_control: Optional[Ros2Control] = None
     extensions: list = field(default_factory=list)  # the extension elements, as parsed
+    #: An SDF model's gz-sim systems (:class:`~..control.gz_systems.GzSystem`; SDF only).
+    systems: tuple = ()
     unknown: list = field(default_factory=list)  # element names URDF does not define
     repairs: list = field(default_factory=list)  # one text per inertia repaired
 

@@ -86,6 +86,8 @@ class Spawned:
     #: A URDF's ros2_control declaration (:class:`~.models.ros2_control.Ros2Control`), its
     #: namespace the spawn's when one was given.
     ros2_control: Optional[object] = None
+    #: The gz-sim systems an SDF model declares (:class:`~.control.gz_systems.GzSystem`).
+    systems: tuple = ()
     #: Part of the loaded world (an SDF world's model made on its own), not spawned since: a
     #: delete refuses it and a reset of the spawned keeps it, as for the world's other
     #: entities.

@@ -36,6 +36,7 @@ from ..commands.bases import BaseControllers
 from ..commands.command_drain import CommandDrain
 from ..commands.trajectories import TrajectoryServers
 from ..control.controller_manager import ControllerManagers
+from ..control.gz_systems import GzSystems
 from ..services.services import Services
 from ..settings import params
 from ..topics.descriptions import default_mesh_dir, RobotDescriptions
@@ -115,7 +116,9 @@ class SimNode(Node):
         self.controllers = ControllerManagers(self, self.session, self.readable.roots,
                                               self._add_node, self._drop_node,
                                               self.status.refused)
-        self.perception.joint_samples = self.controllers.on_samples
+        self.gz_systems = GzSystems(self, self.session)
+        self.perception.joint_samples = lambda samples: (self.controllers.on_samples(samples),
+                                                         self.gz_systems.on_samples(samples))
         self.descriptions = RobotDescriptions(
             self, self.session,
             Path(p('robot_description_mesh_dir') or default_mesh_dir()).expanduser())
@@ -205,7 +208,8 @@ class SimNode(Node):
         path = resources.resolve_scene(self.param('scene'), self.readable.scenes_dir)
         for listener in (self.publisher.on_model, self.model_topics, self.perception.on_model,
                          self.trajectories.on_model, self.descriptions.on_model,
-                         self.bases.on_model, self.controllers.on_model):
+                         self.bases.on_model, self.controllers.on_model,
+                         self.gz_systems.on_model):
             self.session.add_listener(listener)
         self.session.load_file(str(path), self.world_config(), places=self.readable.places,
                                paced_by_file=not self._factor_given)
@@ -267,6 +271,7 @@ class SimNode(Node):
             if view is not None:
                 view.close()
         self.controllers.close()
+        self.gz_systems.close()
         self.session.close()
         self.publisher.stop()
         self.perception.stop()
