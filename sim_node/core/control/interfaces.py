@@ -109,6 +109,18 @@ def stiffen_mimics(spec: mujoco.MjSpec, timestep: float) -> None:
             eq.solref = [2.0 * timestep, 1.0]
 
 
+def stiffen_limits(spec: mujoco.MjSpec, timestep: float) -> None:
+    """
+    Make joints' stops as hard as a step allows, as SDF's (``<limit><stiffness>``: 1e8).
+
+    MuJoCo's default stop is a 0.02 s spring: a hinge run into it at 5 rad/s went 0.035 rad
+    past; with a time constant of two steps, a few thousandths.
+    """
+    for j in spec.joints:
+        if j.limited == mujoco.mjtLimited.mjLIMITED_TRUE:
+            j.solref_limit = [2.0 * timestep, 1.0]
+
+
 def _joint_inertias(alone: wheels.Alone) -> dict:
     """
     Return joint name -> its inertia at rest (kg m^2 or kg), from the spec compiled alone.

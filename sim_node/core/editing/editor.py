@@ -132,6 +132,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
                  name, ', '.join(added))
     if source.kind in ('urdf', 'sdf'):  # <mimic> joints: as stiff as a step allows
         interfaces.stiffen_mimics(child, spec.option.timestep)
+    if source.kind == 'sdf':  # and an SDF joint's stops (SDF's stiffness is 1e8 N/m)
+        interfaces.stiffen_limits(child, spec.option.timestep)
     alone = wheels.Alone(child, source.assets)  # compiled once, if a rule below needs it
     servos = interfaces.add_position_servos(
         child, control, spec.option.timestep, explicit=spec.option.integrator in EXPLICIT,

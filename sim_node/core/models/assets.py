@@ -279,6 +279,10 @@ class Reader:
         self._check_content(value, tag, stored)
         return stored
 
+    def allows(self, real: str) -> bool:
+        """Whether the resolved path `real` lies inside this reader's roots (any: no roots)."""
+        return self._real_roots is None or inside_real_roots(real, self._real_roots)
+
     def hold(self, path: str) -> None:
         """Hold a file made for this model (a copy, a conversion) until :meth:`settle`."""
         store().hold(path)

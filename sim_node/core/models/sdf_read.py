@@ -163,7 +163,7 @@ class _Includes:
         for top in root:
             if top.tag in ('world', 'model'):
                 self._tag(top, folder, version)
-                self._expand(top, folder, version, [name], top.tag == 'world')
+                self._expand(top, folder, version, [('', name)], top.tag == 'world')
         self.elements = sum(1 for _ in root.iter())
         if self.elements > MAX_ELEMENTS:
             raise ResourceParseError(ERR_ELEMENTS)
@@ -209,10 +209,12 @@ class _Includes:
         if kind not in SDF_SUFFIXES + ('.xml', ''):
             raise UnsupportedFormatError(ERR_INCLUDED_KIND.format(uri=uri, kind=kind))
         real = str(path)
-        if real in chain:
-            raise ResourceParseError(ERR_CYCLE.format(chain=' -> '.join(chain + [uri])))
+        if real in [c for c, _ in chain]:
+            raise ResourceParseError(ERR_CYCLE.format(
+                chain=' -> '.join([n for _, n in chain] + [uri])))
         if len(chain) > MAX_INCLUDE_DEPTH:
-            raise ResourceParseError(ERR_DEPTH.format(chain=' -> '.join(chain[-4:] + [uri])))
+            raise ResourceParseError(ERR_DEPTH.format(
+                chain=' -> '.join([n for _, n in chain][-4:] + [uri])))
         root, version = self._read(uri, path)
         found = [e for e in root if e.tag in (('model', 'light', 'actor') if in_world
                                               else ('model',))]
@@ -226,7 +228,7 @@ class _Includes:
             return
         self._tag(item, path.parent, version)
         _override(item, inc)
-        self._expand(item, path.parent, version, chain + [real], False)
+        self._expand(item, path.parent, version, chain + [(real, uri)], False)
         if inc.get('merge', '').strip().lower() in ('true', '1') and parent.tag == 'model':
             _merge(parent, index, item)
         else:
@@ -239,6 +241,8 @@ class _Includes:
                 real = Path(real_path(candidate))
             except (OSError, ValueError):
                 continue
+            if not self.reader.allows(str(real)):  # judged before existence: says nothing
+                raise MissingAssetsError(assets.ERR_OUTSIDE.format(value=uri))
             if real.is_dir():
                 config = real / 'model.config'
                 data = (self.reader.load(f'{uri}/model.config', [config])

@@ -16,7 +16,7 @@ The plan names what it did not read (:mod:`.sdf_elements`) and the systems it do
 (:mod:`.sdf_systems`); nothing here touches a live world.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import re
 from typing import Optional
 import xml.etree.ElementTree as ET
@@ -32,6 +32,7 @@ from .sdf_shapes import Assets, numbers
 from .urdf import Prepared
 from ..base import checks
 from ..base.errors import ResourceParseError
+from ..base.records import DeclaredCamera, NO_TOPIC
 
 #: The solver iterations MuJoCo keeps at least (Newton converges in a few; SDF's ODE counts
 #: its own, cheaper ones).
@@ -78,13 +79,8 @@ class WorldPlan:
     notes: list = field(default_factory=list)
 
 
-def world(expanded: Expanded, reader, places, topics_of=None) -> WorldPlan:
-    """
-    Make the MJCF world of an expanded SDF document (see the module docstring).
-
-    :param topics_of: ``topics_of(world, model)`` -> the ``topics(link, sensor)`` hook of
-        :func:`.sdf_model.build` (sensors' default topics), or None.
-    """
+def world(expanded: Expanded, reader, places) -> WorldPlan:
+    """Make the MJCF world of an expanded SDF document (see the module docstring)."""
     w = expanded.world
     if w is None:
         kinds = sorted({e.tag for e in expanded.root}) or ['nothing']
@@ -123,7 +119,7 @@ def world(expanded: Expanded, reader, places, topics_of=None) -> WorldPlan:
             plan.entities.append(Entity(mname, pose, urdf=elem.get(URDF_FILE), static=static,
                                         description=f'URDF model {mname}'))
             continue
-        topics = topics_of(name, mname) if topics_of is not None else None
+        topics = gz_topics(name, mname)
         version = version_of(elem, expanded.version)
         if not _declares(elem):
             built = sdf_model.build(elem, version, out, entity=mname, at=pose, topics=topics)
@@ -143,6 +139,9 @@ def world(expanded: Expanded, reader, places, topics_of=None) -> WorldPlan:
     step = float(doc.find('option').get('timestep', '0.002'))
     for eq in equality.iter('joint'):  # mimics and screws without give, as Gazebo's
         eq.set('solref', f'{2 * step:.6g} 1')
+    for joint in body.iter('joint'):  # joint stops as hard as a step allows, as Gazebo's
+        if joint.get('limited') == 'true':
+            joint.set('solreflimit', f'{2 * step:.6g} 1')
     for extra in (contact, equality):
         if len(extra):
             doc.append(extra)
@@ -281,7 +280,8 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
             elem.remove(old)
         ET.SubElement(elem, 'static').text = 'true'
     out = Assets(reader, places)
-    built = sdf_model.build(elem, version, out, topics=topics)
+    built = sdf_model.build(elem, version, out, topics=topics or gz_topics(
+        world, entity_name(elem.get('name', ''))))
     doc = ET.Element('mujoco', model=built.name)
     ET.SubElement(doc, 'compiler', angle='radian', autolimits='true')
     ET.SubElement(doc, 'worldbody').extend(built.bodies)
@@ -310,11 +310,63 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
                                               or decompose.mode() == 'all')}
         if meshes:
             decompose.split_geoms(spec, labels, only=meshes, collisions=notes.collisions)
-    notes.declared, notes.sensors = urdf_declared.add(
+    notes.declared, sensors = urdf_declared.add(
         spec, extensions, notes.joint_limits, notes.joint_links, notes.collisions)
+    kinds = {(s.get('name') or ''): (s.get('type') or '').lower()
+             for ext in extensions for s in ext.iter('sensor')}
+    notes.sensors = [gz_streams(d, kinds) for d in sensors]
     notes.repairs = list(built.notes) + list(out.notes)
     decompose.bound_hulls(spec)
     return spec, notes
+
+
+#: The last part of gz-sim's default topic of each sensor type.
+_TOPIC_ENDS = {'camera': 'image', 'depth_camera': 'depth_image', 'depth': 'depth_image',
+               'rgbd_camera': '', 'rgbd': '', 'gpu_lidar': 'scan', 'lidar': 'scan',
+               'gpu_ray': 'scan', 'ray': 'scan', 'imu': 'imu', 'contact': 'contact',
+               'force_torque': 'forcetorque'}
+
+
+def gz_topics(world: str, model: str):
+    """
+    Return ``topics(link, sensor)``: a sensor's gz-sim default topic, where it names none.
+
+    ``/world/<world>/model/<model>/link/<link>/sensor/<sensor>/<kind>`` (``image``,
+    ``depth_image``, ``scan``, ``imu``, ...; an RGB-D camera's streams below it), nested
+    models' links scoped with ``/model/<nested>/link/...`` as gz-sim scopes them.
+    """
+    def topics(link: str, sensor: ET.Element) -> str:
+        *models, own = link.split('::')
+        path = ''.join(f'/model/{m}' for m in [model] + models)
+        end = _TOPIC_ENDS.get((sensor.get('type') or '').lower(), '')
+        base = f'/world/{world}{path}/link/{own}/sensor/{sensor.get("name") or "sensor"}'
+        return f'{base}/{end}' if end else base
+    return topics
+
+
+def gz_streams(decl, kinds: dict):
+    """
+    Return a declared camera with its topics as gz-sim names them from its ``<topic>``.
+
+    A ``camera``'s images on the topic itself, a ``depth_camera``'s depth images there (its
+    points on ``<topic>/points``), an ``rgbd_camera``'s on ``<topic>/image``,
+    ``<topic>/depth_image`` and ``<topic>/points``; the camera info beside the images
+    (``<topic's folder>/camera_info``; an RGB-D camera's ``<topic>/camera_info``). Other
+    sensors as they are.
+    """
+    if not isinstance(decl, DeclaredCamera) or not decl.topic:
+        return decl
+    t = decl.topic
+    kind = kinds.get(decl.camera.rsplit('/', 1)[-1], 'camera')
+    folder = t.rsplit('/', 1)[0] if '/' in t.strip('/') else ''
+    info = f'{folder}/camera_info' if folder else 'camera_info'
+    if kind in ('rgbd_camera', 'rgbd'):
+        return replace(decl, image_topic=f'{t}/image', depth_topic=f'{t}/depth_image',
+                       points_topic=f'{t}/points', info_topic=f'{t}/camera_info')
+    if decl.depth:
+        return replace(decl, image_topic=NO_TOPIC, depth_topic=t, points_topic=f'{t}/points',
+                       info_topic=info)
+    return replace(decl, image_topic=t, info_topic=info, depth_topic=NO_TOPIC)
 
 
 def _systems(elem: ET.Element, plugins: ET.Element, built, world: str, said: list) -> tuple:

@@ -206,7 +206,7 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
                     max_bytes: int = LIMITS.max_resource_bytes,
                     max_faces: int = LIMITS.max_mesh_faces, fixed: bool = False,
                     max_bodies: Optional[int] = None,
-                    places: Optional[Places] = None) -> SpawnSource:
+                    places: Optional[Places] = None, world: str = 'default') -> SpawnSource:
     """
     Parse MJCF, URDF or SDF text into what a spawn attaches.
 
@@ -217,9 +217,10 @@ def from_model_text(text: str, base_dir: Optional[str] = None,
     :param fixed: a URDF's root stays where it is spawned even when it would float.
     :param max_bodies: a URDF with more links is refused before MuJoCo reads it.
     :param places: where an SDF model's ``model://`` URIs lead (None: the allowed roots).
+    :param world: the name of the world an SDF model goes into (its sensors' gz-sim topics).
     """
     if sdf_read.is_sdf(text):
-        return from_sdf_text(text, base_dir, allowed_roots, max_bytes, fixed, places)
+        return from_sdf_text(text, base_dir, allowed_roots, max_bytes, fixed, places, world)
     root = check_model_text(text, base_dir, allowed_roots, max_bytes)
     if root.tag == 'robot' and xacro_files.is_xacro('', text):
         text = xacro_files.expand(allowed_roots if allowed_roots is not None else ['/'],
@@ -268,7 +269,7 @@ def check_text_size(text: str, max_bytes: int) -> None:
 def from_sdf_text(text: str, base_dir: Optional[str] = None,
                   allowed_roots: Optional[Sequence[str]] = None,
                   max_bytes: int = LIMITS.max_resource_bytes, fixed: bool = False,
-                  places: Optional[Places] = None) -> SpawnSource:
+                  places: Optional[Places] = None, world: str = 'default') -> SpawnSource:
     """
     Parse an SDF model (the first top-level ``<model>``, its includes expanded) to spawn.
 
@@ -291,7 +292,7 @@ def from_sdf_text(text: str, base_dir: Optional[str] = None,
                                          sdf_world.ERR_NO_MODEL.format(what=''))
         name = model.get('name', '')
         spec, notes = sdf_world.model(model, version_of(model, expanded.version), reader,
-                                      places, fixed)
+                                      places, fixed, world=world)
     except BaseException:
         reader.settle(keep=False)
         raise
@@ -332,7 +333,8 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
               max_bytes: int = LIMITS.max_resource_bytes,
               max_faces: int = LIMITS.max_mesh_faces, fixed: bool = False,
               xacro_args: Optional[dict] = None, max_bodies: Optional[int] = None,
-              places: Optional[Places] = None, **mesh_options) -> SpawnSource:
+              places: Optional[Places] = None, world: str = 'default',
+              **mesh_options) -> SpawnSource:
     """
     Load an MJCF, URDF, xacro or SDF file, or a mesh file (STL, OBJ, PLY, GLB, DAE), as one entity.
 
@@ -341,6 +343,7 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
     :param xacro_args: ``{name: value}`` for a xacro file's ``$(arg name)``.
     :param max_bodies: a URDF with more links is refused before MuJoCo reads it.
     :param places: where an SDF model's ``model://`` URIs lead.
+    :param world: the name of the world an SDF model goes into (its sensors' gz-sim topics).
     """
     p = check_path(path, allowed_roots, max_bytes)
     suffix = p.suffix.lower()
@@ -361,7 +364,7 @@ def from_file(path: str, allowed_roots: Optional[Sequence[str]] = None,
     # own loader does (a link to a model file keeps its folder's meaning).
     return from_model_text(text, base_dir=str(Path(path).parent), allowed_roots=allowed_roots,
                            max_bytes=max_bytes, max_faces=max_faces, fixed=fixed,
-                           max_bodies=max_bodies, places=places)
+                           max_bodies=max_bodies, places=places, world=world)
 
 
 def check_rgba(rgba: Sequence[float]) -> list:

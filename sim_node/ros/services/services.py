@@ -172,17 +172,20 @@ class Services:
                     max_bodies: int) -> sources.SpawnSource:
         roots = list(self._readable.roots)
         places = self._readable.places
+        loaded = self._session.loaded
+        world = loaded.name if loaded is not None else 'default'
         if resource_string and not uri:  # the standard: a uri, when given, wins
             # from_model_text refuses text over max_bytes (UNSUPPORTED_ASSETS) before parsing.
             return sources.from_model_text(resource_string, base_dir=None,
                                            allowed_roots=roots,
                                            max_bytes=MAX_RESOURCE_STRING_BYTES,
-                                           max_bodies=max_bodies, places=places)
+                                           max_bodies=max_bodies, places=places,
+                                           world=world)
         uri, options = resources.split_options(uri)  # ?static=true, xacro name:=value
         path = resources.resolve_uri(uri, roots, self._readable.scenes_dir, places)
         return sources.from_file(str(path), allowed_roots=roots, fixed=options.fixed,
                                  xacro_args=options.xacro_args, max_bodies=max_bodies,
-                                 places=places)
+                                 places=places, world=world)
 
     def _spawn_one(self, world: World, name: str, allow_renaming: bool, uri: str,
                    resource_string: str, namespace: str, initial_pose) -> str:
