@@ -5,6 +5,13 @@ The robot corpora: model files that packages on the package index ship.
 * :data:`MODELS`: MJCF robot files of robot-learning packages (robosuite, gymnasium-robotics,
   dm_control), each a file bare MuJoCo loads; used by ``test/test_node_robot_corpus.py`` and
   ``make bench-models``.
+* :func:`sdf_models`: SDF worlds and models of packages on the index, none written here:
+  pybullet's data folder (SDF 1.6 worlds and models: KUKA iiwa with WSG-50 grippers, a shelf,
+  a stadium of meshes), drake's examples (SDF 1.7 models: an acrobot, a cart-pole, a planar
+  gripper, tables, a room), gym-ignition's Gazebo model folders (``model.config`` naming an SDF
+  ground plane and URDF robots, found on ``GZ_SIM_RESOURCE_PATH``); used by
+  ``test/test_core_sdf_corpus.py`` and ``make bench-sdf``. Licences: pybullet zlib, drake
+  BSD-3-Clause, gym-ignition-models LGPL-2.1 (test/sdf/README.md).
 * :func:`ros_models`: URDF and xacro files of ROS description packages, as ROS users have them:
   every URDF of example-robot-data (69 files exported from ROS description packages: arms,
   hands, quadrupeds, humanoids, mobile manipulators, drones; ``package://`` URIs, Collada
@@ -37,7 +44,14 @@ WHEELS = {
     'pybullet==3.2.7': tuple(f'pybullet_data/{f}' for f in (
         'r2d2.urdf', 'cartpole.urdf', 'pendulum5.urdf', 'TwoJointRobot_w_fixedJoints.urdf',
         'pr2_gripper.urdf', 'l_finger', 'kuka_iiwa/', 'franka_panda/', 'racecar/', 'a1/',
-        'aliengo/', 'mini_cheetah/', 'laikago/', 'xarm/', 'quadruped/', 'table/')),
+        'aliengo/', 'mini_cheetah/', 'laikago/', 'xarm/', 'quadruped/', 'table/',
+        'gripper/', 'kiva_shelf/', 'plane_stadium.sdf', 'stadium.sdf', 'stadium_no_collision.sdf',
+        'plane100.obj', 'roboschool/models_outdoor/stadium/')),
+    'drake==1.51.1': tuple(f'pydrake/share/drake/examples/{f}' for f in (
+        'acrobot/', 'kuka_iiwa_arm/models/desk/', 'kuka_iiwa_arm/models/table/',
+        'multibody/cart_pole/', 'planar_gripper/', 'quadrotor/')),
+    'gym-ignition-models==1.1.1': tuple(f'gym_ignition_models/{f}' for f in (
+        'ground_plane/', 'pendulum/', 'cartpole/', 'panda/')),
     'robosuite==1.5.2': ('robosuite/models/assets/robots/', 'robosuite/models/assets/grippers/',
                          'robosuite/models/assets/textures/'),
     'gymnasium-robotics==1.4.2': ('gymnasium_robotics/envs/assets/',),
@@ -164,6 +178,56 @@ def ros_models() -> list:
         out.append(RosModel('pybullet', path, path.parent if name.startswith('xarm/') else pyb))
     out += [RosModel('written here', p, own) for p in sorted(own.glob('*/urdf/*'))]
     return out
+
+
+@dataclass(frozen=True)
+class SdfFile:
+    """
+    One SDF file of the SDF corpus and what a simulator must make of it.
+
+    :param kind: ``world`` (load_world) or ``model`` (spawn_entity).
+    :param refused: the exception's name it must be refused with ('' : it loads).
+    :param why: what is wrong with it, for a refusal; what it shows, else.
+    """
+
+    package: str
+    path: Path
+    kind: str
+    refused: str = ''
+    why: str = ''
+
+    @property
+    def name(self) -> str:
+        return f'{self.path.parent.name}_{self.path.stem}'
+
+
+#: pybullet's SDF files that cannot load as they are, and why (sdformat refuses them too).
+SDF_REFUSED = {
+    'kuka_world.sdf': ('MissingAssetsError', 'its collision meshes meshes/coarse/*.stl are not '
+                                             'in the package'),
+    'model2.sdf': ('ResourceParseError', 'two models named lbr_iiwa in one world'),
+}
+
+
+def sdf_models() -> list:
+    """Return the SDF corpus (fetched first), in a fixed order."""
+    fetch()
+    out = []
+    pyb = CORPUS / 'pybullet' / 'pybullet_data'
+    for path in sorted(pyb.rglob('*.sdf')):
+        refused, why = SDF_REFUSED.get(path.name, ('', ''))
+        out.append(SdfFile('pybullet', path, 'world', refused, why))
+    drake = CORPUS / 'drake' / 'pydrake' / 'share' / 'drake' / 'examples'
+    out += [SdfFile('drake', p, 'model') for p in sorted(drake.rglob('*.sdf'))]
+    gim = gym_models()
+    out += [SdfFile('gym-ignition-models', p, 'model') for p in sorted(gim.rglob('*.sdf'))]
+    return out
+
+
+def gym_models() -> Path:
+    """Return the folder of gym-ignition's Gazebo model folders (a GZ_SIM_RESOURCE_PATH)."""
+    fetch()
+    return CORPUS / 'gym_ignition_models' / 'gym_ignition_models'
 
 
 def ros_roots() -> list:
