@@ -114,7 +114,8 @@ class World:
         if real.suffix.lower() in sdf_files.SUFFIXES:
             places = places or sdf_files.Places.of(scenes_dir=resources.installed_scenes_dir())
             plan = world_sources.world_source(sources.read_model_text(real),
-                                              str(Path(path).parent), places=places)
+                                              str(Path(path).parent), places=places,
+                                              name=Path(path).name)
             try:
                 made = cls(plan.spec, config, str(path), plan.entities, plan.name)
             except BaseException:

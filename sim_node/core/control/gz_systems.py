@@ -10,9 +10,11 @@ ros2_control controllers run):
   (``<wheel_separation>``, ``<wheel_radius>``; the ``max_``/``min_`` ``linear``/``angular``
   velocity, acceleration and jerk limits, and the older ``max_velocity``, ...); a twist is held
   until the next (gz-sim's DiffDrive has no timeout); odometry from the first wheel of each side.
-* ``AckermannSteering``: :class:`~.laws.SteeringLaw` (Ackermann) on its ``<left_joint>``,
-  ``<right_joint>`` (traction) and their ``*_steering_joint``s, ``<wheel_base>``,
-  ``<wheel_separation>``, ``<wheel_radius>``; the steering angle within ``<steering_limit>``.
+* ``AckermannSteering``: :class:`AckermannLaw`, the Ackermann steering controller's
+  kinematics (:class:`~.laws.SteeringLaw`) on its ``<left_joint>``, ``<right_joint>``
+  (traction) and their ``*_steering_joint``s, ``<wheel_base>``, ``<wheel_separation>``,
+  ``<wheel_radius>``; each angle within ``<steering_limit>``, reached as gz-sim reaches it: the
+  steering joint's velocity set to ``steer_p_gain`` (1) times its error.
 * ``JointPositionController``: :class:`PidLaw` on position: gz-sim's PID (``p_gain`` 1,
   ``i_gain`` 0.1, ``d_gain`` 0.01, ``i_max``/``i_min`` 1, ``cmd_max``/``cmd_min`` 1000,
   ``cmd_offset``) as an effort each step, or with ``<use_velocity_commands>`` the joint's
@@ -142,12 +144,31 @@ class TrajectoryLaw(Law):
         return out
 
 
+class AckermannLaw(SteeringLaw):
+    """gz-sim's AckermannSteering: traction by velocity, steering by velocity on its error."""
+
+    def _writes(self, angles: list, speeds: list) -> list:
+        limit = self.params.get('steering_limit', 0.5)
+        angles = [min(max(a, -limit), limit) for a in angles]
+        self.steering_targets = angles
+        return [Write(self.traction, list(speeds), 'velocity')]
+
+    def update(self, sample, index: dict) -> list:
+        writes = super().update(sample, index)
+        targets = getattr(self, 'steering_targets', [0.0] * len(self.steering))
+        gain = self.params.get('steer_p_gain', 1.0)
+        rates = [gain * (t - float(sample.position[index[j]]))
+                 for j, t in zip(self.steering, targets)]
+        return writes + [Write(self.steering, rates, 'velocity')]
+
+
 def velocity_joints(system: GzSystem) -> tuple:
     """Return the joints `system` commands by velocity (held by stiff velocity actuators)."""
     if system.kind == 'DiffDrive':
         return system.joints
     if system.kind == 'AckermannSteering':
-        return tuple(system.params['traction_joints_names'])
+        return tuple(system.params['traction_joints_names'] + system.params[
+            'steering_joints_names'])
     if system.kind == 'JointController' and system.params.get('direct'):
         return system.joints
     return ()
@@ -159,7 +180,7 @@ def law(system: GzSystem, timestep: float) -> Optional[Law]:
     if system.kind == 'DiffDrive':
         return DiffDriveLaw(system.params, rate)
     if system.kind == 'AckermannSteering':
-        return SteeringLaw(system.params, rate, types.Ackermann)
+        return AckermannLaw(system.params, rate, types.Ackermann)
     if system.kind in ('JointPositionController', 'JointController'):
         return PidLaw(system.joints, system.params, system.kind == 'JointPositionController',
                       rate)

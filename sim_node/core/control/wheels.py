@@ -164,6 +164,30 @@ def add_wheel_actuators(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
     return added
 
 
+def hold_velocities(spec: mujoco.MjSpec, joints: set, timestep: float,
+                    explicit: bool = False) -> list:
+    """
+    Give the joints `joints` that have no actuator a stiff velocity actuator each.
+
+    For joints a system commands by velocity that are no wheel (a car's steering, held on its
+    angle's error as gz-sim holds it): the gain is :data:`HOLD_RATIO` times what the joint
+    moves over a step, as a velocity interface's wheel without a load. Returns their names.
+    """
+    driven = {a.target for a in spec.actuators}
+    added = []
+    for j in spec.joints:
+        if j.name not in joints or j.name in driven or j.type not in (
+                mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            continue
+        own = max(loads.moved_inertia(j) + float(j.armature), 1e-6)
+        kv = HOLD_RATIO * own / timestep if not explicit else own / timestep
+        act = spec.add_actuator(name=f'{j.name}_drive', target=j.name,
+                                trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_velocity(kv=kv)
+        added.append(act.name)
+    return added
+
+
 def roll_casters(spec: mujoco.MjSpec, plugin: Optional[dict] = None,
                  assets: Optional[dict] = None, alone: Optional[Alone] = None) -> list:
     """

@@ -127,6 +127,8 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
     added = wheels.add_wheel_actuators(
         child, plugin, explicit=spec.option.integrator in EXPLICIT, only=only,
         timestep=spec.option.timestep)
+    added += wheels.hold_velocities(child, held, spec.option.timestep,
+                                    explicit=spec.option.integrator in EXPLICIT)
     if added:
         log.info('spawning %r: its wheels have no actuators; added velocity actuators %s',
                  name, ', '.join(added))

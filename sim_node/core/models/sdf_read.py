@@ -143,7 +143,10 @@ def expand(text: str, folder: Optional[Path], reader: assets.Reader, places: Pla
         whose relative URIs resolve on the model paths only).
     :param name: what the text is called in messages (its file name).
     """
-    root, version = parse(text)
+    try:
+        root, version = parse(text)
+    except ResourceParseError as exc:
+        raise ResourceParseError(f'{name}: {exc}' if name else str(exc)) from None
     out = Expanded(root, version)
     _Includes(reader, places, out).run(root, folder, version, name or 'the SDF')
     return out

@@ -105,6 +105,24 @@ ERR_NUMBER = '{system} of {model!r}: <{tag}>{text}</{tag}> is not a finite numbe
 ERR_NO_JOINT = '{system} of {model!r} names no <{tag}>'
 
 
+def ros_topic(name: str) -> str:
+    """
+    Return a gz-sim topic as ROS can name it: the same, where ROS takes it.
+
+    gz-transport takes names ROS refuses: a token that is a number (JointPositionController's
+    default ``/model/<m>/joint/<j>/0/cmd_pos`` holds the axis index) is left out, another
+    character than a letter, a digit or ``_`` (a nested joint's ``::``) becomes ``_``, and a
+    token starting with a digit gets a ``_`` before it.
+    """
+    out = []
+    for token in name.split('/'):
+        if not token or token.isdigit():
+            continue
+        token = re.sub(r'[^A-Za-z0-9_]', '_', token)
+        out.append(f'_{token}' if token[0].isdigit() else token)
+    return '/' + '/'.join(out)
+
+
 @dataclass(frozen=True)
 class GzSystem:
     """
@@ -170,7 +188,7 @@ def read(kind: str, plugin: ET.Element, model: str, joints: Sequence[str], canon
 
     def topic(tag: str, default: str) -> str:
         given = (plugin.findtext(tag) or '').strip()
-        return given if given.startswith('/') else f'/{given}' if given else default
+        return ros_topic(given if given.startswith('/') else f'/{given}' if given else default)
 
     base = f'/model/{model}'
     num = lambda tag, default: _number(plugin, tag, default, kind, model)  # noqa: E731
@@ -198,7 +216,8 @@ def read(kind: str, plugin: ET.Element, model: str, joints: Sequence[str], canon
                       rear_wheel_track=params['wheel_separation'],
                       front_wheel_track=num('kingpin_width', params['wheel_separation']),
                       rear_wheels_radius=params['wheel_radius'], reference_timeout=0.0,
-                      steering_limit=num('steering_limit', 0.5))
+                      steering_limit=num('steering_limit', 0.5),
+                      steer_p_gain=num('steer_p_gain', 1.0))
         return GzSystem(kind, left + right + steer[0] + steer[1], params, topics, frames,
                         BASE_RATE_HZ)
     if kind in ('JointPositionController', 'JointController'):

@@ -126,12 +126,14 @@ def world_source(text: str, base_dir: Optional[str] = None,
                  max_faces: int = sources.LIMITS.max_mesh_faces,
                  fail_on_unsupported_element: bool = False,
                  ignore_missing_assets: bool = False,
-                 places: Optional[Places] = None) -> WorldSource:
+                 places: Optional[Places] = None, name: str = '') -> WorldSource:
     """
     Return the world of untrusted MJCF, URDF or SDF text (load_world, the scene parameter).
 
     MJCF and URDF as :func:`world_spec` reads them; SDF by :mod:`.sdf_world`. Elements not read
     are named in :attr:`WorldSource.dropped`, or with `fail_on_unsupported_element` refused.
+
+    :param name: what the text is called in messages (its file's name; '' : the SDF).
     """
     if not sdf_read.is_sdf(text):
         spec, dropped = world_spec(text, base_dir, allowed_roots, max_bytes, max_faces,
@@ -144,7 +146,7 @@ def world_source(text: str, base_dir: Optional[str] = None,
     try:
         try:
             expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader,
-                                       places)
+                                       places, name)
             plan = sdf_world.world(expanded, reader, places)
         except (MissingAssetsError, UnsupportedAssetsError) as exc:
             if ignore_missing_assets:

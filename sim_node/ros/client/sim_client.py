@@ -363,9 +363,15 @@ class SimClient:
                 return
             self._executor.spin_once(timeout_sec=min(left, SPIN_SLICE_SEC))
 
-    def load_world(self, uri: str = '', resource_string: str = '') -> str:
+    def load_world(self, uri: str = '', resource_string: str = '',
+                   fail_on_unsupported_element: bool = False,
+                   ignore_missing_or_unsupported_assets: bool = False) -> str:
+        """Load a world (MJCF or SDF; LoadWorld's two modes as its flags); return its name."""
         return self.call('load_world', srv.LoadWorld, srv.LoadWorld.Request(
-            uri=uri, resource_string=resource_string)).world.name
+            uri=uri, resource_string=resource_string,
+            fail_on_unsupported_element=fail_on_unsupported_element,
+            ignore_missing_or_unsupported_assets=ignore_missing_or_unsupported_assets)
+        ).world.name
 
     def unload_world(self) -> None:
         self.call('unload_world', srv.UnloadWorld, srv.UnloadWorld.Request())

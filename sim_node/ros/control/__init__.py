@@ -8,7 +8,7 @@ topics and what it publishes; the broadcasters of joints, forward commands and d
 :mod:`.jtc` (joint_trajectory_controller), :mod:`.gripper` (gripper action controllers),
 :mod:`.steering` (Ackermann, bicycle and tricycle), :mod:`.broadcasters` (IMU and
 force-torque broadcasters), :mod:`.topic_hardware` (topic_based_ros2_control's topics, for a
-controller manager run beside `sim`) and :mod:`.gz_systems` (the gz-sim systems of SDF models:
-their topics, their laws run at the joint samples). The controllers' bookkeeping and types are ROS-free, in
-:mod:`sim_node.core.control`.
+controller manager run beside `sim`) and :mod:`.gz_systems` (the gz-sim systems of SDF
+models: their topics, their laws run at the joint samples). The controllers' bookkeeping and
+types are ROS-free, in :mod:`sim_node.core.control`.
 """

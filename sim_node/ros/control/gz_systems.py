@@ -12,7 +12,7 @@ theirs, and here:
 * ``JointPositionController``, ``JointController``: std_msgs/Float64 in on ``cmd_pos`` /
   ``cmd_vel``;
 * ``JointTrajectoryController``: trajectory_msgs/JointTrajectory in, std_msgs/Float32 progress
-  out;
+  out (every :data:`PROGRESS_PERIOD` while a trajectory is followed);
 * ``JointStatePublisher``: sensor_msgs/JointState of its joints (their SDF names) at its rate;
 * ``PosePublisher``: tf2_msgs/TFMessage of the model's links (``<model>`` ->
   ``<model>::<link>``, in the model's root link frame) at its rate.
@@ -40,6 +40,8 @@ from ...core.control import gz_systems, laws
 from ...session import Loaded, Session
 
 ZERO6 = [0.0] * 6
+#: Simulated seconds between two progress messages of a trajectory being followed.
+PROGRESS_PERIOD = 0.02
 
 
 def _world_joint(entity: str, joint: str) -> str:
@@ -113,7 +115,7 @@ class SystemSet:
                       lambda m, law=law: law.follow(_points(m)))
             pub = node.create_publisher(Float32, system.topics['progress'], 10, **NO_EVENTS)
             self._pubs.append(pub)
-            self._progress.append((law, pub))
+            self._progress.append((law, pub, [-math.inf]))
         elif kind == 'JointStatePublisher':
             pub = node.create_publisher(JointState, system.topics['joint_state'], 10,
                                         **NO_EVENTS)
@@ -134,8 +136,10 @@ class SystemSet:
             if t >= odo.next:
                 odo.next = t + odo.period - 1e-9
                 publish_odometry(odo, law.snapshot(), t)
-        for law, pub in self._progress:
-            pub.publish(Float32(data=float(law.progress)))
+        for law, pub, due in self._progress:
+            if law.points and t >= due[0]:
+                due[0] = t + PROGRESS_PERIOD - 1e-9
+                pub.publish(Float32(data=float(law.progress)))
         for system, pub, due in self._states:
             if t >= due[0]:
                 due[0] = t + 1.0 / system.rate_hz - 1e-9
@@ -166,8 +170,8 @@ class SystemSet:
         stamp = convert.stamp(t)
         out = []
         for b in rec.body_ids:
-            pos, q = quat.to_frame(snap.body_xpos[root], snap.body_xquat[root],
-                                   snap.body_xpos[b], snap.body_xquat[b])
+            pos, q = quat.to_frame(snap.body_xpos[root], snap.body_xquat_wxyz[root],
+                                   snap.body_xpos[b], snap.body_xquat_wxyz[b])
             own = names[b][len(self.entity) + 1:] if b != root else \
                 (snap.info.body_alias[root] or self.entity)[len(self.entity) + 1:] or 'link'
             out.append(convert.transform(self.entity, f'{self.entity}::{own.replace("/", "::")}',
@@ -226,8 +230,13 @@ class GzSystems:
             with self._lock:
                 if entity in self._sets:
                     continue
-            made = SystemSet(self.node, entity, systems, info.timestep, info.joint_names,
-                             self._sample, self._world)
+            try:
+                made = SystemSet(self.node, entity, systems, info.timestep, info.joint_names,
+                                 self._sample, self._world)
+            except Exception as exc:  # noqa: B902 (one entity's systems stop no other's)
+                self.node.get_logger().error(f'the gz-sim systems of {entity!r} are not run: '
+                                             f'{exc}')
+                continue
             with self._lock:
                 self._sets[entity] = (systems, made)
 

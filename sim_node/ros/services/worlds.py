@@ -97,7 +97,7 @@ class Worlds:
         else:
             path = resources.resolve_world(request.uri, roots, self._readable.scenes_dir)
             plan = world_sources.world_source(sources.read_model_text(path), str(path.parent),
-                                              roots, places=places, **modes)
+                                              roots, places=places, name=path.name, **modes)
             name, uri = plan.name or path.stem, request.uri
         try:
             world = World(plan.spec, self._world_config(plan.real_time_factor), source=name,
