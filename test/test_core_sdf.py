@@ -219,6 +219,16 @@ def test_a_joint_limit_stops_it_and_damping_takes_its_energy():
     assert abs(w.get_joint_states()['p/hinge'][1]) < 0.05  # damped down
 
 
+def test_a_joint_whose_limits_are_equal_is_locked_there():
+    # Gazebo's way to lock a joint; MuJoCo refuses a range whose ends are equal.
+    w = load(sdf(pendulum(axis='<axis><xyz>1 0 0</xyz><limit><lower>0.3</lower>'
+                               '<upper>0.3</upper></limit></axis>')))
+    with w.locked() as (m, d):
+        d.qpos[m.jnt_qposadr[m.joint('p/hinge').id]] = 0.3
+    w.step(2000)
+    assert w.get_joint_states()['p/hinge'][0] == pytest.approx(0.3, abs=0.005)
+
+
 def test_a_screw_joint_advances_its_pitch_per_turn():
     pitch = 0.05  # m a turn, right-handed; the axis across gravity, a bob with inertia
     text = sdf(pendulum('screw', '<axis><xyz>0 1 0</xyz></axis>').replace(

@@ -121,28 +121,31 @@ def _folder() -> Path:
     return folder
 
 
-def _key() -> str:
-    return f't{_settings["threshold"]:g}_f{FILL:g}_p{MAX_PARTS}_v{_VERSION}'
+def _key(max_parts: int = MAX_PARTS) -> str:
+    return f't{_settings["threshold"]:g}_f{FILL:g}_p{max_parts}_v{_VERSION}'
 
 
-def parts(path: str, label: str) -> tuple:
+def parts(path: str, label: str, max_parts: int = MAX_PARTS) -> tuple:
     """
     Return the part files of the mesh at `path` (a checked copy), or () to keep it whole.
 
-    `label` names it in log lines, warnings and /diagnostics (the file the model names).
+    `label` names it in log lines, warnings and /diagnostics (the file the model names);
+    `max_parts` bounds the parts it becomes (SDF's ``<max_convex_hulls>``; at most
+    :data:`MAX_PARTS`).
     """
+    max_parts = max(1, min(int(max_parts), MAX_PARTS))
     try:
         digest = asset_store.store().digest(path)  # read once per file, then remembered
     except OSError:
         return ()
-    key = (digest, _key())
+    key = (digest, _key(max_parts))
     with _lock:
         if key in _done:
             return _done[key]
     folder = _folder() / f'{digest}_{key[1]}'
     found = _read(folder)
     if found is None:
-        found = () if _too_few_faces(path) else _run(path, label, folder)
+        found = () if _too_few_faces(path) else _run(path, label, folder, max_parts)
     with _lock:
         return _done.setdefault(key, found)
 
@@ -170,11 +173,11 @@ def _read(folder: Path) -> Optional[tuple]:
         return None
 
 
-def _run(path: str, label: str, folder: Path) -> tuple:
+def _run(path: str, label: str, folder: Path, max_parts: int = MAX_PARTS) -> tuple:
     """Decompose in a child process; record the answer in `folder`; a failure keeps it whole."""
     tmp = Path(tempfile.mkdtemp(prefix='part', dir=folder.parent))
     job = {'src': path, 'out': str(tmp), 'threshold': _settings['threshold'], 'fill': FILL,
-           'max_parts': MAX_PARTS, 'seconds': int(SECONDS), 'memory': MEMORY_BYTES}
+           'max_parts': max_parts, 'seconds': int(SECONDS), 'memory': MEMORY_BYTES}
     with _lock:
         _running[label] = start = time.monotonic()
         _runs[0] += 1
@@ -247,7 +250,7 @@ def prune(root: Path, limit: int = CACHE_BYTES) -> None:
 
 
 def split_geoms(spec: mujoco.MjSpec, labels: dict, only: Optional[Sequence[str]] = None,
-                collisions: Optional[dict] = None) -> int:
+                collisions: Optional[dict] = None, max_parts: Optional[dict] = None) -> int:
     """
     Give the spec's concave collision meshes convex parts; return how many were split.
 
@@ -257,6 +260,7 @@ def split_geoms(spec: mujoco.MjSpec, labels: dict, only: Optional[Sequence[str]]
 
     :param labels: mesh file (as the spec names it) -> the name the model gave it.
     :param collisions: geom name -> Gazebo's collision name; the parts take their geom's.
+    :param max_parts: mesh name -> the most parts it becomes (SDF's ``<max_convex_hulls>``).
     """
     if mode() == 'none':
         return 0
@@ -269,17 +273,19 @@ def split_geoms(spec: mujoco.MjSpec, labels: dict, only: Optional[Sequence[str]]
             if mesh is None or not mesh.file or (only is not None and mesh.name not in only):
                 continue
             todo.append((body, geom, mesh))
-    where = {m.file: _resolved(spec, m.file) for _, _, m in todo}
-    files = sorted(where)
-    found = dict(zip(files, _pool.map(
-        lambda f: parts(where[f], labels.get(f, Path(f).name)), files)))
+    bound = max_parts or {}
+    where = {(m.file, bound.get(m.name, MAX_PARTS)): _resolved(spec, m.file) for _, _, m in todo}
+    jobs = sorted(where)
+    found = dict(zip(jobs, _pool.map(
+        lambda j: parts(where[j], labels.get(j[0], Path(j[0]).name), j[1]), jobs)))
     split = 0
     for body, geom, mesh in todo:
-        pieces = found.get(mesh.file)
+        pieces = found.get((mesh.file, bound.get(mesh.name, MAX_PARTS)))
         if not pieces:
             continue
+        most = bound.get(mesh.name, MAX_PARTS)
         for i, file in enumerate(pieces):
-            name = f'{mesh.name}_part{i}'
+            name = f'{mesh.name}_part{i}' if most == MAX_PARTS else f'{mesh.name}_h{most}_part{i}'
             if spec.mesh(name) is None:
                 spec.add_mesh(name=name, file=file, scale=list(mesh.scale),
                               inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL)

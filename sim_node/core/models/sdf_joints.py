@@ -34,6 +34,9 @@ JOINT_KINDS = ('revolute', 'continuous', 'prismatic', 'ball', 'universal', 'revo
                'screw', 'gearbox', 'fixed')
 #: A limit this large or beyond means none (SDF's old defaults are +-1e16).
 NO_LIMIT = 1e15
+#: A joint whose lower and upper limits are equal is locked there (Gazebo's way); MuJoCo wants
+#: a range whose ends differ, so it gets this much either side (rad or m).
+LOCKED_GAP = 1e-6
 
 ERR_KIND = '{where}: joint type {kind!r} is not an SDF joint type ({kinds})'
 ERR_LINK = '{where}: its {end} {name!r} is not a link of the model {model!r}'
@@ -148,6 +151,8 @@ def make(body: ET.Element, joint: Joint, link_pose: Pose, local: Callable[[str],
         if joint.kind in ('revolute', 'prismatic', 'universal', 'revolute2', 'gearbox') and \
                 abs(lo) < NO_LIMIT and abs(hi) < NO_LIMIT:
             if lo <= hi:
+                if lo == hi:  # Gazebo's way to lock a joint; MuJoCo's range must be open
+                    lo, hi = lo - LOCKED_GAP, hi + LOCKED_GAP
                 j.set('range', _text([lo, hi]))
                 j.set('limited', 'true')
             else:

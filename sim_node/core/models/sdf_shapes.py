@@ -60,6 +60,9 @@ _SCRIPT_ALPHA = {'Transparent': 0.5}
 HEIGHTMAP_SUFFIXES = ('.png',)
 #: Segments of a generated cone's circle.
 CONE_SEGMENTS = 32
+#: The most convex parts a mesh with ``optimization="convex_decomposition"`` becomes where its
+#: ``<max_convex_hulls>`` says none (sdformat's default).
+SDF_MAX_HULLS = 16
 #: Most points a polyline outline may have.
 MAX_POLYLINE_POINTS = 10_000
 #: The geom type each SDF shape becomes.
@@ -273,9 +276,9 @@ def geom(shape_parent: ET.Element, where: str, folder: Optional[Path],
         optimization = (s.get('optimization') or '').strip()
         if optimization:
             attrs['optimization'] = optimization
-            hulls = s.findtext('convex_decomposition/max_convex_hulls')
-            if hulls and hulls.strip().isdigit():
-                attrs['max_convex_hulls'] = hulls.strip()
+            hulls = (s.findtext('convex_decomposition/max_convex_hulls') or '').strip()
+            # sdformat's default: 16 parts at most
+            attrs['max_convex_hulls'] = hulls if hulls.isdigit() else str(SDF_MAX_HULLS)
         return attrs
     if kind == 'cone':
         (r,) = positive(s.findtext('radius'), 1, where, kind, 'a <radius>')

@@ -149,9 +149,14 @@ def world(expanded: Expanded, reader, places) -> WorldPlan:
     plan.systems = sdf_systems.world_systems(w)
     plan.notes += out.notes
     marked = {m.get('mesh') for m in doc.iter('sim-decompose')}
+    most = {}
+    for m in doc.iter('sim-decompose'):
+        if m.get('most'):
+            most[m.get('mesh')] = min(most.get(m.get('mesh'), decompose.MAX_PARTS),
+                                      int(m.get('most')))
     plan.spec = _spec(doc)
     if marked:
-        decompose.split_geoms(plan.spec, {}, only=marked)
+        decompose.split_geoms(plan.spec, {}, only=marked, max_parts=most)
     decompose.bound_hulls(plan.spec)
     return plan
 
@@ -185,11 +190,12 @@ def _mark(built, doc: ET.Element) -> None:
     """Mark a world model's mesh collisions to be split into convex parts (its rules)."""
     for geom in (g for b in built.bodies for g in b.iter('geom')):
         name = geom.get('name', '')
-        how = built.decompose.get(name, ('',))[0]
+        how, most = built.decompose.get(name, ('', ''))
         if geom.get('type') == 'mesh' and geom.get('contype') != '0' and \
                 how != 'convex_hull' and (how == 'convex_decomposition'
                                           or built.moving_joints == 0):
-            ET.SubElement(doc, 'sim-decompose', mesh=geom.get('mesh'))
+            ET.SubElement(doc, 'sim-decompose', mesh=geom.get('mesh'),
+                          most=most if how == 'convex_decomposition' else '')
 
 
 def _physics(w: ET.Element, version: tuple, doc: ET.Element, plan: WorldPlan) -> None:
@@ -309,7 +315,8 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
                   and g.name not in keep and (g.name in chosen or built.moving_joints == 0
                                               or decompose.mode() == 'all')}
         if meshes:
-            decompose.split_geoms(spec, labels, only=meshes, collisions=notes.collisions)
+            decompose.split_geoms(spec, labels, only=meshes, collisions=notes.collisions,
+                                  max_parts=_most_hulls(spec, built.decompose))
     notes.declared, sensors = urdf_declared.add(
         spec, extensions, notes.joint_limits, notes.joint_links, notes.collisions)
     kinds = {(s.get('name') or ''): (s.get('type') or '').lower()
@@ -318,6 +325,16 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
     notes.repairs = list(built.notes) + list(out.notes)
     decompose.bound_hulls(spec)
     return spec, notes
+
+
+def _most_hulls(spec: mujoco.MjSpec, chosen: dict) -> dict:
+    """Return mesh name -> SDF's ``<max_convex_hulls>`` of the collisions that set one."""
+    out = {}
+    for g in spec.geoms:
+        how, most = chosen.get(g.name, ('', ''))
+        if how == 'convex_decomposition' and most:
+            out[g.meshname] = min(out.get(g.meshname, decompose.MAX_PARTS), int(most))
+    return out
 
 
 #: The last part of gz-sim's default topic of each sensor type.
