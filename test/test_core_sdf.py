@@ -46,10 +46,7 @@ def load(text: str, folder=None, config: WorldConfig = WorldConfig(), **places) 
     """Make the world of SDF text as load_world does (World.from_file for files)."""
     plan = world_sources.world_source(text, str(folder) if folder else None,
                                       places=sdf_files.Places.of(**places))
-    world = World(plan.spec, config, 'test', plan.entities, plan.name)
-    plan.settle(True)
-    world.real_time_factor = plan.real_time_factor
-    return world
+    return World.from_plan(plan, config, 'test')
 
 
 def pos(world: World, body: str) -> np.ndarray:
@@ -530,12 +527,26 @@ def test_the_docs_table_is_the_one_the_reader_uses():
     assert sdf_elements.markdown() in docs
 
 
-def test_a_world_system_with_no_meaning_here_is_silent_and_another_is_named():
-    plan = world_sources.world_source(sdf(
+def test_a_world_system_with_no_meaning_here_is_silent_and_another_is_named(caplog):
+    lift = ('<plugin filename="gz-sim-lift-drag-system" name="gz::sim::systems::LiftDrag"/>'
+            '<plugin filename="gz-sim-joint-state-publisher-system" '
+            'name="gz::sim::systems::JointStatePublisher"/>')
+    w = load(sdf(
         '<plugin filename="gz-sim-physics-system" name="gz::sim::systems::Physics"/>'
         '<plugin filename="libgz-sim-sensors-system.so" name="gz::sim::systems::Sensors"/>'
-        '<plugin filename="gz-sim-wind-effects-system" name="gz::sim::systems::WindEffects"/>'))
-    assert plan.systems == ['WindEffects']
+        '<plugin filename="gz-sim-wind-effects-system" name="gz::sim::systems::WindEffects"/>'
+        f'<model name="glider">{box_link("wing")}{lift}</model>'))
+    assert w.systems_not_run() == {'world': ('WindEffects',), 'glider': ('LiftDrag',)}
+    said = [r.getMessage() for r in caplog.records if 'not run here' in r.getMessage()]
+    assert len(said) == 2 and 'WindEffects' in said[0] + said[1], said  # once each
+    assert not any('Physics' in t or 'Sensors' in t or 'JointState' in t for t in said)
+    # A spawned model's go with it.
+    w.spawn('kite', sources.from_model_text(
+        f'<sdf version="1.9"><model name="kite">{box_link("sail")}{lift}</model></sdf>'),
+        position=(3.0, 0.0, 1.0))
+    assert w.systems_not_run()['kite'] == ('LiftDrag',)
+    w.delete('kite')
+    assert 'kite' not in w.systems_not_run()
 
 
 def test_a_link_pose_that_is_not_a_number_is_refused_naming_it():

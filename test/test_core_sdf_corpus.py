@@ -100,8 +100,7 @@ def test_a_world_of_gazebo_model_folders_with_an_sdf_ground_and_urdf_robots():
             '<pose>2 0 0.5 0 0 0</pose></include></world></sdf>')
     from sim_node.core.models import world_sources
     plan = world_sources.world_source(text, places=places())
-    world = World(plan.spec, WorldConfig(), 'gym', plan.entities, plan.name)
-    plan.settle(True)
+    world = World.from_plan(plan, WorldConfig(), 'gym')
     kinds = {e.name: e.category for e in world.entities()}
     assert kinds['ground_plane'] == 'static'
     assert kinds['pendulum'] == 'robot' and kinds['cart'] == 'robot'

@@ -69,9 +69,7 @@ def world(models: str) -> World:
     text = (f'<?xml version="1.0"?><sdf version="1.11"><world name="w">{ground}{models}{box}'
             '</world></sdf>')
     plan = world_sources.world_source(text, None, places=sdf_files.Places.of())
-    w = World(plan.spec, WorldConfig(), 'test', plan.entities, plan.name)
-    plan.settle(True)
-    return w
+    return World.from_plan(plan, WorldConfig(), 'test')
 
 
 def rest(w: World) -> float:

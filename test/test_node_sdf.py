@@ -201,6 +201,20 @@ def test_the_sdf_world_is_the_scene_named_by_itself(client):
     assert 'diff_drive' in [w for w, _ in client.worlds()]
 
 
+def test_a_world_system_not_run_here_is_on_diagnostics(client, watch):
+    from diagnostic_msgs.msg import DiagnosticArray
+    got = []
+    sub = watch.node.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)
+    try:
+        wait_for(lambda: any(v.key == 'gz_systems_not_run' for m in got for st in m.status
+                             for v in st.values), timeout=10)
+    finally:
+        watch.node.destroy_subscription(sub)
+    said = {v.value for m in got for st in m.status for v in st.values
+            if v.key == 'gz_systems_not_run'}
+    assert said == {'world: WindEffects'}  # Physics is silent; the models' systems all run
+
+
 def test_an_ackermann_car_turns_as_the_twist_asks_on_its_own_topic(client, watch):
     stream(watch, '/car/cmd_vel', Twist(linear=Vector3(x=1.0), angular=Vector3(z=0.3)), 4.0)
     odom = watch.got['car'][-1]

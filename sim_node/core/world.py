@@ -13,6 +13,7 @@ writes are :mod:`.editing.writes`; trajectories, bases, pushes and gains are
 """
 
 import contextlib
+import logging
 import math
 from pathlib import Path
 import time
@@ -40,6 +41,8 @@ from .stepping import guard, sampling
 from .stepping.design import Design
 from .stepping.live import Live
 from .stepping.steps import Stepping
+
+log = logging.getLogger(__name__)
 
 T = TypeVar('T')
 
@@ -75,6 +78,9 @@ class World:
         #: The pace the world's file asks for (an SDF world's ``<real_time_factor>``; None: it
         #: asks none): a loop made without a configuration of its own takes it.
         self.real_time_factor: Optional[float] = None
+        #: The gz-sim systems the world's file names that are not run here (an SDF world's
+        #: world plugins; its models' are their entities', :meth:`systems_not_run`).
+        self.world_systems_not_run: tuple = ()
         # Disable MuJoCo's whole-world auto-reset on NaN: divergence is ours to report.
         spec.option.disableflags |= _NO_AUTORESET
         if config.timestep > 0:
@@ -116,19 +122,34 @@ class World:
             plan = world_sources.world_source(sources.read_model_text(real),
                                               str(Path(path).parent), places=places,
                                               name=Path(path).name)
-            try:
-                made = cls(plan.spec, config, str(path), plan.entities, plan.name)
-            except BaseException:
-                plan.settle(False)
-                raise
-            plan.settle(True)
-            made.real_time_factor = plan.real_time_factor
-            return made
+            return cls.from_plan(plan, config, str(path))
         try:
             spec = mujoco.MjSpec.from_file(str(path))
         except ValueError as exc:
             raise ResourceParseError(f'cannot load the scene: {exc}') from None
         return cls(spec, config, source=str(path))
+
+    @classmethod
+    def from_plan(cls, plan: world_sources.WorldSource, config: WorldConfig = WorldConfig(),
+                  source: str = '') -> 'World':
+        """
+        Make the world a :func:`.models.world_sources.world_source` read (an SDF world's).
+
+        Its entities are attached as it is made; its pace and the systems it names that are
+        not run here are kept; the files it copied go if it cannot be made.
+        """
+        try:
+            made = cls(plan.spec, config, source, plan.entities, plan.name)
+        except BaseException:
+            plan.settle(False)
+            raise
+        plan.settle(True)
+        made.real_time_factor = plan.real_time_factor
+        made.world_systems_not_run = tuple(plan.systems)
+        if plan.systems:
+            log.warning('the world names gz-sim systems that are not run here: %s (what is: '
+                        'docs/sdf.md)', ', '.join(plan.systems))
+        return made
 
     @classmethod
     def from_string(cls, xml: str, config: WorldConfig = WorldConfig()) -> 'World':
@@ -315,6 +336,20 @@ class World:
     def entity(self, name: str) -> EntityRecord:
         with self._live.lock:
             return self._live.index.entity(name)
+
+    def systems_not_run(self) -> dict:
+        """
+        Return the gz-sim systems named that are not run here: ``{'world' or entity: names}``.
+
+        The world file's own plugins and those of its entities (an SDF model's, spawned or
+        the world's); a deleted entity's go with it.
+        """
+        with self._live.lock:
+            spawned = dict(self._live.design.spawned)
+        out = {'world': self.world_systems_not_run} if self.world_systems_not_run else {}
+        out.update((name, rec.systems_not_run) for name, rec in spawned.items()
+                   if rec.systems_not_run)
+        return out
 
     def spawned_names(self) -> list:
         """Return the entities spawned since load (the ones that can be deleted)."""

@@ -179,6 +179,10 @@ class Edits:
         sensors = tuple(sensor_tags.entity_sensor(d, name, namespace, tops[0] if tops else '')
                         for d in getattr(source.urdf_notes, 'sensors', ()))
         _check_topics(name, sensors, design.spawned)
+        not_run = tuple(getattr(source.urdf_notes, 'systems_not_run', ()))
+        if not_run:
+            log.warning('%r names gz-sim systems that are not run here: %s (what is: '
+                        'docs/sdf.md)', name, ', '.join(not_run))
         control = getattr(source.urdf_notes, 'ros2_control', None)
         if control is not None:
             control = replace(control, namespace=namespace.strip('/') or control.namespace,
@@ -203,7 +207,8 @@ class Edits:
                            drive=bases.drive_plugin(getattr(source.urdf_notes, 'extensions',
                                                             ())),
                            sensors=sensors,
-                           systems=tuple(getattr(source.urdf_notes, 'systems', ())))
+                           systems=tuple(getattr(source.urdf_notes, 'systems', ())),
+                           systems_not_run=not_run)
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,

@@ -302,7 +302,8 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
     notes = Prepared(root_link=built.root_link, static=built.static,
                      joint_limits=dict(built.joint_limits), joint_links=dict(built.joint_links),
                      collisions=dict(built.collisions), extensions=extensions)
-    notes.systems, notes.unknown = _systems(elem, extensions[-1], built, world, notes.repairs)
+    notes.systems, notes.systems_not_run = _systems(elem, extensions[-1], built, world,
+                                                    notes.repairs)
     notes.ros2_control = ros2_control.read(extensions)
     if notes.ros2_control is not None:
         notes.ros2_control = notes.ros2_control.with_speeds(notes.joint_limits)
@@ -399,7 +400,7 @@ def _systems(elem: ET.Element, plugins: ET.Element, built, world: str, said: lis
             continue
         if system is not None:
             out.append(system)
-    return tuple(out), sdf_systems.model_systems(elem)
+    return tuple(out), tuple(sdf_systems.model_systems(elem))
 
 
 def _model_plugin(model: ET.Element, plugin: ET.Element) -> bool:

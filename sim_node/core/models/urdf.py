@@ -123,6 +123,9 @@ class Prepared:
     extensions: list = field(default_factory=list)  # the extension elements, as parsed
     #: An SDF model's gz-sim systems (:class:`~..control.gz_systems.GzSystem`; SDF only).
     systems: tuple = ()
+    #: The gz-sim systems an SDF model names that are not run here (named in a warning and on
+    #: /diagnostics; SDF only).
+    systems_not_run: tuple = ()
     unknown: list = field(default_factory=list)  # element names URDF does not define
     repairs: list = field(default_factory=list)  # one text per inertia repaired
 

@@ -88,6 +88,8 @@ class Spawned:
     ros2_control: Optional[object] = None
     #: The gz-sim systems an SDF model declares (:class:`~.control.gz_systems.GzSystem`).
     systems: tuple = ()
+    #: The gz-sim systems an SDF model names that are not run here (their names).
+    systems_not_run: tuple = ()
     #: Part of the loaded world (an SDF world's model made on its own), not spawned since: a
     #: delete refuses it and a reset of the spawned keeps it, as for the world's other
     #: entities.

@@ -8,8 +8,9 @@ Nothing here asks the session for its state in a loop. The node's housekeeping t
 0.2 s, on the executor) drains the core's log lines (its threads never call rclpy) into the ROS
 logger and sends /diagnostics again once a second, as diagnostic_updater does, with the last
 state received, the loop's rate and the mesh cache's size (and what deleted robots keep in
-it), and the concave meshes being decomposed into convex parts, if any; a refused joint
-command or goal goes out at once too.
+it), the concave meshes being decomposed into convex parts, if any, and the gz-sim systems
+an SDF world or model names that are not run here; a refused joint command or goal goes out at
+once too.
 """
 
 import collections
@@ -102,6 +103,7 @@ class Status:
         if loaded is None or loaded.loop is None:
             return
         kept = loaded.world.kept_mesh_bytes()  # the world lock: never inside a node lock
+        not_run = loaded.world.systems_not_run()
         with self._publish_lock:
             now = time.monotonic()
             if now - self._last_sent < (at_most_every if force else 1.0):
@@ -115,6 +117,9 @@ class Status:
                 cache['decomposing'] = ', '.join(f'{label} ({sec:.0f} s of at most '
                                                  f'{decompose.SECONDS:g})'
                                                  for label, sec in busy)
+            if not_run:  # an SDF file's systems this simulator does not run, by whose
+                cache['gz_systems_not_run'] = '; '.join(f'{owner}: {", ".join(names)}'
+                                                        for owner, names in not_run.items())
             msg = diagnostics.diagnostics(loaded.loop.status(), self._name, event.state,
                                           event.reason, event.divergence, cache)
             for topic, (what, why, names, when, verdict) in list(self._refused.items()):

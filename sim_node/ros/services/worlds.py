@@ -99,14 +99,7 @@ class Worlds:
             plan = world_sources.world_source(sources.read_model_text(path), str(path.parent),
                                               roots, places=places, name=path.name, **modes)
             name, uri = plan.name or path.stem, request.uri
-        try:
-            world = World(plan.spec, self._world_config(plan.real_time_factor), source=name,
-                          entities=plan.entities, name=plan.name)
-        except BaseException:
-            plan.settle(False)
-            raise
-        plan.settle(True)
-        world.real_time_factor = plan.real_time_factor
+        world = World.from_plan(plan, self._world_config(plan.real_time_factor), source=name)
         return world, name, uri, plan.dropped
 
     def unload_world(self, request, response):
