@@ -331,3 +331,56 @@ def test_an_sdf_world_loads_by_uri_and_by_string_stopped(client, folders):
     assert sorted(client.entities()) == ['b', 'ground_plane']
     assert client.load_world(uri=(folders / 'systems.sdf').as_uri()) == 'systems'
     client.play()
+
+
+def sdf_cart(yaml_path: str) -> str:
+    """Return controllers_corpus's position cart as an SDF model with gz_ros2_control."""
+    return f"""<sdf version="1.9"><model name="sdf_cart">
+  <link name="slider"><pose>0 0 1 0 0 0</pose>{inertial(100, 0.01)}
+    <visual name="v">{box("30 0.05 0.05")}</visual></link>
+  <joint name="world_to_slider" type="fixed"><parent>world</parent><child>slider</child>
+  </joint>
+  <link name="cart"><pose>0 0 1 0 0 0</pose>{inertial(1, 0.01)}
+    <collision name="c">{box("0.5 0.5 0.2")}</collision></link>
+  <joint name="slider_to_cart" type="prismatic"><parent>slider</parent><child>cart</child>
+    <axis><xyz>1 0 0</xyz><limit><lower>-15</lower><upper>15</upper><effort>1000</effort>
+    <velocity>30</velocity></limit></axis></joint>
+  <ros2_control name="GazeboSimSystem" type="system">
+    <hardware><plugin>gz_ros2_control/GazeboSimSystem</plugin></hardware>
+    <joint name="slider_to_cart"><command_interface name="position"/>
+      <state_interface name="position"/><state_interface name="velocity"/></joint>
+  </ros2_control>
+  <plugin filename="gz_ros2_control-system" name="gz_ros2_control::GazeboSimROS2ControlPlugin">
+    <parameters>{yaml_path}</parameters></plugin>
+</model></sdf>"""
+
+
+def test_gz_ros2_control_in_an_sdf_model_brings_the_same_controller_manager(
+        client, watch, folders):
+    import controllers_corpus as corpus
+    from std_msgs.msg import Float64MultiArray
+    path = corpus.write(folders, 'sdf_cart.yaml', corpus.cart_yaml('position'))
+    client.spawn('sdf_cart', resource_string=sdf_cart(path), position=(0.0, -8.0, 0.0))
+    try:
+        for controller in ('joint_state_broadcaster', 'forward_position_controller'):
+            failed, _ = corpus.spawner(client, controller)
+            assert failed is None, failed
+        states = []
+        sub = watch.node.create_subscription(
+            JointState, '/joint_states',
+            lambda m: states.append(m) if 'slider_to_cart' in m.name else None, 100)
+        pub = watch.node.create_publisher(Float64MultiArray,
+                                          '/forward_position_controller/commands', 10)
+        try:
+            def at_two():
+                pub.publish(Float64MultiArray(data=[2.0]))
+                m = states[-1] if states else None
+                return m is not None and abs(
+                    m.position[list(m.name).index('slider_to_cart')] - 2.0) < 0.02
+            wait_for(at_two, timeout=30)
+        finally:
+            watch.node.destroy_subscription(sub)
+            watch.node.destroy_publisher(pub)
+    finally:
+        client.delete('sdf_cart')
+
