@@ -383,4 +383,3 @@ def test_gz_ros2_control_in_an_sdf_model_brings_the_same_controller_manager(
             watch.node.destroy_publisher(pub)
     finally:
         client.delete('sdf_cart')
-
