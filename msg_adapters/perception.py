@@ -1,8 +1,8 @@
 """
 Pure conversions for what the robot sees and feels.
 
-Images, camera info, IMU, wrench, range, laser scans, generic sensor values, and the TF frames
-they are given in.
+Images, camera info, IMU, wrench, range, laser scans, magnetic fields, NavSat fixes, generic
+sensor values, and the TF frames they are given in.
 
 Frames of cameras and sensor sites are named by the one frame rule (see
 :func:`msg_adapters.convert.frame_names`): ``<entity>/<element>`` for an element of an entity,
@@ -18,7 +18,8 @@ from typing import Optional, Sequence
 
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
-from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan, PointCloud2, PointField, Range
+from sensor_msgs.msg import (CameraInfo, Image, Imu, LaserScan, MagneticField, NavSatFix,
+                             NavSatStatus, PointCloud2, PointField, Range)
 from sim_node.core.base import quat
 from sim_node.core.base.records import CameraSpec, EntityRecord, ModelInfo, SensorSpec, SiteSpec
 from sim_node.core.cameras import OPTICAL_FROM_MUJOCO_WXYZ
@@ -59,11 +60,14 @@ def site_frame(info: ModelInfo, site: SiteSpec, prefix: str = '') -> str:
 
 def device_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
                       cameras: Sequence[CameraSpec], sites: Sequence[SiteSpec],
-                      ranges: Sequence[SensorSpec], prefix: str = '') -> list:
+                      ranges: Sequence[SensorSpec], prefix: str = '',
+                      own: Sequence[tuple] = ()) -> list:
     """
     Return the fixed frames of devices in their bodies, for /tf_static.
 
-    Fixed cameras' optical frames, sensor and scanner sites, rangefinders.
+    Fixed cameras' optical frames, sensor and scanner sites, rangefinders, and the frames of
+    declared sensors that are their own (`own`: (site, frame name) each, the frame at the
+    site; :attr:`~sim_node.core.base.records.ModelInfo.sensor_frames`).
 
     :param frames: (nbody,) body frames from :func:`msg_adapters.convert.frame_names`.
     """
@@ -84,6 +88,8 @@ def device_transforms(info: ModelInfo, sim_time: float, frames: Sequence[str],
         q = quat.mul(np.asarray(sensor.site.quat_wxyz), np.asarray(RANGE_FROM_SITE_WXYZ))
         out.append(transform(frames[sensor.site.body], range_frame(info, sensor, prefix),
                              sensor.site.pos, q, t))
+    out += [transform(frames[site.body], prefix + frame, site.pos, site.quat_wxyz, t)
+            for site, frame in own]
     return out
 
 
@@ -272,6 +278,25 @@ def range_reading(sensor: SensorSpec, sensordata: np.ndarray, sim_time: float,
     msg = Range(radiation_type=Range.INFRARED, field_of_view=0.0, min_range=0.0,
                 max_range=sensor.cutoff if sensor.cutoff > 0 else math.inf,
                 range=value if value >= 0 else math.inf)
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    return msg
+
+
+def magnetic_field(field, sim_time: float, frame: str) -> MagneticField:
+    """Return a magnetometer's field (3,), tesla in its frame; its covariance unknown (zeros)."""
+    msg = MagneticField(magnetic_field=vec(field))
+    msg.header.stamp = stamp(sim_time)
+    msg.header.frame_id = frame
+    return msg
+
+
+def nav_sat_fix(where: tuple, sim_time: float, frame: str) -> NavSatFix:
+    """Return a NavSat's (latitude deg, longitude deg, altitude m) as a fix, covariance unknown."""
+    msg = NavSatFix(latitude=float(where[0]), longitude=float(where[1]),
+                    altitude=float(where[2]),
+                    position_covariance_type=NavSatFix.COVARIANCE_TYPE_UNKNOWN)
+    msg.status = NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS)
     msg.header.stamp = stamp(sim_time)
     msg.header.frame_id = frame
     return msg

@@ -286,6 +286,26 @@ def wait_for(predicate, timeout: float = 10.0, interval: float = 0.05):
         time.sleep(interval)
 
 
+def heard(watch, msg_type, topic: str, n: int = 2, timeout: float = 20.0,
+          reliable: bool = False) -> list:
+    """
+    Return the messages `watch` hears on `topic` until it has `n` of them (at most `timeout` s).
+
+    With the sensor data QoS (best effort: every publisher matches), or `reliable` (depth 100:
+    none of a burst is lost, but a best-effort publisher does not match).
+    """
+    from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE) if reliable \
+        else qos_profile_sensor_data
+    got = []
+    sub = watch.node.create_subscription(msg_type, topic, got.append, qos)
+    try:
+        wait_for(lambda: len(got) >= n, timeout=timeout)
+    finally:
+        watch.node.destroy_subscription(sub)
+    return got
+
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 

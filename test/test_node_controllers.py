@@ -11,6 +11,7 @@ import math
 import time
 from typing import Optional
 
+import conftest
 from conftest import action_client, serve_node, wait_for, Watcher
 import controllers_corpus as corpus
 import pytest
@@ -33,15 +34,7 @@ def watch(node, rclpy_context):
 
 
 def heard(watch, msg_type, topic: str, n: int = 2, timeout: float = 20.0) -> list:
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    got = []
-    sub = watch.node.create_subscription(
-        msg_type, topic, got.append, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
-    try:
-        wait_for(lambda: len(got) >= n, timeout=timeout)
-    finally:
-        watch.node.destroy_subscription(sub)
-    return got
+    return conftest.heard(watch, msg_type, topic, n, timeout, reliable=True)
 
 
 def publish(watch, msg_type, topic: str, msg, times: int = 3) -> None:

@@ -142,6 +142,8 @@ class DeclaredLaser:
     :param frame: the frame id its messages carry (``<entity>/<link or frame name>``).
     :param topic: its topic as declared, already under the entity's namespace ('' : none).
     :param points: publish PointCloud2 (``output_type`` says so, or a vertical sweep).
+    :param own_frame: `frame` is its own, at its site (an SDF sensor's scoped name, see
+        :attr:`ModelInfo.sensor_frames`), not a link's.
     """
 
     site: str
@@ -157,6 +159,7 @@ class DeclaredLaser:
     frame: str = ''
     topic: str = ''
     points: bool = False
+    own_frame: bool = False
 
 
 #: A declared camera's image or depth topic that says: none (:class:`DeclaredCamera`).
@@ -214,7 +217,7 @@ class DeclaredImu:
 
     Sampled in the stepping loop at `rate_hz` of simulated time (:mod:`.stepping.sampling`),
     with Gaussian noise on its gyro and accelerometer: (mean (3,), standard deviation (3,)) per
-    axis as the tag gives them, or None.
+    axis as the tag gives them, or None. `own_frame`: as a laser's (:class:`DeclaredLaser`).
     """
 
     site: str
@@ -224,6 +227,32 @@ class DeclaredImu:
     always_on: bool = True
     frame: str = ''
     topic: str = ''
+    own_frame: bool = False
+
+
+#: The kinds of :class:`DeclaredGeo`.
+GEO_KINDS = ('magnetometer', 'navsat')
+
+
+@dataclass(frozen=True)
+class DeclaredGeo:
+    """
+    A magnetometer or a NavSat receiver a robot file declares, on its site.
+
+    Sampled in the stepping loop at `rate_hz` of simulated time (:mod:`.stepping.geo`).
+
+    :param site: ``<entity>/<sensor>_<kind>``; `kind`: one of :data:`GEO_KINDS`.
+    :param frame: the frame id of its messages; `own_frame`: as a laser's
+        (:class:`DeclaredLaser`); `topic`: as declared ('' : the node's own).
+    """
+
+    site: str
+    kind: str
+    rate_hz: float = 100.0
+    always_on: bool = True
+    frame: str = ''
+    topic: str = ''
+    own_frame: bool = False
 
 
 @dataclass(frozen=True)
@@ -364,6 +393,20 @@ class ModelInfo:
     #: Entity -> (its namespace, the gz-sim systems its SDF declares:
     #: :class:`~.control.gz_systems.GzSystem`), for the entities that declare any.
     gz_systems: dict = field(default_factory=dict)
+    #: Site name -> :class:`DeclaredGeo` for their magnetometers and NavSat receivers.
+    geo: dict = field(default_factory=dict)
+    #: (site name, frame) of declared sensors whose frame is their own (an SDF sensor's scoped
+    #: name ``<entity>/<link>/<sensor>``, as ros_gz_bridge names it): each on /tf_static at its
+    #: site, so its messages' frame is where it is.
+    sensor_frames: tuple = ()
+    #: Where the world's origin is on the Earth (latitude deg, longitude deg, elevation m,
+    #: heading deg: an SDF world's ``<spherical_coordinates>``), or None: not said.
+    spherical: Optional[tuple] = None
+
+
+#: The custom numeric a model keeps its world's :attr:`ModelInfo.spherical` in (it goes with
+#: the model through every edit).
+ORIGIN_NUMERIC = 'sim:spherical_coordinates'
 
 
 @dataclass(frozen=True)

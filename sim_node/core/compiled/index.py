@@ -7,16 +7,17 @@ model without holding that model's index too (compare ``index.generation``).
 """
 
 from dataclasses import dataclass, replace
-from typing import Iterable, Mapping
+from typing import Iterable, Mapping, Optional
 
 import mujoco
 import numpy as np
 
 from ..base.checks import closest_hint
 from ..base.errors import NotFoundError
-from ..base.records import (DeclaredCamera, DeclaredImu, DeclaredLaser, DeclaredOdometer,
-                            DeclaredWrench, DYNAMIC, EFFORT, EntityRecord, GeomVisual, ModelInfo,
-                            POSITION, ROBOT, STATIC, VELOCITY)
+from ..base.records import (DeclaredCamera, DeclaredGeo, DeclaredImu, DeclaredLaser,
+                            DeclaredOdometer, DeclaredWrench, DYNAMIC, EFFORT, EntityRecord,
+                            GeomVisual, ModelInfo, ORIGIN_NUMERIC, POSITION, ROBOT, STATIC,
+                            VELOCITY)
 from ..devices import catalog, contacts
 from ..models import description
 
@@ -163,7 +164,12 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
                       if rec.ros2_control is not None
                       and (rec.ros2_control.simulated or rec.ros2_control.topic_based)},
         gz_systems={n: (rec.namespace, rec.systems) for n, rec in spawned.items()
-                    if rec.systems})
+                    if rec.systems},
+        geo={d.site: d for rec in spawned.values() for d in rec.sensors
+             if isinstance(d, DeclaredGeo)},
+        sensor_frames=tuple((d.site, d.frame) for rec in spawned.values() for d in rec.sensors
+                            if getattr(d, 'own_frame', False)),
+        spherical=_origin(m))
     return ModelIndex(
         generation=generation, state_size=mujoco.mj_stateSize(m, STATE_SPEC),
         body_names=names, body_ids=ids,
@@ -175,6 +181,14 @@ def build(m: mujoco.MjModel, generation: int, spawned: Mapping) -> ModelIndex:
         geom_names=tuple(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ''
                          for g in range(m.ngeom)),
         entities=entities, entity_by_name={e.name: e for e in entities}, info=info)
+
+
+def _origin(m: mujoco.MjModel) -> Optional[tuple]:
+    """Return the world's origin on the Earth as the model keeps it, or None (not said)."""
+    try:
+        return tuple(float(v) for v in m.numeric(ORIGIN_NUMERIC).data)
+    except KeyError:
+        return None
 
 
 def _root_aliases(entities: tuple, spawned: Mapping, with_joints: set, nbody: int) -> tuple:

@@ -108,12 +108,13 @@ def _limit(axis: Optional[ET.Element], tag: str, default: float, where: str) -> 
 
 
 def make(body: ET.Element, joint: Joint, link_pose: Pose, local: Callable[[str], str],
-         built, body_of: dict) -> None:
+         built, body_of: dict, topics: Optional[Callable] = None) -> None:
     """
     Add a tree joint's MJCF joints to its child `body` (at `link_pose`), and what couples them.
 
     `built` (a :class:`.sdf_model.Built`) gains its equalities, limits, links and sensors;
-    `local` names an element of the model.
+    `local` names an element of the model; `topics` gives a sensor's default topic
+    (:func:`.sdf_world.gz_topics`), or None.
     """
     name = local(joint.scoped)
     built.joint_links[name] = (body_of.get(joint.parent, 'world'), body_of[joint.child])
@@ -121,7 +122,8 @@ def make(body: ET.Element, joint: Joint, link_pose: Pose, local: Callable[[str],
     if sensors:
         ext = ET.Element('gazebo', reference=name)
         for sensor in sensors:
-            ext.append(sensor_copy(sensor, sdf_frames.relative(link_pose, joint.pose)))
+            ext.append(sensor_copy(sensor, sdf_frames.relative(link_pose, joint.pose),
+                                   topics(joint.scoped, sensor, 'joint') if topics else ''))
         built.extensions.append(ext)
     if joint.kind == 'fixed':
         return

@@ -118,7 +118,8 @@ def build(model: ET.Element, version: tuple, out: Assets, entity: str = '',
 
     :param entity: the entity's name in a world made as one document ('' : own names).
     :param at: where the model frame is (in the world: its pose; None: at the origin).
-    :param topics: ``topics(link, sensor)`` the sensor's topic when it names none, or None.
+    :param topics: ``topics(link, sensor)`` the sensor's topic when it names none, or None
+        (``topics(joint, sensor, 'joint')`` for a joint's).
     """
     scope = Scope(model, version)
     links, joints = {}, []
@@ -147,7 +148,7 @@ def build(model: ET.Element, version: tuple, out: Assets, entity: str = '',
         if floating:
             ET.SubElement(body, 'freejoint', name=names.local(f'{scoped}_floating'))
         if joint is not None and not link.static:
-            sdf_joints.make(body, joint, link.pose, names.local, built, body_of)
+            sdf_joints.make(body, joint, link.pose, names.local, built, body_of, topics)
         moving = floating or (joint is not None and joint.kind != 'fixed' and not link.static)
         _fill(body, link, names, built, out, moving, topics)
     for joint in closures:

@@ -32,7 +32,8 @@ from .sdf_shapes import Assets, numbers
 from .urdf import Prepared
 from ..base import checks
 from ..base.errors import ResourceParseError
-from ..base.records import DeclaredCamera, NO_TOPIC
+from ..base.records import (DeclaredCamera, DeclaredGeo, DeclaredImu, DeclaredLaser, NO_TOPIC,
+                            ORIGIN_NUMERIC)
 
 #: The solver iterations MuJoCo keeps at least (Newton converges in a few; SDF's ODE counts
 #: its own, cheaper ones).
@@ -63,6 +64,10 @@ class Entity:
     urdf: str = ''
     static: bool = False
     description: str = ''
+
+
+#: SDF's default ``<magnetic_field>`` (tesla), which a world that names none has.
+SDF_MAGNETIC_FIELD = '5.5645e-06 2.28758e-05 -4.23884e-05'
 
 
 @dataclass
@@ -246,9 +251,22 @@ def _physics(w: ET.Element, version: tuple, doc: ET.Element, plan: WorldPlan) ->
                   rgb1=' '.join(f'{min(c, 1):.4g}' for c in sky),
                   rgb2=' '.join(f'{min(c, 1) * 0.6:.4g}' for c in sky), width='64',
                   height='64')
+    if w.find('magnetic_field') is None and (physics is None or
+                                             physics.find('magnetic_field') is None):
+        option.set('magnetic', SDF_MAGNETIC_FIELD)  # SDF's default, not MuJoCo's
     coords = w.find('spherical_coordinates')
     if coords is not None:
         plan.spherical_coordinates = {e.tag: (e.text or '').strip() for e in coords}
+        origin = [numbers(coords.findtext(tag) or '0', (0.0,), 'the world',
+                          f'<spherical_coordinates><{tag}>')[0]
+                  for tag in ('latitude_deg', 'longitude_deg', 'elevation', 'heading_deg')]
+        if not (-90 <= origin[0] <= 90 and -180 <= origin[1] <= 360):
+            raise ResourceParseError(
+                f"the world's <spherical_coordinates> latitude {origin[0]:g} and longitude "
+                f'{origin[1]:g} are not a place on the Earth (degrees)')
+        custom = ET.SubElement(doc, 'custom')
+        ET.SubElement(custom, 'numeric', name=ORIGIN_NUMERIC,
+                      data=' '.join(f'{v:.12g}' for v in origin))
 
 
 def _finish_assets(doc: ET.Element, out: Assets, colour_geoms: list) -> None:
@@ -322,7 +340,11 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
         spec, extensions, notes.joint_limits, notes.joint_links, notes.collisions)
     kinds = {(s.get('name') or ''): (s.get('type') or '').lower()
              for ext in extensions for s in ext.iter('sensor')}
-    notes.sensors = [gz_streams(d, kinds) for d in sensors]
+    given = {s.get('name') or '' for ext in extensions for s in ext.iter('sensor')
+             if any((s.findtext(t) or '').strip() for t in ('gz_frame_id', 'ign_frame_id'))
+             or any((p.findtext(t) or '').strip() for p in s.iter('plugin')
+                    for t in ('frame_name', 'frameName'))}
+    notes.sensors = [own_frame(gz_streams(d, kinds), given) for d in sensors]
     notes.repairs = list(built.notes) + list(out.notes)
     decompose.bound_hulls(spec)
     return spec, notes
@@ -342,24 +364,44 @@ def _most_hulls(spec: mujoco.MjSpec, chosen: dict) -> dict:
 _TOPIC_ENDS = {'camera': 'image', 'depth_camera': 'depth_image', 'depth': 'depth_image',
                'rgbd_camera': '', 'rgbd': '', 'gpu_lidar': 'scan', 'lidar': 'scan',
                'gpu_ray': 'scan', 'ray': 'scan', 'imu': 'imu', 'contact': 'contact',
-               'force_torque': 'forcetorque'}
+               'force_torque': 'forcetorque', 'magnetometer': 'magnetometer',
+               'navsat': 'navsat', 'gps': 'navsat'}
 
 
 def gz_topics(world: str, model: str):
     """
     Return ``topics(link, sensor)``: a sensor's gz-sim default topic, where it names none.
 
-    ``/world/<world>/model/<model>/link/<link>/sensor/<sensor>/<kind>`` (``image``,
+    ``/world/<world>/model/<model>/link/<link>/sensor/<sensor>/<kind>`` (a joint's sensor:
+    ``topics(joint, sensor, 'joint')``, ``.../joint/<joint>/sensor/...``; ``image``,
     ``depth_image``, ``scan``, ``imu``, ...; an RGB-D camera's streams below it), nested
     models' links scoped with ``/model/<nested>/link/...`` as gz-sim scopes them.
     """
-    def topics(link: str, sensor: ET.Element) -> str:
+    def topics(link: str, sensor: ET.Element, kind: str = 'link') -> str:
         *models, own = link.split('::')
         path = ''.join(f'/model/{m}' for m in [model] + models)
         end = _TOPIC_ENDS.get((sensor.get('type') or '').lower(), '')
-        base = f'/world/{world}{path}/link/{own}/sensor/{sensor.get("name") or "sensor"}'
+        base = f'/world/{world}{path}/{kind}/{own}/sensor/{sensor.get("name") or "sensor"}'
         return f'{base}/{end}' if end else base
     return topics
+
+
+def own_frame(decl, given: set):
+    """
+    Return a declared laser, IMU, magnetometer or NavSat in a frame of its own, as gz-sim's.
+
+    gz-sim's sensors name their scoped name as their frame (``<model>::<link>::<sensor>``,
+    ``<model>/<link>/<sensor>`` through ros_gz_bridge) unless ``<gz_frame_id>`` names one;
+    here that frame is on /tf_static at the sensor's pose on its link (its scan or readings
+    are where the sensor is, not at the link's origin). Those in `given` (a name of their
+    own: ``gz_frame_id``, a plugin's ``frame_name``) keep it.
+    """
+    if not isinstance(decl, (DeclaredLaser, DeclaredImu, DeclaredGeo)):
+        return decl
+    name = decl.site[:decl.site.rindex('_')]
+    if name in given:
+        return decl
+    return replace(decl, frame=f'{decl.frame}/{name}', own_frame=True)
 
 
 def gz_streams(decl, kinds: dict):

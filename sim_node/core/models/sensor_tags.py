@@ -1,9 +1,10 @@
 """
 What a robot file's sensor tags declare, read and checked: a laser's sweep, rate, frame, topic.
 
-Lasers (:func:`laser`), cameras (:func:`camera`), IMUs (:func:`imu`), force-torque sensors on
-joints (:func:`force_torque`: SDF's ``<frame>`` and ``<measure_direction>``, a frame id and a
-topic as for lasers) and contact sensors (:func:`contact`: the link's collisions by
+Lasers (:func:`laser`), cameras (:func:`camera`), IMUs (:func:`imu`), magnetometers and NavSat
+receivers (:func:`geo`), force-torque sensors on joints (:func:`force_torque`: SDF's
+``<frame>`` and ``<measure_direction>``, a frame id and a topic as for lasers) and contact
+sensors (:func:`contact`: the link's collisions by
 the names Gazebo gives them, a topic from ``<topic>``, ``<contact><topic>`` or the bumper
 plugin's ``bumper_states`` remapping).
 
@@ -29,8 +30,8 @@ import re
 from typing import Optional, Sequence
 from xml.etree import ElementTree as ET
 
-from ..base.records import (DeclaredCamera, DeclaredContact, DeclaredImu, DeclaredLaser,
-                            DeclaredOdometer, DeclaredWrench, NO_TOPIC)
+from ..base.records import (DeclaredCamera, DeclaredContact, DeclaredGeo, DeclaredImu,
+                            DeclaredLaser, DeclaredOdometer, DeclaredWrench, NO_TOPIC)
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +39,8 @@ log = logging.getLogger(__name__)
 MAX_RATE_HZ = 1000.0
 #: The largest image a declared camera may ask for (pixels a side).
 MAX_IMAGE_SIDE = 4096
-#: An IMU's samples per simulated second when its tag gives no update_rate.
+#: An IMU's (a magnetometer's, a NavSat's) samples per simulated second when its tag gives no
+#: update_rate.
 DEFAULT_IMU_RATE_HZ = 100.0
 #: The most rays one sweep of a declared laser may cast (horizontal times vertical).
 MAX_RAYS = 100_000
@@ -135,7 +137,8 @@ def _axis(el: Optional[ET.Element]) -> tuple:
 def _frame(sensor: ET.Element, link: str, links: Sequence[str], warn) -> str:
     """Return the frame its messages name: the plugin's or gz_frame_id if a link, else the link."""
     names = [t for t in ('frame_name', 'frameName') for p in sensor.iter('plugin')
-             for t in [p.findtext(t)] if t] + [sensor.findtext('gz_frame_id') or '']
+             for t in [p.findtext(t)] if t] + [sensor.findtext('gz_frame_id') or '',
+                                               sensor.findtext('ign_frame_id') or '']
     given = next((n.strip() for n in names if n and n.strip()), '')
     if given and given not in links:
         warn('frame', given, 'is not a link of the robot')
@@ -257,7 +260,7 @@ def entity_sensor(decl, entity: str, namespace: str, root: str = ''):
                        info_topic=_under(namespace, decl.info_topic),
                        depth_topic=_under(namespace, decl.depth_topic),
                        points_topic=_under(namespace, decl.points_topic))
-    if isinstance(decl, DeclaredImu):
+    if isinstance(decl, (DeclaredImu, DeclaredGeo)):
         return replace(decl, site=f'{entity}/{decl.site}', frame=f'{entity}/{decl.frame}',
                        topic=_under(namespace, decl.topic))
     if isinstance(decl, DeclaredOdometer):
@@ -367,6 +370,15 @@ def imu(sensor: ET.Element, site: str, link: str, links: Sequence[str]) -> Decla
                        accel_noise=noises.get('linear_acceleration'),
                        always_on=_always_on(sensor),
                        frame=_frame(sensor, link, links, warn), topic=_topic(sensor, warn))
+
+
+def geo(sensor: ET.Element, site: str, kind: str, link: str,
+        links: Sequence[str]) -> DeclaredGeo:
+    """Read a magnetometer or NavSat tag (``kind``): its rate, frame and topic."""
+    warn = _warner(sensor, site)
+    return DeclaredGeo(site=site, kind=kind, rate_hz=_rate(sensor, warn) or DEFAULT_IMU_RATE_HZ,
+                       always_on=_always_on(sensor), frame=_frame(sensor, link, links, warn),
+                       topic=_topic(sensor, warn))
 
 
 def force_torque(sensor: ET.Element, site: str, parent: str, child: str,

@@ -9,6 +9,8 @@ elements :func:`.urdf.prepare` kept:
   along the link's x, z up, as Gazebo's do; vertical field of view from ``horizontal_fov`` and
   the tag's image size); ``imu`` a site ``<sensor>_imu`` with a framequat, a gyro and an
   accelerometer; ``ray``, ``gpu_ray``, ``lidar``, ``gpu_lidar`` a site ``<sensor>_lidar``;
+  ``magnetometer`` and ``navsat`` (``gps``) a site ``<sensor>_<kind>``
+  (:mod:`sim_node.core.stepping.geo` samples them);
   ``force_torque`` on a joint a site on its child; ``contact`` reports on the link's
   collisions. What each tag declares (rates, sizes, sweeps, noise, frames, topics) is read by
   :mod:`.sensor_tags`; a sensor's ``<pose>`` places it on the link. The cameras a RealSense
@@ -39,6 +41,9 @@ log = logging.getLogger(__name__)
 
 CAMERAS = ('camera', 'depth', 'depth_camera', 'rgbd_camera', 'rgbd', 'multicamera')
 LASERS = ('ray', 'gpu_ray', 'lidar', 'gpu_lidar')
+#: Sensor types sampled as :class:`~..base.records.DeclaredGeo` (Gazebo classic's ``gps`` is
+#: current Gazebo's ``navsat``).
+GEO = {'magnetometer': 'magnetometer', 'navsat': 'navsat', 'gps': 'navsat'}
 #: A velocity interface's actuator gain: its joint's link inertia times this, over STEP.
 VELOCITY_GAIN, STEP = 0.5, 0.002
 
@@ -136,8 +141,14 @@ def _sensor(spec, body, sensor: ET.Element, declared: list) -> str:
         links = [b.name for b in spec.bodies if b.name]
         declared.append(sensor_tags.laser(sensor, f'{name}_lidar', body.name, links))
         return f'laser {name!r} on {body.name!r}'
+    if kind in GEO:
+        kind = GEO[kind]
+        body.add_site(name=f'{name}_{kind}', pos=pos, quat=orientation)
+        links = [b.name for b in spec.bodies if b.name]
+        declared.append(sensor_tags.geo(sensor, f'{name}_{kind}', kind, body.name, links))
+        return f'{kind} {name!r} on {body.name!r}'
     log.warning('URDF sensor %r of type %r: not a kind this simulator makes (cameras, IMUs, '
-                'lasers); left out', name, kind)
+                'lasers, contact, force_torque, magnetometer, navsat); left out', name, kind)
     return ''
 
 
@@ -180,6 +191,8 @@ def _free_name(spec, name: str) -> str:
     def taken(n):
         return (spec.camera(n) is not None or spec.site(f'{n}_imu') is not None
                 or spec.site(f'{n}_lidar') is not None or spec.site(f'{n}_ft') is not None
+                or spec.site(f'{n}_magnetometer') is not None
+                or spec.site(f'{n}_navsat') is not None
                 or spec.sensor(f'{n}_orientation') is not None)
     out, k = name, 1
     while taken(out):

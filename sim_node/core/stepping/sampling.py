@@ -12,7 +12,8 @@ Contact sensors (:class:`~..records.DeclaredContact`: declared, MuJoCo's, and th
 whose contacts were asked for, :class:`ContactRequest`) are sampled the same way, each a
 :class:`~..devices.contacts.ContactReport` in the same queue.
 
-P3D plugins' ground truth is too (:mod:`.odometers`).
+P3D plugins' ground truth is too (:mod:`.odometers`), and magnetometers and NavSat receivers
+(:mod:`.geo`).
 
 Laser scanners are too (:func:`laser_requests`), in two halves: at each due time the loop
 copies where the laser and every geom are (a :class:`LaserPose`, some microseconds), and the
@@ -32,7 +33,7 @@ import zlib
 import mujoco
 import numpy as np
 
-from . import odometers
+from . import geo, odometers
 from ..base.errors import InvalidArgumentError
 from ..devices import contacts
 
@@ -190,6 +191,7 @@ class Sampler:
                       info.body_root[info.geom_body] == roots[name], None)
             for name in request.entities if name in roots and name not in info.contacts]
         self._odometers = odometers.entries(info)
+        self._geo = geo.entries(info)
         self._joints = []
         for key, names, rate, sensors, tick in joints:
             idx = [index.joint_index[n] for n in names if n in index.joint_index]
@@ -198,7 +200,7 @@ class Sampler:
                                             index.joint_dofadr[idx], sensors, tick))
         self.writes: list = []  # the ticks' joint commands of the last collect
         self._all = self._entries + self._contacts + self._joints + self._lasers + \
-            self._odometers
+            self._odometers + self._geo
         self._samples = samples
         self._last = -math.inf
 
@@ -272,13 +274,14 @@ class Sampler:
             e.next = (math.floor(t / e.period + DUE_TOLERANCE) + 1) * e.period
         odo = [o for o in self._odometers if not t < o.next - DUE_TOLERANCE * o.period]
         due = [la for la in self._lasers if not t < la.next - DUE_TOLERANCE * la.period]
+        places = [g for g in self._geo if not t < g.next - DUE_TOLERANCE * g.period]
         # After a step, the data's poses are those of the state before it: brought up to date
         # once for all that are due (velocities too, for the odometers).
         if odo:
             odometers.bring_up_to_date(m, d)
-        elif due:
+        elif due or places:
             mujoco.mj_kinematics(m, d)
-        for o in odo:
+        for o in odo + places:
             self._samples.append(o.take(m, d, t, self.generation))
             o.next = (math.floor(t / o.period + DUE_TOLERANCE) + 1) * o.period
         if due:
@@ -373,8 +376,8 @@ def drain(samples: deque) -> list:
 
     Each is (site, simulated time, orientation wxyz, angular velocity, linear acceleration)
     of an IMU a robot file declares, at its own rate (a part the sensor lacks is None), a
-    contact sensor's :class:`~..devices.contacts.ContactReport`, a :class:`JointSample`, or a
-    P3D plugin's :class:`~.odometers.OdometerSample`.
+    contact sensor's :class:`~..devices.contacts.ContactReport`, a :class:`JointSample`, a
+    P3D plugin's :class:`~.odometers.OdometerSample`, or a :class:`~.geo.GeoSample`.
     """
     out = []
     while True:

@@ -6,7 +6,7 @@ from the loop's snapshots, on threads of their own), :mod:`.perception` (cameras
 IMUs and MuJoCo sensors as ROS messages, on its thread), :mod:`.scans` (the lasers' publishers
 and scans, cast from the poses the loop took at their due times), :mod:`.contacts` (contact
 reports as Gazebo's contact sensor sends them), :mod:`.odometers` (P3D plugins' ground truth as
-odometry), :mod:`.descriptions`
+odometry), :mod:`.geo` (magnetometers and NavSat receivers), :mod:`.descriptions`
 (``<entity>/robot_description`` for RViz and MoveIt), :mod:`.rviz_config` (RViz
 configurations) and :mod:`.recording` (the ``record`` parameter: what goes out, written into
 rosbag2 bags).

@@ -24,6 +24,7 @@ from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
 from .contacts import ContactPublishers
+from .geo import GeoPublishers
 from .odometers import OdometerPublishers
 from .scans import Scans
 from ...core.base import quat
@@ -33,6 +34,7 @@ from ...core.cameras import CameraRig, select
 from ...core.devices.contacts import ContactReport
 from ...core.devices.rendering import RenderingUnavailableError
 from ...core.lidar import LaserScanner, scanner_sites, sweep_of
+from ...core.stepping.geo import GeoSample
 from ...core.stepping.odometers import OdometerSample
 from ...core.stepping.sampling import JointSample
 from ...session import Loaded
@@ -95,6 +97,7 @@ class Perception:
         self._node = node
         self.contacts = ContactPublishers(node, frame_prefix + world_frame, contact_entities)
         self.odometers = OdometerPublishers(node, frame_prefix + world_frame, frame_prefix)
+        self.geo = GeoPublishers(node, frame_prefix)
         self.joint_samples: Callable = lambda samples: None  # told the loop's JointSamples
         self.config = config
         self._world_frame = frame_prefix + world_frame
@@ -134,13 +137,16 @@ class Perception:
     # ------------------------------------------------------------------ static frames
 
     def static_transforms(self, info: ModelInfo, sim_time: float, frames: tuple) -> list:
-        """Frames of this generation's published cameras, sensor sites and scanners."""
+        """Frames of this generation's published cameras, sensor sites, scanners, own frames."""
         cams = select(info.cameras, self.config.cameras)
         sites = [s.site for s in info.sensors if s.kind in ('imu', 'wrench')]
         lasers = scanner_sites([s.name for s in info.sites], self.config.lidar_sites)
         sites += [s for s in info.sites if s.name in lasers]
         ranges = [s for s in info.sensors if s.kind == 'range']
-        return pm.device_transforms(info, sim_time, frames, cams, sites, ranges, self._prefix)
+        by_name = {s.name: s for s in info.sites}
+        own = [(by_name[site], frame) for site, frame in info.sensor_frames if site in by_name]
+        return pm.device_transforms(info, sim_time, frames, cams, sites, ranges, self._prefix,
+                                    own)
 
     # ------------------------------------------------------------------ sensors
 
@@ -202,11 +208,13 @@ class Perception:
             return []
         taken = sim.world.take_sensor_samples()
         for sample in taken:
-            if isinstance(sample, (ContactReport, JointSample, OdometerSample)):
+            if isinstance(sample, (ContactReport, JointSample, OdometerSample, GeoSample)):
                 if isinstance(sample, ContactReport) and sample.generation == info.generation:
                     self.contacts.publish(sample, info)
                 elif isinstance(sample, OdometerSample):
                     self.odometers.publish(sample, info)
+                elif isinstance(sample, GeoSample):
+                    self.geo.publish(sample, info)
                 continue
             site, t, q, gyro, acc = sample
             pub = self._sensor_pubs.get(('imu', site))
@@ -283,6 +291,7 @@ class Perception:
             self._node.destroy_publisher(pub)
         self.contacts.sync(info)
         self.odometers.sync(info)
+        self.geo.sync(info)
 
     def _create_publisher(self, msg_type, topic: str, qos) -> Publisher:
         """
