@@ -6,7 +6,7 @@ SHELL := /bin/bash
 # DDS discovery stays on this machine unless you say otherwise.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-mesh-corpus bench-spawn-clock bench-respawn bench-sensors bench-controllers bench-laws snapshot clean
+.PHONY: setup run test test-fast bench bench-gym bench-scale bench-flood bench-cameras bench-latency bench-models bench-urdf bench-bases bench-viewer bench-record bench-vec bench-edits bench-storm bench-pacing bench-soak bench-meshes bench-mesh-corpus bench-spawn-clock bench-respawn bench-sensors bench-controllers bench-laws bench-sdf snapshot clean
 
 setup:
 	@python3 ros_env/bootstrap.py
@@ -69,6 +69,11 @@ bench-models: setup
 # second spawn and /clock stalls, ~3 min (BENCH_URDF=all: every file of the ROS corpus)
 bench-urdf: setup
 	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/urdf.py
+
+# SDF worlds: a 3,000-shape world's load over MuJoCo's of the same MJCF, its steps/s over bare
+# mj_step, a world of 20 model:// folders with meshes loaded again (cached), ~2 min
+bench-sdf: setup
+	@. .build/env.sh && "$$SIM_PYTHON" benchmarks/sdf.py
 
 # Mobile bases: steps/s with the rover driven over idle (real_time_factor 0), odometry rate, ~40 s
 bench-bases: setup

@@ -100,12 +100,12 @@ def parse(text: str) -> ET.Element:
         raise ResourceParseError(ERR_DTD.format(what='entity')) from None
     except ET.ParseError as exc:
         raise ResourceParseError(ERR_XML.format(err=exc)) from None
-    stack = [(root, 1)]
-    while stack:  # iterative: a hostile depth cannot exhaust Python's stack here
-        elem, depth = stack.pop()
+    level, depth = [root], 1
+    while level:  # level by level: a hostile depth cannot exhaust Python's stack here
         if depth > MAX_DEPTH:
             raise ResourceParseError(ERR_DEPTH.format(limit=MAX_DEPTH))
-        stack.extend((child, depth + 1) for child in elem)
+        level = [child for elem in level for child in elem]
+        depth += 1
     return root
 
 

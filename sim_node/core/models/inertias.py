@@ -87,15 +87,20 @@ def _inertia(inertial: ET.Element) -> np.ndarray:
                      [g('ixz'), g('iyz'), g('izz')]])
 
 
+def accepts(moments, moving: bool) -> bool:
+    """Whether principal moments (3 floats) are ones MuJoCo takes as they are (no numpy)."""
+    a, b, c = sorted(float(m) for m in moments)
+    top = max(c, MIN_INERTIA if moving else 0.0)
+    return a >= max(top * MIN_MOMENT_RATIO, 1e-12) and a + b >= c - 1e-9 * max(top, 1e-12)
+
+
 def valid_inertia(inertia: np.ndarray, moving: bool) -> Optional[np.ndarray]:
     """Return the nearest inertia MuJoCo accepts, or None when this one is accepted."""
     moments, axes = np.linalg.eigh(inertia)
+    if accepts(moments, moving):
+        return None
     top = max(float(moments.max()), MIN_INERTIA if moving else 0.0)
     floor = max(top * MIN_MOMENT_RATIO, 1e-12)
-    a, b, c = np.sort(moments)
-    tolerance = 1e-9 * max(top, 1e-12)
-    if a >= floor and a + b >= c - tolerance:
-        return None
     if top <= 0:
         return None if not moving else np.eye(3) * MIN_INERTIA
     fixed = np.maximum(moments, floor)

@@ -34,8 +34,10 @@ TABLE = {
         'frame': (_R, 'for poses relative to it'),
         'light': (_R, 'MuJoCo lights (at most 8 are drawn)'),
         'physics': (_R, ''), 'gravity': (_R, 'option gravity'),
-        'magnetic_field': (_R, 'option magnetic (the magnetometer reads it)'),
-        'scene': (_R, ''), 'spherical_coordinates': (_R, 'kept with the world'),
+        'magnetic_field': (_R, "option magnetic (magnetometers read it; SDF's default "
+                               'where absent)'),
+        'scene': (_R, ''), 'spherical_coordinates': (_R, 'WGS84, ENU: where NavSat receivers '
+                                                         'are on the Earth'),
         'plugin': (_R, 'systems: see the systems table'),
         'atmosphere': (_A, 'MuJoCo has no air by default, as Gazebo applies no drag'),
         'wind': (_A, 'not applied (links do not feel wind)'),
@@ -110,7 +112,7 @@ TABLE = {
         'axis2': (_R, ''), 'thread_pitch': (_R, ''), 'screw_thread_pitch': (_R, ''),
         'gearbox_ratio': (_A, 'a gearbox turns as a revolute joint'),
         'gearbox_reference_body': (_A, ''), 'physics': (_I, ''),
-        'sensor': (_R, 'force_torque'),
+        'sensor': (_R, 'force_torque (see the sensors table)'),
     },
     'axis': {'xyz': (_R, 'expressed_in; use_parent_model_frame'), 'limit': (_R, ''),
              'dynamics': (_R, ''), 'use_parent_model_frame': (_R, ''), 'initial_position':
@@ -190,6 +192,7 @@ def not_read(root: ET.Element) -> list:
     """Return the ``parent/child`` paths of every unsupported element below `root`, sorted."""
     found = set()
     stack = [(root, None)]
+    said: dict = {}  # (parent, child, grandparent) -> status: a world repeats few of them
     while stack:
         elem, under = stack.pop()
         if elem.tag in OPAQUE:
@@ -201,7 +204,10 @@ def not_read(root: ET.Element) -> list:
             if ':' in tag:  # <gz:...>, <ignition:...> extension elements: said apart
                 found.add(f'{elem.tag}/{tag}')
                 continue
-            state, _ = status(elem.tag, tag, under)
+            key = (elem.tag, tag, under)
+            state = said.get(key)
+            if state is None:
+                state = said[key] = status(elem.tag, tag, under)[0]
             if state == UNSUPPORTED:
                 found.add(f'{elem.tag}/{tag}')
             elif state in (READ, APPROXIMATED):

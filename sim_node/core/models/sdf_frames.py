@@ -58,6 +58,10 @@ def identity() -> Pose:
 
 def compose(a: Pose, b: Pose) -> Pose:
     """Return ``a * b``: pose `b` (given in frame `a`) in `a`'s parent frame."""
+    if b is _IDENTITY:  # most elements have no pose of their own
+        return a
+    if a is _IDENTITY:
+        return b
     return quat.pose_mul(a, b)
 
 

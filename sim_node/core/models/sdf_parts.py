@@ -62,7 +62,7 @@ def inertial(link: ET.Element, where: str, moving: bool, notes: list) -> Optiona
     elem = link.find('inertial')
     if elem is not None and (elem.get('auto') or '').strip().lower() in ('true', '1'):
         return None
-    mass, tensor, pose = 1.0, np.eye(3), sdf_frames.identity()
+    mass, tensor, pose = 1.0, (1.0, 1.0, 1.0, 0.0, 0.0, 0.0), sdf_frames.identity()
     if elem is not None:
         text = elem.findtext('mass')
         if text is not None and text.strip():
@@ -76,25 +76,32 @@ def inertial(link: ET.Element, where: str, moving: bool, notes: list) -> Optiona
         pose = sdf_frames.parse_pose(elem.find('pose'), where)
     if moving and mass <= 0:
         notes.append(f'{where}: moves but has no mass: it gets {MIN_MASS} kg')
-        mass, tensor = MIN_MASS, np.eye(3) * MIN_INERTIA
-    fixed = inertias.valid_inertia(tensor, moving)
+        mass, tensor = MIN_MASS, (MIN_INERTIA,) * 3 + (0.0,) * 3
+    if not (moving or mass > 0):
+        return None
+    if pose[1] == (1.0, 0.0, 0.0, 0.0) and not any(tensor[3:]) and \
+            inertias.accepts(tensor[:3], moving):  # most links: said in 3 numbers, no numpy
+        return ET.Element('inertial', pos=_text(pose[0]), mass=f'{mass:.12g}',
+                          diaginertia=_text(tensor[:3]))
+    ixx, iyy, izz, ixy, ixz, iyz = tensor
+    matrix = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    fixed = inertias.valid_inertia(matrix, moving)
     if fixed is not None:
         notes.append(f'{where}: its inertia is one MuJoCo refuses (not positive definite, or '
                      'breaking the triangle inequality): the nearest valid one is used')
-        tensor = fixed
-    if not moving and mass <= 0:
-        return None
+        matrix = fixed
     turn = quat.to_matrix(pose[1])  # the tensor in the link frame: MJCF takes it so
-    t = turn @ tensor @ turn.T
+    t = turn @ matrix @ turn.T
     full = [t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]]
     return ET.Element('inertial', pos=_text(pose[0]), mass=f'{mass:.12g}',
                       fullinertia=_text(full))
 
 
-def _tensor(elem: Optional[ET.Element], where: str) -> np.ndarray:
+def _tensor(elem: Optional[ET.Element], where: str) -> tuple:
+    """Return (ixx, iyy, izz, ixy, ixz, iyz) of an ``<inertia>`` (SDF's defaults: 1 and 0)."""
     if elem is None:
-        return np.eye(3)
-    values = {}
+        return (1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
+    values = []
     for key, default in (('ixx', 1.0), ('iyy', 1.0), ('izz', 1.0), ('ixy', 0.0), ('ixz', 0.0),
                          ('iyz', 0.0)):
         text = elem.findtext(key)
@@ -105,10 +112,8 @@ def _tensor(elem: Optional[ET.Element], where: str) -> np.ndarray:
         if not math.isfinite(v):
             raise ResourceParseError(ERR_INERTIA.format(where=where, key=key,
                                                         text=(text or '')[:40]))
-        values[key] = v
-    v = values
-    return np.array([[v['ixx'], v['ixy'], v['ixz']], [v['ixy'], v['iyy'], v['iyz']],
-                     [v['ixz'], v['iyz'], v['izz']]])
+        values.append(v)
+    return tuple(values)
 
 
 def _text(values) -> str:

@@ -147,6 +147,8 @@ def world(expanded: Expanded, reader, places) -> WorldPlan:
     for joint in body.iter('joint'):  # joint stops as hard as a step allows, as Gazebo's
         if joint.get('limited') == 'true':
             joint.set('solreflimit', f'{2 * step:.6g} 1')
+    for i, eq in enumerate(equality):  # named, as every element with state (World: named)
+        eq.set('name', eq.get('name') or f'equality_{i}')
     for extra in (contact, equality):
         if len(extra):
             doc.append(extra)
