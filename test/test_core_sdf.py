@@ -77,6 +77,24 @@ def test_a_worlds_physics_gravity_field_scene_and_lights_are_read():
     assert w.real_time_factor == 0.5 and w.name == 'w'
 
 
+def test_a_world_file_loads_through_a_session_paced_by_its_own_factor(tmp_path):
+    import time
+    from sim_node.session import Session
+    path = tmp_path / 'slow.world'  # Gazebo classic's suffix
+    path.write_text(sdf(pendulum(), physics='<real_time_factor>0.5</real_time_factor>'))
+    with Session() as session:
+        loaded = session.load_file(str(path))
+        assert loaded.name == 'w' and loaded.loop.real_time_factor == 0.5
+        t0, wall = loaded.world.time, time.monotonic()
+        time.sleep(1.0)
+        assert loaded.world.time - t0 <= 0.5 * (time.monotonic() - wall) + 0.05
+        # a configuration of the caller's own wins, unless it asks for the file's pace
+        assert session.load_file(str(path), WorldConfig(real_time_factor=0.0)) \
+            .loop.real_time_factor == 0.0
+        assert session.load_file(str(path), WorldConfig(real_time_factor=0.0),
+                                 paced_by_file=True).loop.real_time_factor == 0.5
+
+
 def test_gravity_inside_physics_is_read_before_sdf_1_6():
     text = sdf('', version='1.5', physics='<gravity>0 0 -3</gravity>').replace(
         f'<gravity>0 0 -{G}</gravity>', '')

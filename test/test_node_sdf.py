@@ -9,6 +9,7 @@ The world is written here (one vehicle of each kind and an arm with gz-sim's joi
 Gazebo's own defaults give the topics (gz-sim ``src/systems/*``).
 """
 
+import math
 import os
 from pathlib import Path
 import subprocess
@@ -329,6 +330,34 @@ def test_an_sdf_world_loads_by_uri_and_by_string_stopped(client, folders):
             f'</model></world></sdf>')
     assert client.load_world(resource_string=text) == 'tiny'
     assert sorted(client.entities()) == ['b', 'ground_plane']
+    assert client.load_world(uri=(folders / 'systems.sdf').as_uri()) == 'systems'
+    client.play()
+
+
+def test_the_shipped_diff_drive_world_drives_its_rover_as_gz_sims_diff_drive(
+        client, watch, folders):
+    from tf2_msgs.msg import TFMessage
+    assert client.load_world(uri='package://sim/scenes/diff_drive.sdf') == 'diff_drive'
+    client.play()
+    odoms, tfs = [], []
+    subs = [watch.node.create_subscription(Odometry, '/model/rover/odometry', odoms.append, 50),
+            watch.node.create_subscription(TFMessage, '/model/rover/tf', tfs.append, 50)]
+    try:
+        start = client.entity_state('rover')['position']
+        stream(watch, '/model/rover/cmd_vel', Twist(linear=Vector3(x=0.5),
+                                                    angular=Vector3(z=0.3)), 3.0)
+        wait_for(lambda: odoms and tfs, timeout=20)
+    finally:
+        for sub in subs:
+            watch.node.destroy_subscription(sub)
+    twist = odoms[-1].twist.twist
+    assert twist.linear.x == pytest.approx(0.5, rel=0.05)
+    assert twist.angular.z == pytest.approx(0.3, rel=0.05)
+    assert odoms[-1].header.frame_id == 'rover/odom'
+    assert odoms[-1].child_frame_id == 'rover/chassis'
+    assert tfs[-1].transforms[0].child_frame_id == 'rover/chassis'
+    moved = client.entity_state('rover')['position']
+    assert math.dist(start[:2], moved[:2]) > 0.5  # it went somewhere
     assert client.load_world(uri=(folders / 'systems.sdf').as_uri()) == 'systems'
     client.play()
 
