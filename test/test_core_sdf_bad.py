@@ -175,3 +175,35 @@ def test_a_refused_world_leaves_no_copied_file_behind(tmp_path):
     before = set(Path(asset_store.store().folder).iterdir())
     refuse(text, MissingAssetsError, 'missing.stl', tmp_path, [str(tmp_path)], environ={})
     assert set(Path(asset_store.store().folder).iterdir()) == before
+
+
+def test_with_missing_assets_ignored_a_world_loads_without_them_and_says_which(tmp_path):
+    from sim_node.core.world import World
+    mesh = '<geometry><mesh><uri>gone.dae</uri></mesh></geometry>'
+    body = world('<include><uri>model://nowhere</uri></include>'
+                 f'<model name="shelf"><static>true</static><link name="l">'
+                 f'<collision name="c">{mesh}</collision><visual name="v">{mesh}</visual>'
+                 '<visual name="look"><geometry><box><size>1 1 1</size></box></geometry>'
+                 '<material><pbr><metal><albedo_map>gone.png</albedo_map></metal></pbr>'
+                 '</material></visual></link></model>'
+                 '<model name="box"><link name="l"><collision name="c"><geometry><box>'
+                 '<size>0.1 0.1 0.1</size></box></geometry></collision></link></model>')
+    refuse(body, MissingAssetsError, 'nowhere', tmp_path, environ={})  # by default: refused
+    plan = world_sources.world_source(body, str(tmp_path), [str(tmp_path)],
+                                      ignore_missing_assets=True,
+                                      places=sdf_files.Places.of(environ={}))
+    said = '\n'.join(plan.skipped)
+    assert 'model://nowhere' in said and said.count('gone.dae') == 2 and 'gone.png' in said
+    w = World.from_plan(plan)
+    assert {e.name for e in w.entities()} >= {'shelf', 'box'}
+    assert w.read(lambda m, d: m.geom('shelf/l/look').size[0]) > 0  # drawn, untextured
+
+
+def test_ignoring_missing_assets_still_refuses_files_outside_the_readable_folders(tmp_path):
+    inside = tmp_path / 'inside'
+    inside.mkdir()
+    for uri, match in (('model://../../etc', 'goes up'), ('/etc/hostname', 'not inside')):
+        with pytest.raises(MissingAssetsError, match=match):
+            world_sources.world_source(world(f'<include><uri>{uri}</uri></include>'),
+                                       str(inside), [str(inside)], ignore_missing_assets=True,
+                                       places=sdf_files.Places.of(environ={}))

@@ -320,6 +320,23 @@ def test_a_parse_error_names_the_file_and_the_line(client, folders):
     assert 'broken.sdf' in err.value.message and 'line 4' in err.value.message
 
 
+def test_with_missing_assets_ignored_the_world_loads_without_them_saying_which(client, folders):
+    from simulation_interfaces import srv
+    text = ('<sdf version="1.9"><world name="patchy"><include><uri>model://nowhere</uri>'
+            '</include><model name="b"><link name="l"><visual name="v"><geometry><mesh><uri>'
+            f'missing.dae</uri></mesh></geometry></visual>{inertial(1, 0.01)}</link></model>'
+            '</world></sdf>')
+    try:
+        answer = client.call('load_world', srv.LoadWorld, srv.LoadWorld.Request(
+            resource_string=text, ignore_missing_or_unsupported_assets=True))
+        assert answer.world.name == 'patchy' and client.entities() == ['b']
+        said = answer.result.error_message
+        assert 'model://nowhere' in said and 'missing.dae' in said, said
+    finally:
+        assert client.load_world(uri=(folders / 'systems.sdf').as_uri()) == 'systems'
+        client.play()
+
+
 def test_an_sdf_world_loads_by_uri_and_by_string_stopped(client, folders):
     world = client.load_world(uri='package://sim/scenes/diff_drive.sdf')
     assert world == 'diff_drive' and client.state() == SimulationState.STATE_STOPPED

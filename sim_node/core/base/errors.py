@@ -47,6 +47,14 @@ class MissingAssetsError(SimError):
     """A file the resource refers to does not exist or may not be read."""
 
 
+class OutsideFoldersError(MissingAssetsError):
+    """
+    A file outside the readable folders, or a model URI that goes up a folder.
+
+    Never read, and refused even where a load ignores missing assets.
+    """
+
+
 class UnsupportedAssetsError(SimError):
     """An asset that exists but cannot be used (bad mesh, too large, not a regular file)."""
 

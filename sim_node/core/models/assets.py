@@ -34,8 +34,8 @@ from . import meshes
 from .asset_store import store, StoredFile
 from .meshes import CONVERTED_SUFFIXES
 from .paths import inside_real_roots, real_path, real_roots
-from ..base.errors import (MissingAssetsError, ResourceParseError, UnsupportedAssetsError,
-                           UnsupportedFormatError)
+from ..base.errors import (MissingAssetsError, OutsideFoldersError, ResourceParseError,
+                           UnsupportedAssetsError, UnsupportedFormatError)
 
 #: Deepest element nesting accepted (a real robot is a few dozen deep).
 MAX_DEPTH = 200
@@ -321,7 +321,7 @@ class Reader:
                 continue
             # Judged before existence: a refusal says nothing about what exists outside.
             if self._real_roots is not None and not inside_real_roots(real, self._real_roots):
-                raise MissingAssetsError(msg.get('outside') or ERR_OUTSIDE.format(value=value))
+                raise OutsideFoldersError(msg.get('outside') or ERR_OUTSIDE.format(value=value))
             try:
                 st = os.stat(real)
             except (OSError, ValueError):

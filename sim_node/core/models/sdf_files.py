@@ -30,7 +30,7 @@ from typing import Mapping, Optional, Sequence, Tuple
 from urllib.parse import unquote, urlparse
 
 from . import assets
-from ..base.errors import MissingAssetsError
+from ..base.errors import MissingAssetsError, OutsideFoldersError
 
 #: The variables Gazebo finds models on: gz-sim's, its older name, Gazebo classic's.
 MODEL_PATH_VARIABLES = ('GZ_SIM_RESOURCE_PATH', 'IGN_GAZEBO_RESOURCE_PATH', 'GAZEBO_MODEL_PATH')
@@ -147,7 +147,7 @@ def _split(rest: str, uri: str) -> tuple:
     """Return (model name, path inside it) of what follows ``model://``; refuse ``..``."""
     parts = [p for p in unquote(rest).split('/') if p not in ('', '.')]
     if not parts or any(p == '..' for p in parts):
-        raise MissingAssetsError(ERR_UP.format(uri=uri[:200]))
+        raise OutsideFoldersError(ERR_UP.format(uri=uri[:200]))
     return parts[0], '/'.join(parts[1:])
 
 
@@ -169,7 +169,7 @@ def fuel_path(uri: str, places: Places) -> Path:
         raise MissingAssetsError(ERR_FUEL_FORM.format(uri=uri[:200]))
     rel = m.group('path') or ''
     if any(p == '..' for p in rel.split('/')) or '..' in (m.group('owner'), m.group('name')):
-        raise MissingAssetsError(ERR_UP.format(uri=uri[:200]))
+        raise OutsideFoldersError(ERR_UP.format(uri=uri[:200]))
     version = m.group('version')
     for cache in places.fuel_caches:
         base = Path(cache) / parsed.netloc.lower() / m.group('owner').lower() / 'models' / \
@@ -221,7 +221,7 @@ def model_file(folder: Path, config: Optional[bytes]) -> Path:
             chosen = entries[-1][1]
     if chosen is not None:
         if any(p == '..' for p in Path(chosen).parts) or os.path.isabs(chosen):
-            raise MissingAssetsError(ERR_UP.format(uri=f'{folder.name}/{chosen}'))
+            raise OutsideFoldersError(ERR_UP.format(uri=f'{folder.name}/{chosen}'))
         return folder / chosen
     if (folder / 'model.sdf').exists():
         return folder / 'model.sdf'

@@ -30,7 +30,7 @@ import numpy as np
 from . import inertias, sdf_frames, sdf_shapes
 from .sdf_shapes import Assets, numbers
 from ..base import quat
-from ..base.errors import ResourceParseError
+from ..base.errors import MissingAssetsError, ResourceParseError, UnsupportedAssetsError
 from ..base.surfaces import restitution_to_solref
 
 #: The geom group of collisions a visual draws for, and of visuals.
@@ -132,8 +132,7 @@ def collision(part: ET.Element, name: str, where: str, folder: Optional[Path], o
 
     None: no shape. The geom is placed in its link frame by the caller.
     """
-    attrs = sdf_shapes.geom(part.find('geometry') if part.find('geometry') is not None
-                            else ET.Element('geometry'), where, folder, out)
+    attrs = _shape(part, where, folder, out)
     if attrs is None:
         return None
     optimization = (attrs.pop('optimization', ''), attrs.pop('max_convex_hulls', ''))
@@ -186,6 +185,16 @@ def _bits(elem: Optional[ET.Element], where: str) -> int:
             from None
 
 
+def _shape(part: ET.Element, where: str, folder: Optional[Path], out: Assets) -> Optional[dict]:
+    """Return the geom attributes of a collision's or visual's ``<geometry>`` (None: none)."""
+    try:
+        return sdf_shapes.geom(part.find('geometry') if part.find('geometry') is not None
+                               else ET.Element('geometry'), where, folder, out)
+    except (MissingAssetsError, UnsupportedAssetsError) as exc:
+        out.leave_out(where, exc)  # a load that ignores missing assets goes on without it
+        return None
+
+
 def visual(part: ET.Element, name: str, where: str, folder: Optional[Path],
            out: Assets) -> Optional[tuple]:
     """
@@ -193,8 +202,7 @@ def visual(part: ET.Element, name: str, where: str, folder: Optional[Path],
 
     None: no shape. The geom is placed in its link frame by the caller.
     """
-    attrs = sdf_shapes.geom(part.find('geometry') if part.find('geometry') is not None
-                            else ET.Element('geometry'), where, folder, out)
+    attrs = _shape(part, where, folder, out)
     if attrs is None:
         return None
     attrs.pop('optimization', None)
@@ -206,7 +214,10 @@ def visual(part: ET.Element, name: str, where: str, folder: Optional[Path],
     if look is not None:
         texture = ''
         if look['albedo_map']:
-            texture = out.texture(look['albedo_map'], folder)
+            try:
+                texture = out.texture(look['albedo_map'], folder)
+            except (MissingAssetsError, UnsupportedAssetsError) as exc:
+                out.leave_out(f'{where}: its albedo map', exc)
         rgba = (1.0, 1.0, 1.0, look['rgba'][3]) if texture else look['rgba']
         g.set('material', out.material(rgba, look['specular'], look['emission'], texture))
         return g, False

@@ -34,7 +34,8 @@ import xml.etree.ElementTree as ET
 from . import assets, sdf_files
 from .paths import real_path
 from .sdf_files import Places
-from ..base.errors import MissingAssetsError, ResourceParseError, UnsupportedFormatError
+from ..base.errors import (MissingAssetsError, OutsideFoldersError, ResourceParseError,
+                           UnsupportedFormatError)
 
 #: Attributes the reader sets on each <world> and <model>: its file's folder and SDF version.
 FOLDER, VERSION = 'sim:folder', 'sim:version'
@@ -78,11 +79,15 @@ class Expanded:
     :param version: the document's own SDF version, ``(major, minor)``.
     :param urdf: top-level includes of URDF models: the ``<model>`` placeholders
         (:data:`URDF_FILE` names the file) in the world, in order.
+    :param skipped: what was left out for a missing or unsupported asset (an include, a
+        mesh, a texture), where the load ignores them (``ignore_missing_or_unsupported_assets``);
+        None: they fail it.
     """
 
     root: ET.Element
     version: tuple
     urdf: list = field(default_factory=list)
+    skipped: Optional[list] = None
 
     @property
     def world(self) -> Optional[ET.Element]:
@@ -135,19 +140,21 @@ def is_sdf(text: str) -> bool:
 
 
 def expand(text: str, folder: Optional[Path], reader: assets.Reader, places: Places,
-           name: str = '') -> Expanded:
+           name: str = '', skip_missing: bool = False) -> Expanded:
     """
     Parse SDF text and expand its includes (see the module docstring).
 
     :param folder: the folder of the file the text came from (None: text from a client,
         whose relative URIs resolve on the model paths only).
     :param name: what the text is called in messages (its file name).
+    :param skip_missing: leave out what names a missing or unsupported asset, saying so in
+        :attr:`Expanded.skipped`, rather than fail.
     """
     try:
         root, version = parse(text)
     except ResourceParseError as exc:
         raise ResourceParseError(f'{name}: {exc}' if name else str(exc)) from None
-    out = Expanded(root, version)
+    out = Expanded(root, version, skipped=[] if skip_missing else None)
     _Includes(reader, places, out).run(root, folder, version, name or 'the SDF')
     return out
 
@@ -196,7 +203,14 @@ class _Includes:
         uri = (inc.findtext('uri') or '').strip()
         if not uri:
             raise ResourceParseError(ERR_NO_URI.format(where=parent.get('name') or parent.tag))
-        path = self._find(uri, folder)
+        try:
+            path = self._find(uri, folder)
+        except MissingAssetsError as exc:
+            if self.out.skipped is None or isinstance(exc, OutsideFoldersError):
+                raise
+            self.out.skipped.append(f'the include of {uri!r}: {exc}')
+            parent.remove(inc)
+            return
         kind = path.suffix.lower()
         parent.remove(inc)
         if kind in URDF_SUFFIXES:
@@ -245,7 +259,7 @@ class _Includes:
             except (OSError, ValueError):
                 continue
             if not self.reader.allows(str(real)):  # judged before existence: says nothing
-                raise MissingAssetsError(assets.ERR_OUTSIDE.format(value=uri))
+                raise OutsideFoldersError(assets.ERR_OUTSIDE.format(value=uri))
             if real.is_dir():
                 config = real / 'model.config'
                 data = (self.reader.load(f'{uri}/model.config', [config])

@@ -30,7 +30,7 @@ import numpy as np
 from . import asset_store, assets, meshes, prepare, sdf_files
 from .sdf_files import Places
 from ..base import quat
-from ..base.errors import ResourceParseError, UnsupportedAssetsError
+from ..base.errors import OutsideFoldersError, ResourceParseError, UnsupportedAssetsError
 
 log = logging.getLogger(__name__)
 
@@ -113,12 +113,26 @@ class Assets:
     :param places: where ``model://`` and Fuel URIs lead.
     """
 
-    def __init__(self, reader: assets.Reader, places: Places, prefix: str = ''):
+    def __init__(self, reader: assets.Reader, places: Places, prefix: str = '',
+                 skipped: Optional[list] = None):
         self.reader, self.places, self.prefix = reader, places, prefix
         self.elements: list = []
         self._names: dict = {}
         self._meshes: list = []  # (asset element, value, stored) to convert
         self.notes: list = []  # what was drawn otherwise than declared
+        #: What was left out for an asset missing or unsupported, where a load ignores them
+        #: (load_world's ``ignore_missing_or_unsupported_assets``); None: they fail it.
+        self.skipped = skipped
+
+    def leave_out(self, where: str, exc: Exception) -> None:
+        """
+        Leave out what names a missing or unsupported asset (:attr:`skipped`), or raise `exc`.
+
+        A file outside the readable folders is refused all the same.
+        """
+        if self.skipped is None or isinstance(exc, OutsideFoldersError):
+            raise exc
+        self.skipped.append(f'{where}: {exc}')
 
     def _name(self, kind: str, key, stem: str) -> tuple:
         """Return (name, new) for the asset of `kind` keyed `key`."""

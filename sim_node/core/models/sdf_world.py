@@ -92,7 +92,7 @@ def world(expanded: Expanded, reader, places) -> WorldPlan:
         raise ResourceParseError(ERR_NO_WORLD.format(what=', '.join(f'<{k}>' for k in kinds)))
     name = w.get('name') or 'world'
     scope = Scope(w, expanded.version)
-    out = Assets(reader, places)
+    out = Assets(reader, places, skipped=expanded.skipped)
     doc = ET.Element('mujoco', model=name)
     ET.SubElement(doc, 'compiler', angle='radian', autolimits='true')
     plan = WorldPlan(spec=None, name=name)
@@ -137,7 +137,8 @@ def world(expanded: Expanded, reader, places) -> WorldPlan:
                 if built.decompose or (built.moving_joints == 0 and decompose.mode() != 'none'):
                     _mark(built, doc)
                 continue
-        spec, notes = model(elem, version, reader, places, static, topics, name)
+        spec, notes = model(elem, version, reader, places, static, topics, name,
+                            skipped=expanded.skipped)
         plan.entities.append(Entity(mname, pose, spec, notes, static=static,
                                     description=f'SDF model {mname}'))
     _finish_assets(doc, out, colour_geoms)
@@ -294,7 +295,7 @@ def _spec(doc: ET.Element) -> mujoco.MjSpec:
 
 
 def model(elem: ET.Element, version: tuple, reader, places, static: bool = False,
-          topics=None, world: str = 'default') -> tuple:
+          topics=None, world: str = 'default', skipped: Optional[list] = None) -> tuple:
     """
     Return (spec in the model's own names, its :class:`.urdf.Prepared` notes) of a model.
 
@@ -305,7 +306,7 @@ def model(elem: ET.Element, version: tuple, reader, places, static: bool = False
         for old in elem.findall('static'):
             elem.remove(old)
         ET.SubElement(elem, 'static').text = 'true'
-    out = Assets(reader, places)
+    out = Assets(reader, places, skipped=skipped)
     built = sdf_model.build(elem, version, out, topics=topics or gz_topics(
         world, entity_name(elem.get('name', ''))))
     doc = ET.Element('mujoco', model=built.name)

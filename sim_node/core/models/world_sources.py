@@ -111,6 +111,9 @@ class WorldSource:
     systems: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     reader: Optional[Reader] = None
+    #: What an SDF world left out for a missing or unsupported asset, as
+    #: ``ignore_missing_or_unsupported_assets`` asks (an include, a mesh, a texture).
+    skipped: list = field(default_factory=list)
 
     def settle(self, loaded: bool) -> None:
         """Say the world was loaded, or refused: a refused one's copied files go."""
@@ -132,6 +135,9 @@ def world_source(text: str, base_dir: Optional[str] = None,
 
     MJCF and URDF as :func:`world_spec` reads them; SDF by :mod:`.sdf_world`. Elements not read
     are named in :attr:`WorldSource.dropped`, or with `fail_on_unsupported_element` refused.
+    With `ignore_missing_assets`, an SDF world goes on without what names a missing or
+    unsupported asset (:attr:`WorldSource.skipped`; a file outside the readable folders is
+    refused all the same); an MJCF or URDF world refuses it as not supported.
 
     :param name: what the text is called in messages (its file's name; '' : the SDF).
     """
@@ -144,14 +150,9 @@ def world_source(text: str, base_dir: Optional[str] = None,
     reader = assets.Reader(allowed_roots, sources.budget(max_bytes, sources.URDF_MAX_INPUT_FACES))
     made: list = []
     try:
-        try:
-            expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader,
-                                       places, name)
-            plan = sdf_world.world(expanded, reader, places)
-        except (MissingAssetsError, UnsupportedAssetsError) as exc:
-            if ignore_missing_assets:
-                raise FeatureUnsupportedError(ERR_IGNORE_ASSETS.format(err=exc)) from None
-            raise
+        expanded = sdf_read.expand(text, Path(base_dir) if base_dir else None, reader,
+                                   places, name, skip_missing=ignore_missing_assets)
+        plan = sdf_world.world(expanded, reader, places)
         if plan.not_read and fail_on_unsupported_element:
             raise UnsupportedElementsError(ERR_UNKNOWN_ELEMENTS.format(
                 tags=element_list(plan.not_read)))
@@ -166,4 +167,4 @@ def world_source(text: str, base_dir: Optional[str] = None,
             source.settle(False)
         raise
     return WorldSource(plan.spec, made, plan.name, plan.not_read, plan.real_time_factor,
-                       plan.systems, plan.notes, reader)
+                       plan.systems, plan.notes, reader, expanded.skipped or [])

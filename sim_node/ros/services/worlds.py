@@ -24,6 +24,8 @@ from ...session import Session
 MAX_RESOURCE_STRING_BYTES = 5_000_000
 #: The files get_available_worlds lists in an additional source.
 WORLD_SUFFIXES = ('.xml',) + sdf_files.SUFFIXES
+#: The most characters of what a load left out that its answer carries (the log has them all).
+MAX_NOTE_CHARS = 2000
 
 
 class Worlds:
@@ -69,21 +71,26 @@ class Worlds:
     def load_world(self, request, response):
         """Read, check and compile the world (LOADING_WORLD meanwhile), then swap it in."""
         with self._session.loading():
-            world, name, uri, dropped = self._read_world(request)
+            world, name, uri, dropped, skipped = self._read_world(request)
             # The standard: a loaded world is left STOPPED (at its initial state, not stepping).
             self._session.load(world, name, uri, stopped=True)
         self._on_state_change()
         response.world = WorldResource(name=name, world_resource=resource(uri))
         response.result = convert.ok()
+        notes = []
         if dropped:
-            note = ('left out elements this simulator does not read: '
-                    f'{world_sources.element_list(dropped)}')
+            notes.append('left out elements this simulator does not read: '
+                         f'{world_sources.element_list(dropped)}')
+        if skipped:  # as ignore_missing_or_unsupported_assets asked
+            notes.append(f'left out for missing or unsupported assets: {"; ".join(skipped)}')
+        if notes:
+            note = '; '.join(notes)
             self._node.get_logger().warning(f'load_world {name}: {note}')
-            response.result.error_message = note
+            response.result.error_message = note[:MAX_NOTE_CHARS]
         return response
 
     def _read_world(self, request) -> tuple:
-        """Return (world, name, uri, elements left out) of a load_world request."""
+        """Return (world, name, uri, elements left out, assets left out) of a load_world."""
         roots = list(self._readable.roots)
         # The same checks as a spawn: safe XML, budgets, and every file read here, from inside
         # the resource paths (MuJoCo opens nothing itself).
@@ -100,7 +107,7 @@ class Worlds:
                                               roots, places=places, name=path.name, **modes)
             name, uri = plan.name or path.stem, request.uri
         world = World.from_plan(plan, self._world_config(plan.real_time_factor), source=name)
-        return world, name, uri, plan.dropped
+        return world, name, uri, plan.dropped, plan.skipped
 
     def unload_world(self, request, response):
         self._session.unload()  # the publishers clear /tf_static and markers (ModelTopics)
