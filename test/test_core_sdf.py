@@ -444,6 +444,74 @@ def test_materials_give_diffuse_colour_script_colour_and_transparency():
     assert rgba['clear'][3] == pytest.approx(0.25)
 
 
+def test_a_pbr_albedo_map_textures_the_visual(tmp_path):
+    from PIL import Image
+    Image.new('RGB', (4, 4), (200, 30, 30)).save(tmp_path / 'brick.png')
+    w = load(sdf('<model name="wall"><static>true</static><link name="l"><visual name="v">'
+                 '<geometry><box><size>1 1 1</size></box></geometry><material><pbr><metal>'
+                 '<albedo_map>brick.png</albedo_map></metal></pbr></material></visual></link>'
+                 '</model>'), tmp_path, resource_paths=[str(tmp_path)])
+    tex = w.read(lambda m, d: int(m.mat_texid[m.geom_matid[m.geom('wall/l/v').id]][1]))
+    assert tex >= 0  # MuJoCo's RGB role holds the image
+
+
+def test_a_heightmap_is_a_height_field_of_its_size_and_a_box_rests_on_it(tmp_path):
+    from PIL import Image
+    image = Image.new('L', (5, 5), 0)
+    for x in range(1, 4):
+        for y in range(1, 4):
+            image.putpixel((x, y), 255)  # a plateau at the full height
+    image.save(tmp_path / 'hill.png')
+    w = load(sdf('<model name="hill"><static>true</static><link name="l"><collision name="c">'
+                 '<geometry><heightmap><uri>hill.png</uri><size>4 4 1</size><pos>0 0 0.2</pos>'
+                 '</heightmap></geometry></collision></link></model>'
+                 f'<model name="box"><pose>0 0 2 0 0 0</pose>{box_link("b")}</model>'),
+             tmp_path, resource_paths=[str(tmp_path)])
+    size = w.read(lambda m, d: m.hfield_size[0].copy())
+    assert np.allclose(size[:3], [2, 2, 1])  # half extents, the height range
+    w.step(1500)
+    assert w.get_entity_state('box').position[2] == pytest.approx(0.2 + 1 + 0.05, abs=5e-3)
+
+
+def test_surface_and_joint_details_map_as_documented():
+    box = '<geometry><box><size>0.1 0.1 0.1</size></box></geometry>'
+    surface = ('<surface><friction><ode><mu>0.5</mu><mu2>0.9</mu2></ode><torsional>'
+               '<coefficient>2</coefficient><patch_radius>0.01</patch_radius></torsional>'
+               '</friction><contact><collide_bitmask>0x02</collide_bitmask>'
+               '<ode><kp>1000</kp><kd>10</kd></ode></contact></surface>')
+    w = load(sdf('<model name="m"><link name="l"><inertial><mass>2</mass><inertia><ixx>0.01'
+                 f'</ixx><iyy>0.01</iyy><izz>0.01</izz></inertia></inertial><collision name="c">'
+                 f'{box}{surface}</collision></link></model>'
+                 + pendulum(axis='<axis><xyz>1 0 0</xyz><dynamics><friction>0.7</friction>'
+                                 '</dynamics></axis>')))
+    g = w.read(lambda m, d: (m.geom_friction[m.geom('m/l/c').id].copy(),
+                             int(m.geom_condim[m.geom('m/l/c').id]),
+                             m.geom_solref[m.geom('m/l/c').id].copy(),
+                             int(m.geom_contype[m.geom('m/l/c').id]),
+                             int(m.geom_conaffinity[m.geom('m/l/c').id]),
+                             float(m.dof_frictionloss[m.jnt_dofadr[m.joint('p/hinge').id]])))
+    friction, condim, solref, contype, conaffinity, frictionloss = g
+    assert friction[0] == 0.5  # isotropic: mu2 read as mu
+    assert friction[1] == pytest.approx(2 * 0.01) and condim == 4  # torsional: coefficient r
+    assert np.allclose(solref, [-1000 / 2, -10 / 2])  # kp, kd per unit of the link's mass
+    assert (contype, conaffinity) == (2, 2)
+    assert frictionloss == 0.7
+
+
+def test_a_submesh_is_named_and_its_whole_file_drawn(tmp_path):
+    from sim_node.core.models.collada_fast import binary_stl
+    corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    (tmp_path / 'parts.stl').write_bytes(binary_stl(corners, np.array(
+        [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])))
+    plan = world_sources.world_source(
+        sdf('<model name="m"><static>true</static><link name="l"><visual name="v"><geometry>'
+            '<mesh><uri>parts.stl</uri><submesh><name>lid</name></submesh></mesh></geometry>'
+            '</visual></link></model>'), str(tmp_path), [str(tmp_path)],
+        places=sdf_files.Places.of(environ={}))
+    assert any("<submesh> 'lid'" in n for n in plan.notes), plan.notes
+    assert World.from_plan(plan).read(lambda m, d: m.nmesh) == 1
+
+
 # ------------------------------------------------------------------ files and models
 
 def model_folder(root: Path, name: str, body: str, versions=(('1.6', 'model.sdf'),)) -> Path:
