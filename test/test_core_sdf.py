@@ -75,6 +75,10 @@ def test_a_worlds_physics_gravity_field_scene_and_lights_are_read():
     assert np.allclose(opt[2], [6e-6, 2.3e-5, -4.2e-5]) and opt[3] == 70
     assert opt[4] == 2 and np.allclose(opt[5], [0.3, 0.2, 0.1]) and np.allclose(opt[6], [1, 2, 3])
     assert w.real_time_factor == 0.5 and w.name == 'w'
+    plan = world_sources.world_source(sdf('<scene><background>0.1 0.2 0.3 1</background>'
+                                          '</scene>'))
+    sky = [t for t in plan.spec.textures if t.type == mujoco.mjtTexture.mjTEXTURE_SKYBOX]
+    assert np.allclose(sky[0].rgb1, [0.1, 0.2, 0.3])  # the background is the sky's colour
 
 
 def test_a_world_file_loads_through_a_session_paced_by_its_own_factor(tmp_path):
@@ -572,6 +576,26 @@ def test_a_fuel_uri_reads_the_newest_cached_version(tmp_path):
                  '</uri></include>'), environ={'GZ_FUEL_CACHE_PATH': str(cache)})
     lo, hi = w.entity_bounds('Table')
     assert np.allclose(hi - lo, [2, 2, 2])
+
+
+@pytest.mark.parametrize('variable', ['GZ_SIM_RESOURCE_PATH', 'IGN_GAZEBO_RESOURCE_PATH',
+                                      'GAZEBO_MODEL_PATH', None])
+def test_each_of_gazebos_model_paths_and_the_resource_paths_finds_a_model(tmp_path, variable):
+    models = tmp_path / 'models'
+    model_folder(models, 'crate', f'<model name="crate">{box_link("c")}</model>')
+    text = sdf('<include><uri>model://crate</uri></include>')
+    if variable is None:  # the node's resource_paths
+        w = load(text, environ={}, resource_paths=[str(models)])
+    else:
+        w = load(text, environ={variable: f'/nowhere:{models}'})
+    assert 'crate' in {e.name for e in w.entities()}
+
+
+def test_an_uncached_fuel_model_is_a_missing_asset_that_says_how_to_fetch_it(tmp_path):
+    from sim_node.core.errors import MissingAssetsError
+    with pytest.raises(MissingAssetsError, match='fuel.gazebosim.org.*Shelf'):
+        load(sdf('<include><uri>https://fuel.gazebosim.org/1.0/OpenRobotics/models/Shelf'
+                 '</uri></include>'), environ={'GZ_FUEL_CACHE_PATH': str(tmp_path)})
 
 
 def test_an_include_merged_into_a_model_keeps_its_links_where_they_were(tmp_path):
