@@ -327,6 +327,10 @@ def test_the_disk_cache_keeps_its_bound_the_least_recently_used_out(meshes, tmp_
     newest = sum(f.stat().st_size for f in entries[-1].iterdir())
     decompose.prune(root, limit=newest)
     assert [d.name for d in root.iterdir()] == [entries[-1].name]
+    # The pruned mesh spawns again in this process: its parts made anew, not the files gone
+    # (MuJoCo could not open them: the spawn failed).
+    model = sources.from_mesh(meshes['tray']).spec.compile()
+    assert sum('_part' in model.geom(g).name for g in range(model.ngeom)) >= 5
 
 
 def test_a_million_face_tray_is_decimated_then_decomposed_and_named(world, tmp_path, caplog):

@@ -140,13 +140,17 @@ def parts(path: str, label: str, max_parts: int = MAX_PARTS) -> tuple:
         return ()
     key = (digest, _key(max_parts))
     with _lock:
-        if key in _done:
-            return _done[key]
+        known = _done.get(key)
+    # Parts this process made may have gone since: the cache folder pruned, moved elsewhere.
+    if known is not None and all(os.path.isfile(f) for f in known):
+        return known
     folder = _folder() / f'{digest}_{key[1]}'
     found = _read(folder)
     if found is None:
         found = () if _too_few_faces(path) else _run(path, label, folder, max_parts)
     with _lock:
+        if known is not None and _done.get(key) is known:
+            del _done[key]  # stale: what was found now replaces it
         return _done.setdefault(key, found)
 
 

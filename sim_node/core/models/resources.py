@@ -283,7 +283,8 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
 
     A Gazebo model folder (its ``model.config``) is one entry, ``model://<name>`` where it lies
     on a model path of `places`, its files none; an SDF world file is none (load_world loads
-    it), nor is a model folder that holds only a light (``model://sun``).
+    it), nor is a model folder that holds only a light, nor the stand-ins this package ships
+    for classic worlds' ``model://sun`` and ``model://ground_plane`` (an endless plane).
 
     :param extra_sources: more folders (inside the resource paths) to list.
     :param unrecognised: if given, an extra source that cannot be listed is skipped and why is
@@ -300,12 +301,13 @@ def list_spawnables(resource_paths: Sequence[str], scenes_dir: Path,
                 raise
             unrecognised.append(f'{src!r}: {exc}')
     model_paths = {Path(p).resolve() for p in (places.model_paths if places else ())}
+    builtin = (scenes_dir / sdf_files.BUILTIN_MODELS).resolve()
     for folder in folders:
         if not folder.is_dir():
             continue
         models = sorted(c.parent for c in folder.rglob('model.config'))
         for m in models:
-            if m in seen or not _has_model(m):
+            if m in seen or not _has_model(m) or m.resolve().parent == builtin:
                 continue
             seen.add(m)
             uri = (f'model://{m.name}' if m.resolve().parent in model_paths
