@@ -238,6 +238,16 @@ def test_a_joint_limit_stops_it_and_damping_takes_its_energy():
     assert abs(w.get_joint_states()['p/hinge'][1]) < 0.05  # damped down
 
 
+def test_a_continuous_joint_turns_past_a_whole_turn():
+    w = load(sdf(pendulum('continuous', '<axis><xyz>1 0 0</xyz><limit><lower>-0.5</lower>'
+                                        '<upper>0.5</upper></limit></axis>')))
+    with w.locked() as (m, d):
+        assert not m.jnt_limited[m.joint('p/hinge').id]  # its limits are not stops
+        d.qvel[m.jnt_dofadr[m.joint('p/hinge').id]] = 20.0
+    w.step(1000)
+    assert abs(w.get_joint_states()['p/hinge'][0]) > 2 * math.pi
+
+
 def test_a_joint_whose_limits_are_equal_is_locked_there():
     # Gazebo's way to lock a joint; MuJoCo refuses a range whose ends are equal.
     w = load(sdf(pendulum(axis='<axis><xyz>1 0 0</xyz><limit><lower>0.3</lower>'
