@@ -109,6 +109,9 @@ def test_a_twist_drives_the_rover_and_odometry_follows_as_nav2_reads_it(sim, wat
     send(watch, 'rover/cmd_vel', twist(0.4), 2.0)
     (p2, _), t1 = planar(sim, 'rover', stamped=True)
     assert np.linalg.norm(p2 - p1) == pytest.approx(0.4 * (t1 - t0), rel=0.1)
+    # what the node sent up to t1 is heard here: on a loaded host this process's subscription
+    # can be seconds behind (one full run read the odometry of 0.2 s after t0 as the last)
+    wait_for(lambda: watch.odom and max(_stamp(o) for o in list(watch.odom)) >= t1, timeout=20)
     # the odometry while it was driven (a loaded host may let the command time out before
     # the last message: the base then stops, as it should)
     driven = [o for o in watch.odom if t0 <= _stamp(o) <= t1]

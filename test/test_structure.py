@@ -561,3 +561,26 @@ def test_the_parameter_reference_is_the_table_the_node_declares_from():
     assert len(names) == len(set(names)) > 50
     params = (ROOT / 'sim_node' / 'ros' / 'settings' / 'params.py').read_text()
     assert 'declare_parameter(spec.name' in params and params.count('declare_parameter(') == 1
+
+
+def test_what_comes_and_goes_with_models_is_made_without_qos_event_handlers():
+    """
+    A publisher or subscription made after the node's start is made without QoS event handlers.
+
+    rclpy puts a destroyed one's handlers into the executor's next wait set anyway, and
+    ``spin()`` then raises InvalidHandle, ending the node: a gz-sim system's subscription,
+    destroyed as a world was loaded again, did (issue 54). Made in a constructor, it lives as
+    long as the node; the client tools (``ros/client``) and the start (``ros/node``) run once.
+    """
+    found = []
+    for p in sorted((ROOT / 'sim_node' / 'ros').rglob('*.py')):
+        if p.parent.name in ('client', 'node'):
+            continue
+        for fn in ast.walk(ast.parse(p.read_text())):
+            if not isinstance(fn, ast.FunctionDef) or fn.name == '__init__':
+                continue
+            found += [f'{p.relative_to(ROOT)}:{n.lineno}' for n in ast.walk(fn)
+                      if isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute)
+                      and n.func.attr in ('create_subscription', 'create_publisher')
+                      and not any(k.arg in ('event_callbacks', None) for k in n.keywords)]
+    assert found == [], found

@@ -34,7 +34,7 @@ from std_msgs.msg import Float32, Float64, Header
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory
 
-from .controllers import NO_EVENTS, publish_odometry
+from .controllers import NO_EVENTS, NO_SUB_EVENTS, publish_odometry
 from ...core.base import quat
 from ...core.control import gz_systems, laws
 from ...session import Loaded, Session
@@ -127,7 +127,10 @@ class SystemSet:
             self._poses.append((system, pub, [-math.inf]))
 
     def _sub(self, kind, topic: str, take: Callable) -> None:
-        self._subs.append(self.node.create_subscription(kind, topic, take, 10))
+        # without QoS event handlers: a subscription destroyed with its model while the
+        # executor waits on them ended the node (rclpy's InvalidHandle from spin)
+        self._subs.append(self.node.create_subscription(kind, topic, take, 10,
+                                                        **NO_SUB_EVENTS))
 
     def on_sample(self, sample) -> None:
         """Publish what is due at a joint sample's simulated time (the laws ran already)."""
