@@ -40,6 +40,7 @@ from .gripper import GripperAction
 from .jtc import TrajectoryController
 from .steering import Steering
 from .topic_hardware import TopicHardware
+from ..settings import replies
 from ...core.base.errors import SimError
 from ...core.base.records import ModelInfo, Snapshot
 from ...core.control import controller_types as types, laws, manager as core
@@ -116,7 +117,8 @@ class RobotControl:
                 (CleanupController, 'cleanup_controller', self._cleanup),
                 (ListHardwareInterfaces, 'list_hardware_interfaces', self._interfaces),
                 (ListHardwareComponents, 'list_hardware_components', self._components)):
-            self.node.create_service(srv, f'~/{name}', call, callback_group=group)
+            replies.deliver(self.node.create_service(srv, f'~/{name}', call,
+                                                     callback_group=group))
         host.add_node(self.node)
         self.laws = laws.Laws(list(self.hardware),
                               lambda j, interface, v: self.hardware[j].within(interface, v),

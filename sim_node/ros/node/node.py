@@ -38,7 +38,7 @@ from ..commands.trajectories import TrajectoryServers
 from ..control.controller_manager import ControllerManagers
 from ..control.gz_systems import GzSystems
 from ..services.services import Services
-from ..settings import params
+from ..settings import params, replies
 from ..topics.descriptions import default_mesh_dir, RobotDescriptions
 from ..topics.perception import Perception
 from ..topics.publishing import ModelTopics, StatePublisher
@@ -277,6 +277,7 @@ class SimNode(Node):
         self.perception.stop()
         self._commands.stop()
         self.status.close()
+        replies.resender().clear()  # replies still kept go with their services
         if self._recording is not None:  # after the publishers: what they sent is written
             self._recording.close()
 

@@ -8,9 +8,10 @@ Nothing here asks the session for its state in a loop. The node's housekeeping t
 0.2 s, on the executor) drains the core's log lines (its threads never call rclpy) into the ROS
 logger and sends /diagnostics again once a second, as diagnostic_updater does, with the last
 state received, the loop's rate and the mesh cache's size (and what deleted robots keep in
-it), the concave meshes being decomposed into convex parts, if any, and the gz-sim systems
-an SDF world or model names that are not run here; a refused joint command or goal goes out at
-once too.
+it), the replies the middleware could not send at once (sent again, given up, waiting:
+:mod:`..settings.replies`), the concave meshes being decomposed into convex parts, if any, and
+the gz-sim systems an SDF world or model names that are not run here; a refused joint command
+or goal goes out at once too.
 """
 
 import collections
@@ -24,6 +25,7 @@ from msg_adapters import diagnostics
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..settings import replies
 from ...core.models import asset_store, decompose
 from ...session import LOADING_WORLD, NO_WORLD, PLAYING, Session, StateEvent
 
@@ -112,6 +114,7 @@ class Status:
             event = self._event
             cache = {'mesh_cache_mib': f'{asset_store.mesh_cache_bytes() / 2 ** 20:.1f}',
                      'mesh_cache_kept_mib': f'{kept / 2 ** 20:.1f}'}
+            cache.update(replies.resender().counts())  # replies sent again, given up
             busy = decompose.running()
             if busy:  # a spawn waiting on a concave mesh's parts says why it takes a while
                 cache['decomposing'] = ', '.join(f'{label} ({sec:.0f} s of at most '

@@ -23,6 +23,7 @@ from simulation_interfaces.msg import (EntityCategory, EntityInfo, Result, Simul
 
 from .worlds import MAX_RESOURCE_STRING_BYTES, Worlds
 from ..control.controller_manager import with_update_rate
+from ..settings import replies
 from ..settings.params import Frames
 from ..settings.qos import FEEDBACK_QOS, SERVICE_QOS
 from ... import session as lifecycle
@@ -106,8 +107,9 @@ class Services:
         for name, srv_type, feature in UNSUPPORTED:
             table[name] = (srv_type, _unsupported(feature))
         for name, (srv_type, handler) in table.items():
-            node.create_service(srv_type, name, self._guard(srv_type, handler),
-                                qos_profile=SERVICE_QOS, callback_group=group)
+            # a reply the middleware could not send at once is sent again (replies)
+            replies.deliver(node.create_service(srv_type, name, self._guard(srv_type, handler),
+                                                qos_profile=SERVICE_QOS, callback_group=group))
         self.action = ActionServer(
             node, SimulateSteps, 'simulate_steps', execute_callback=self._simulate,
             goal_callback=lambda goal: GoalResponse.ACCEPT,
