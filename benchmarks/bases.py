@@ -7,9 +7,12 @@ speeds sent as joint_commands (no base controller); and while both of its bases 
 in circles, and the omni, sideways and turning) are driven by cmd_vel at 20 Hz (base
 controllers, their tracking loops, odometry and the odom TF at 50 Hz, the laser). All over
 bare ``mj_step`` of the same scene file in this process, its actuators given the same
-speeds, measured side by side. Then at real_time_factor 1: the odometry rate held (messages
-per wall second over the 50 asked). Verdict (issue 44): the node with both bases driven over
-bare MuJoCo with both driven >= 0.95 (the node idle over bare MuJoCo idle is printed too).
+speeds, measured side by side, and bare MuJoCo also casting the rover's laser at its rate of
+simulated time. Then the parts one at a time (issue 52): the same drive with the laser off, with
+``record`` (every topic but images into a bag), and with both; and at real_time_factor 1 the
+odometry rate held (messages per wall second over the 50 asked). Verdicts: the node with both
+bases driven over bare MuJoCo with both driven >= 0.95 (issue 44), and the same with recording
+on (issue 52); the node idle over bare MuJoCo idle is printed too.
 
     make bench-bases
 """
@@ -17,6 +20,7 @@ bare MuJoCo with both driven >= 0.95 (the node idle over bare MuJoCo idle is pri
 import os
 from pathlib import Path
 import sys
+import tempfile
 import time
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,10 +33,21 @@ TARGET_ODOM = 0.9  # odometry messages per second over odom_rate_hz, at real_tim
 SECONDS = 6.0
 WHEELS = ((0.3 - 0.6 * 0.18) / 0.06, (0.3 + 0.6 * 0.18) / 0.06)  # rad/s, left and right
 OMNI = (0.0, 0.1, 0.5)  # the omni base: sideways, turning (a circle: never meets a wall)
+LASER_HZ = 10.0  # the node's lidar_rate_hz: scans per simulated second
+NO_LASER = 'lidar_sites:=[none]'
 
 
-def bare_steps_per_second(scene: Path, driven: bool = True) -> float:
+def bare_steps_per_second(scene: Path, driven: bool = True, laser: bool = False) -> float:
+    """
+    Return the steps per second of bare ``mj_step`` on the scene, its bases driven as asked.
+
+    Driven: the wheel and omni actuators get the speeds the node's bases are commanded.
+
+    `laser`: also cast the rover's laser as the node does, at its rate of simulated time
+    (lidar_rate_hz 10, 360 rays over a turn, 10 m), from where it is at each due step.
+    """
     import mujoco
+    import numpy as np
     m = mujoco.MjModel.from_xml_path(str(scene))
     d = mujoco.MjData(m)
     if driven:
@@ -40,25 +55,38 @@ def bare_steps_per_second(scene: Path, driven: bool = True) -> float:
         d.ctrl[m.actuator('right_wheel_motor').id] = WHEELS[1]
         d.ctrl[m.actuator('omni_y_motor').id] = OMNI[1]
         d.ctrl[m.actuator('omni_yaw_motor').id] = OMNI[2]
+    site = m.site('rover_lidar').id
+    angles = np.linspace(-np.pi, np.pi, 360)
+    rays = np.stack([np.cos(angles), np.sin(angles), np.zeros(360)], axis=1)
+    dist, geom = np.empty(360), np.empty(360, dtype=np.int32)
+    every = round(1.0 / LASER_HZ / m.opt.timestep)  # steps between two scans
     mujoco.mj_step(m, d, 200)
     t0, n = time.perf_counter(), 0
     while time.perf_counter() - t0 < 3.0:
-        mujoco.mj_step(m, d, 500)
-        n += 500
+        if laser:
+            mujoco.mj_step(m, d, every)
+            mujoco.mj_kinematics(m, d)
+            vec = (rays @ d.site_xmat[site].reshape(3, 3).T).reshape(-1)
+            mujoco.mj_multiRay(m, d, d.site_xpos[site].copy(), vec, None, 1,
+                               int(m.site_bodyid[site]), geom, dist, None, 360, 10.0)
+            n += every
+        else:
+            mujoco.mj_step(m, d, 500)
+            n += 500
     return n / (time.perf_counter() - t0)
 
 
 class Node(ClockedNode):
     """A node on the mobile scene, and a client that drives its rover."""
 
-    def __init__(self, rtf: float):
+    def __init__(self, rtf: float, *params: str):
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import JointState
         # cmd_vel_timeout 0: at real_time_factor 0 a command every 50 ms of wall time is seconds
         # of simulated time apart, and the bases would stand still between them
         super().__init__('scene:=mobile', f'real_time_factor:={rtf}', 'cameras:=[none]',
-                         'cmd_vel_timeout:=0.0')
+                         'cmd_vel_timeout:=0.0', *params)
         self.odom = []
         self.node.create_subscription(Odometry, 'rover/odom',
                                       lambda m: self.odom.append(time.perf_counter()), 100)
@@ -106,20 +134,45 @@ def main() -> int:
         node.mode = ''
     finally:
         node.close()
+    # The parts one at a time: the laser off, recording on (every topic but images).
+    with tempfile.TemporaryDirectory(prefix='sim_bench_bases_') as tmp:
+        runs = {}
+        for label, params in (('no laser', (NO_LASER,)),
+                              ('recording', (f'record:={Path(tmp) / "a"}',)),
+                              ('recording, no laser', (f'record:={Path(tmp) / "b"}', NO_LASER))):
+            node = Node(0.0, *params)
+            try:
+                node.mode = 'cmd_vel'
+                time.sleep(1.0)
+                runs[label] = node.rate(SECONDS)
+            finally:
+                node.close()
+        written = sum(f.stat().st_size for f in (Path(tmp) / 'a').rglob('*') if f.is_file())
     timestep = 0.002
     bare = bare_steps_per_second(scene)
     bare_idle = bare_steps_per_second(scene, driven=False)
+    bare_laser = bare_steps_per_second(scene, laser=True)
     print(f'bare mj_step, idle                         {bare_idle:10.0f} steps/s')
     print(f'bare mj_step, both bases driven            {bare:10.0f} steps/s')
+    print(f'bare mj_step, driven, the laser cast too   {bare_laser:10.0f} steps/s  '
+          f'({bare_laser / bare:.2f}x bare driven)')
     print(f'node, idle                                 {idle / timestep:10.0f} steps/s  '
           f'({idle / timestep / bare_idle:.2f}x bare idle)')
     print(f'node, rover wheel speeds on joint_commands {plain / timestep:10.0f} steps/s  '
           f'({plain / timestep / bare:.2f}x bare)')
     print(f'node, both bases on cmd_vel, odometry      {driven / timestep:10.0f} steps/s  '
-          f'({driven / timestep / bare:.2f}x bare)')
+          f'({driven / timestep / bare:.2f}x bare, {driven / timestep / bare_laser:.2f}x bare '
+          f'with the laser)')
+    for label, rate in runs.items():
+        print(f'node, both bases on cmd_vel, {label:20s}  {rate / timestep:10.0f} steps/s  '
+              f'({rate / timestep / bare:.2f}x bare)'
+              + (f'; {written / 1e6:.1f} MB written' if label == 'recording' else ''))
+    recorded = runs['recording']
     verdict(driven / timestep / bare >= TARGET_RATIO, f'steps per second with both bases '
             f'driven over bare MuJoCo on the scene file {driven / timestep / bare:.2f} '
             f'(target >= {TARGET_RATIO})')
+    verdict(recorded / timestep / bare >= TARGET_RATIO, f'the same with recording on '
+            f'{recorded / timestep / bare:.2f} (target >= {TARGET_RATIO})')
     # Idle and driven are different physics (moving contacts cost MuJoCo too): the node idle
     # is compared with bare MuJoCo idle, for information (issue 44's target is driven).
     node = Node(1.0)
