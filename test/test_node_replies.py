@@ -160,6 +160,45 @@ def test_a_kept_reply_whose_client_is_gone_is_let_go_before_the_bound(rclpy_cont
         assert code == 0, node.output()
 
 
+def test_a_reply_nobody_hears_is_tried_again_a_bounded_few_times(rclpy_context):
+    """
+    Each try that fails holds the GIL for the middleware's 100 ms: the waits between them grow.
+
+    Tried every 50 ms, a reply no client could hear held a ticking thread of the process back
+    65% of the time until it was given up. A service and a deaf client in this process, a
+    resender of its own that gives up after 3 s: 0.1, 0.3, 0.7, 1.5 and 3 s.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from std_srvs.srv import Trigger
+    from sim_node.ros.settings import replies
+    node = rclpy.create_node('replies_server')
+    resender = replies.Resender(give_up_sec=3.0)
+    resender.watch(node.create_service(Trigger, 'replies_probe', lambda q, r: r))
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    deaf = Caller('replies_deaf')
+    try:
+        client = deaf.node.create_client(
+            Trigger, 'replies_probe',
+            qos_profile=QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        deadline = time.monotonic() + 2.0  # discovered both ways
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+            deaf.executor.spin_once(timeout_sec=0.0)
+        client.call_async(Trigger.Request())
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not resender.given_up:
+            executor.spin_once(timeout_sec=0.05)
+        assert resender.given_up == 1 and resender.sent_again == 0
+        assert resender.tries <= 5, resender.tries
+    finally:
+        deaf.close()
+        executor.shutdown()
+        node.destroy_node()
+
+
 def _readers(stop, callers: list, errors: list, index: int) -> None:
     """Fresh clients asking at once, with no settling: the race the middleware loses."""
     from simulation_interfaces.srv import GetEntities, GetEntityState, GetSimulationState

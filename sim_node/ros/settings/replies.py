@@ -10,13 +10,18 @@ the reply. The client waits for it until its own timeout: 10 to 30 s in our test
 forever for a plain ``call``.
 
 :func:`deliver` makes a service's replies go through a :class:`Resender`: a reply that fails so
-is kept and sent again from a thread of its own every RETRY_SEC, until it goes out (the client
-was matched), the middleware says the client is gone (rmw_fastrtps then answers OK and sends
-nothing), the service itself is destroyed, or GIVE_UP_SEC pass. At most MAX_PENDING replies are
-kept (the oldest are given up first). What the middleware took on a later try (the client
-matched, or gone), what was given up and what is still kept are counted on /diagnostics
-(``replies_sent_again``, ``replies_given_up``, ``replies_waiting``) and each reply given up is
-logged with its service: a call that hangs says why.
+is kept and sent again from a thread of its own, FIRST_RETRY_SEC after it failed and then at
+twice the last wait each time, until it goes out (the client was matched), the middleware says
+the client is gone (rmw_fastrtps then answers OK and sends nothing), the service itself is
+destroyed, or GIVE_UP_SEC pass. The waits grow because each try that fails costs the whole
+process: rclpy holds the GIL while the middleware waits its 100 ms for the match, and every
+other thread (the stepping loop, /clock) stands still meanwhile; tried every 50 ms, a reply
+nobody could hear held the process 65% of the time for its 15 s. Doubling, it is tried 8
+times. At most MAX_PENDING replies are kept (the oldest are given up first). What the
+middleware took on a later try (the client matched, or gone), what was given up and what is
+still kept are counted on /diagnostics (``replies_sent_again``, ``replies_given_up``,
+``replies_waiting``) and each reply given up is logged with its service: a call that hangs
+says why.
 
 Action servers are not covered: rclpy's raises RCLError on the same timeout inside its own
 coroutines (logged "Failed to send goal response") where no caller can catch it.
@@ -27,7 +32,6 @@ filters are not changed while the node runs (one filter, set once, lets every su
 through, where Python's default shows only the first of each place).
 """
 
-import collections
 import functools
 import logging
 import threading
@@ -37,9 +41,9 @@ import warnings
 
 from rclpy.exceptions import InvalidHandle
 
-#: Between two tries of one kept reply (s); each try may itself wait up to 200 ms in the
-#: middleware.
-RETRY_SEC = 0.05
+#: From a reply's failure to its first try again (s); each wait after is twice the one before.
+#: Each try that fails holds the GIL for the middleware's 100 ms wait (see the module).
+FIRST_RETRY_SEC = 0.1
 #: How long a reply is kept and tried again (s): longer than the 10 s a client here waits least.
 GIVE_UP_SEC = 15.0
 #: The most replies kept at once.
@@ -86,16 +90,18 @@ def _send_once(send, response, header) -> Optional[str]:
 class Resender:
     """Replies kept because the middleware could not send them, tried again on a thread."""
 
-    def __init__(self, retry_sec: float = RETRY_SEC, give_up_sec: float = GIVE_UP_SEC,
-                 max_pending: int = MAX_PENDING):
+    def __init__(self, first_retry_sec: float = FIRST_RETRY_SEC,
+                 give_up_sec: float = GIVE_UP_SEC, max_pending: int = MAX_PENDING):
         _install_hook()
-        self.retry_sec, self.give_up_sec, self.max_pending = retry_sec, give_up_sec, max_pending
-        self._pending: collections.deque = collections.deque()  # (given up at, name, send, ...)
+        self.first_retry_sec, self.give_up_sec = first_retry_sec, give_up_sec
+        self.max_pending = max_pending
+        #: Oldest first: [next try at, wait before it, given up at, name, send, response, header]
+        self._pending: list = []
         self._kept = threading.Condition()
-        self._closed = False
         self._thread: Optional[threading.Thread] = None
         self.sent_again = 0  # replies the middleware took on a later try (matched, or gone)
         self.given_up = 0  # replies never sent
+        self.tries = 0  # sends tried again, taken or not
         #: Called with (service name, why) for each reply given up (the node's logger).
         self.on_given_up = lambda name, why: _log.warning(
             f'a reply of {name} could not be delivered: {why}')
@@ -115,26 +121,23 @@ class Resender:
         service.send_response = functools.partial(self._send, name, service.send_response)
 
     def _send(self, name: str, send, response, header) -> None:
-        failed = _send_once(send, response, header)
-        if failed is not None:
-            self._keep(name, send, response, header, failed)
+        if _send_once(send, response, header) is not None:
+            self._keep(name, send, response, header)
 
-    def _keep(self, name: str, send, response, header, why: str) -> None:
-        dropped = []
+    def _keep(self, name: str, send, response, header) -> None:
+        now = time.monotonic()
         with self._kept:
-            if self._closed:
-                return
-            self._pending.append((time.monotonic() + self.give_up_sec, name, send, response,
-                                  header))
-            while len(self._pending) > self.max_pending:
-                dropped.append(self._pending.popleft())
+            self._pending.append([now + self.first_retry_sec, self.first_retry_sec,
+                                  now + self.give_up_sec, name, send, response, header])
+            dropped = self._pending[:-self.max_pending]
+            del self._pending[:-self.max_pending]
             if self._thread is None:
                 self._thread = threading.Thread(target=self._run, name='sim-replies',
                                                 daemon=True)
                 self._thread.start()
             self._kept.notify()
-        for _, old, *_ in dropped:
-            self._give_up(old, f'more than {self.max_pending} replies were waiting')
+        for entry in dropped:
+            self._give_up(entry[3], f'more than {self.max_pending} replies were waiting')
 
     def _give_up(self, name: str, why: str) -> None:
         self.given_up += 1
@@ -143,16 +146,20 @@ class Resender:
     def _run(self) -> None:
         while True:
             with self._kept:
-                while not self._pending and not self._closed:
+                if not self._pending:
                     self._kept.wait()
-                if self._closed:
-                    return
-                entry = self._pending.popleft()
-            self._try(*entry)
-            with self._kept:
-                self._kept.wait(self.retry_sec if self._pending else 0.0)
+                    continue
+                entry = min(self._pending, key=lambda e: e[0])
+                early = entry[0] - time.monotonic()
+                if early > 0:
+                    self._kept.wait(early)
+                    continue
+                self._pending.remove(entry)
+            self._try(entry)
 
-    def _try(self, deadline: float, name: str, send, response, header) -> None:
+    def _try(self, entry: list) -> None:
+        _, wait, deadline, name, send, response, header = entry
+        self.tries += 1
         try:
             failed = _send_once(send, response, header)
         except InvalidHandle:  # the service is gone (a controller manager with its robot)
@@ -161,29 +168,21 @@ class Resender:
         except Exception as exc:  # the middleware refused it otherwise: said, not retried
             self._give_up(name, repr(exc))
             return
+        now = time.monotonic()
         if failed is None:
             self.sent_again += 1
-        elif time.monotonic() >= deadline:
+        elif now >= deadline:
             self._give_up(name, f'the client was not matched within {self.give_up_sec:g} s '
                                 f'({failed})')
         else:
+            entry[0], entry[1] = min(now + 2 * wait, deadline), 2 * wait
             with self._kept:
-                if not self._closed:
-                    self._pending.append((deadline, name, send, response, header))
+                self._pending.append(entry)
 
     def clear(self) -> None:
         """Drop what is kept, untried (a node shutting down: its services go with it)."""
         with self._kept:
             self._pending.clear()
-
-    def close(self) -> None:
-        """Stop trying for good and end the thread (a resender of one's own)."""
-        with self._kept:
-            self._closed = True
-            self._pending.clear()
-            self._kept.notify_all()
-        if self._thread is not None:
-            self._thread.join(timeout=1.0)
 
 
 _default: Optional[Resender] = None
