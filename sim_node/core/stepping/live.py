@@ -82,6 +82,12 @@ class Live:
         self.laser_poses = sampling.new_laser_queue()
         self.requests_lock = threading.Lock()
         self.adopt_locked(model, mujoco.MjData(model))
+        #: The model and its index, replaced together in one assignment once a new model is
+        #: the world's (never while a switch may still go back): read without the world lock
+        #: by :meth:`World.model_info <sim_node.core.world.World.model_info>` and
+        #: :meth:`World.live_model <sim_node.core.world.World.live_model>`, a pair that is
+        #: always of one generation.
+        self.current: tuple = (self.model, self.index)
         self.reset_state_locked(keep_time=False)
 
     def holds_lock(self) -> bool:
@@ -216,6 +222,7 @@ class Live:
             self.control.restore_held(held)
             self.adopt_locked(model, data)
             raise
+        self.current = (self.model, self.index)
         with self.new_model:
             self.new_model.notify_all()
         for watcher in list(self.model_watchers):
