@@ -334,19 +334,36 @@ SWEPT = """<mujoco><option gravity="0 0 0" timestep="0.002"/>
 </mujoco>"""
 
 
-def test_laser_poses_come_at_their_rate_and_cast_as_a_scan_of_that_instant():
-    """The stepping side takes poses; cast later, off the lock, they read as a scan then."""
-    w = World.from_string(SWEPT)
+@pytest.mark.parametrize('integrator', ['Euler', 'implicitfast', 'RK4'])
+def test_laser_poses_come_at_their_rate_and_cast_as_a_scan_of_that_instant(integrator):
+    """
+    The stepping side takes poses; cast later, off the lock, they read as a scan then.
+
+    With Euler and the implicit integrators the poses are those the step from the due time
+    computed; Runge-Kutta's leave those of its last stage, and the poses are computed anew.
+    """
+    swept = SWEPT.replace('timestep="0.002"', f'timestep="0.002" integrator="{integrator}"')
+    w = World.from_string(swept)
     w.scan_lasers({'lidar': 50.0})
-    w.step(250)  # 0.5 s: the first at the first step's end, then at 0.02, 0.04, ..., 0.5
+    # 0.502 s: the poses of 0, 0.02, ..., 0.5, each taken from the step that starts there
+    w.step(251)
     poses = w.take_laser_poses()
     times = [p.time for p in poses]
-    np.testing.assert_allclose(times, [0.002] + list(np.arange(1, 26) * 0.02), atol=1e-9)
+    # the first when the schedule starts: at 0 s, or at the first step's end with RK4
+    start = 0.002 if integrator == 'RK4' else 0.0
+    np.testing.assert_allclose(times, [start] + list(np.arange(1, 26) * 0.02), atol=1e-9)
     assert w.take_laser_poses() == []  # taken once
-    scanner = LaserScanner(w, LaserConfig(samples=720, range_max=5.0))
-    late = scanner.cast(poses)  # the world is at 0.5 s now: each reads as at its own time
-    (now,) = scanner.scan(['lidar'])
+    config = LaserConfig(samples=720, range_max=5.0)
+    late = LaserScanner(w, config).cast(poses)  # the world is past 0.5 s: each as at its time
+    twin = World.from_string(swept)
+    twin.step(250)  # the same world stopped at 0.5 s, scanned there
+    (now,) = LaserScanner(twin, config).scan(['lidar'])
     np.testing.assert_allclose(late[-1].ranges, now.ranges, rtol=0, atol=1e-9)
+    twin = World.from_string(swept)
+    if start:
+        twin.step(1)
+    (first,) = LaserScanner(twin, config).scan(['lidar'])
+    np.testing.assert_allclose(late[0].ranges, first.ranges, rtol=0, atol=1e-9)
     assert np.isfinite(now.ranges).sum() > 60  # the box, the mesh, the bumps, the capsule
     # the box went round: where a ray met it at 0.1 s it meets nothing at 0.5 s
     angle = LaserConfig(samples=720).angles()

@@ -20,7 +20,12 @@ copies where the laser and every geom are (a :class:`LaserPose`, some microsecon
 perception side casts the rays later against those poses, off the stepping thread and without
 the world lock (:meth:`~..lidar.LaserScanner.cast`). A scan is then never left out when the
 perception side is late (a camera being drawn, cores short), and it is stamped with its own
-due time, at any real-time factor.
+due time, at any real-time factor. The poses of a due time are those the step from it
+computed (``mj_step`` brings every pose up to date for the state it starts from, then
+integrates): the loop ends its batch one step after the due time and copies them, with no
+``mj_kinematics`` of its own. Each MuJoCo call gives the GIL away and the loop waits to get
+it back; at real_time_factor 0 a laser is due hundreds of times a wall second (see
+:func:`pose_lag`).
 """
 
 from collections import deque
@@ -199,25 +204,32 @@ class Sampler:
                 self._joints.append(_Joints(key, 1.0 / rate, index.joint_qposadr[idx],
                                             index.joint_dofadr[idx], sensors, tick))
         self.writes: list = []  # the ticks' joint commands of the last collect
-        self._all = self._entries + self._contacts + self._joints + self._lasers + \
-            self._odometers + self._geo
+        self._timed = self._entries + self._contacts + self._joints + self._odometers + \
+            self._geo  # due at their times (a laser: see next_due)
+        self._all = self._timed + self._lasers
         self._samples = samples
         self._last = -math.inf
 
     def __bool__(self) -> bool:
         return bool(self._all)
 
-    def next_due(self, now: float) -> float:
-        """Return the earliest simulated time at or after `now` a sample is due."""
+    def next_due(self, now: float, lag: float = 0.0) -> float:
+        """
+        Return the earliest simulated time at or after `now` a sample is due.
+
+        :param lag: :func:`pose_lag` of the model: a laser's poses of its due time are in the
+            data one step later, and that is when it is due here.
+        """
         if now < self._last:  # a reset: every schedule starts over
             for e in self._all:
                 e.next = math.nan
         self._last = now
-        due = math.inf
         for e in self._all:
             if math.isnan(e.next):
                 e.next = now
-            due = min(due, e.next)
+        due = min((e.next for e in self._timed), default=math.inf)
+        for la in self._lasers:
+            due = min(due, la.next + lag)
         return due
 
     def collect(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
@@ -272,23 +284,30 @@ class Sampler:
                 acc += e.rng.normal(e.acc_noise[0], e.acc_noise[1])
             self._samples.append((e.site, t, quat, gyro, acc))
             e.next = (math.floor(t / e.period + DUE_TOLERANCE) + 1) * e.period
+        # After a step, the data's poses are those of the state before it (pose_lag): the
+        # lasers take them as they are, stamped with that time, before anything below brings
+        # them up to date (once for all that are due: velocities too, for the odometers).
+        lag = pose_lag(m)
+        if self._lasers:
+            before = t - lag
+            due = [la for la in self._lasers
+                   if not before < la.next - DUE_TOLERANCE * la.period]
+            if due and not lag:
+                mujoco.mj_kinematics(m, d)
+            if due:
+                self._take_poses(d, before, due)
         odo = [o for o in self._odometers if not t < o.next - DUE_TOLERANCE * o.period]
-        due = [la for la in self._lasers if not t < la.next - DUE_TOLERANCE * la.period]
         places = [g for g in self._geo if not t < g.next - DUE_TOLERANCE * g.period]
-        # After a step, the data's poses are those of the state before it: brought up to date
-        # once for all that are due (velocities too, for the odometers).
         if odo:
             odometers.bring_up_to_date(m, d)
-        elif due or places:
+        elif places:
             mujoco.mj_kinematics(m, d)
         for o in odo + places:
             self._samples.append(o.take(m, d, t, self.generation))
             o.next = (math.floor(t / o.period + DUE_TOLERANCE) + 1) * o.period
-        if due:
-            self._take_poses(m, d, t, due)
 
-    def _take_poses(self, m: mujoco.MjModel, d: mujoco.MjData, t: float, due: list) -> None:
-        """Copy where the due lasers and every geom are now (the data brought up to date)."""
+    def _take_poses(self, d: mujoco.MjData, t: float, due: list) -> None:
+        """Copy where the due lasers and every geom are in the data: their poses at `t`."""
         where = (d.geom_xpos.copy(), d.geom_xmat.copy(), d.xipos.copy(), d.ximat.copy(),
                  d.flexvert_xpos.copy())
         for la in due:
@@ -296,6 +315,20 @@ class Sampler:
                 la.name, t, self.generation, self.resets, d.site_xpos[la.site].copy(),
                 d.site_xmat[la.site].reshape(3, 3).copy(), *where))
             la.next = (math.floor(t / la.period + DUE_TOLERANCE) + 1) * la.period
+
+
+def pose_lag(m: mujoco.MjModel) -> float:
+    """
+    Return how far the data's poses after a step are behind its time: one step, or 0.
+
+    After ``mj_step`` the data's poses (``geom_xpos``, ``xipos``, ...) are those its forward
+    pass computed for the state the step started from, one timestep earlier, with Euler and
+    the implicit integrators. Runge-Kutta's passes leave those of its last stage: 0, and the
+    poses are brought up to date with ``mj_kinematics`` instead.
+    """
+    if m.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+        return 0.0
+    return float(m.opt.timestep)
 
 
 def request(entities, rate_hz: float = 50.0) -> ContactRequest:

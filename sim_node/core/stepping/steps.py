@@ -145,12 +145,13 @@ class Stepping:
         elif control.batched or sampler:
             # stop the batch where a base's command times out or a declared sensor samples
             left = n
+            lag = sampling.pose_lag(m)
             while left > 0:
                 k = left
                 due = control.batch_deadline(d.time) if control.batched else math.inf
                 if due != math.inf:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep + 1e-9)))
-                due = sampler.next_due(float(d.time)) if sampler else math.inf
+                due = sampler.next_due(float(d.time), lag) if sampler else math.inf
                 if due != math.inf:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep - 1e-6)))
                 mujoco.mj_step(m, d, k)
