@@ -237,3 +237,21 @@ def test_a_base_measured_again_in_another_pose_is_the_same_base():
     world.step(500)
     world.spawn('passer_by', sources.primitive('box', [0.1] * 3), position=(4.0, -20.0, 4.0))
     assert world.bases()['vehicle'] == first
+
+
+def test_the_tracking_loops_velocity_is_mujocos_own():
+    """A tumbling, drifting body's velocity at its origin, read without a MuJoCo call."""
+    import mujoco
+    m = mujoco.MjModel.from_xml_string("""<mujoco><option gravity="0 0 0"/><worldbody>
+      <body name="a" pos="0.3 -0.2 0.5"><freejoint/><geom type="box" size="0.2 0.1 0.05"/>
+        <body name="arm" pos="0.4 0 0"><joint type="hinge" axis="0 1 0"/>
+          <geom type="capsule" size="0.05" fromto="0 0 0 0.5 0 0"/></body></body>
+    </worldbody></mujoco>""")
+    d = mujoco.MjData(m)
+    d.qvel[:] = [0.7, -0.4, 0.2, 1.1, -0.6, 2.3, 1.5]
+    mujoco.mj_step(m, d, 20)  # the data as a batch of steps leaves it
+    for body in (1, 2):
+        want = np.empty(6)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, want, 0)
+        assert drives.planar_velocity(m, d, body) == pytest.approx(
+            (want[3], want[4], want[2]), abs=1e-12)

@@ -107,8 +107,8 @@ def from_yaw(yaw: float) -> np.ndarray:
 
 def yaw_of(q) -> float:
     """Return the heading (rotation about z) of a quaternion."""
-    w, x, y, z = (float(v) for v in q)
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    w, x, y, z = q.tolist() if isinstance(q, np.ndarray) else (float(v) for v in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 # ------------------------------------------------------------------ one pose at a time

@@ -68,7 +68,6 @@ class Drive:
         self._index = None
         #: The tracking loop's correction of the command (vx, vy, wz) (see :meth:`_track`).
         self.trim = [0.0, 0.0, 0.0]
-        self._vel = np.zeros(6)
         #: Whether the last command needed more than the model's actuators give.
         self.saturated = False
         self._seen: Optional[float] = None
@@ -159,13 +158,20 @@ class Drive:
             data.qvel[d + 5] = wz
             return EVERY_STEP if fresh else None
         if spec.kind == DIFF_DRIVE:
+            # In scalars: a handful of wheels, where numpy's cost per call is most of the
+            # work, and the stepping loop runs this between its steps.
             n = len(spec.left)
             half = wz * spec.separation / 2
-            side = np.array([vx - half] * n + [vx + half] * (len(spec.wheels) - n))
-            target = np.asarray(spec.signs) * side / spec.radius
-            target = np.clip(target, -spec.max_wheel_speed, spec.max_wheel_speed)
+            top = spec.max_wheel_speed
             step = spec.max_wheel_acceleration * model.opt.timestep
-            self.speeds = self.speeds + np.clip(target - self.speeds, -step, step)
+            values, ramp = [], False  # ramp: a wheel is not at its target speed yet
+            for i, (sign, now) in enumerate(zip(spec.signs, self.speeds.tolist())):
+                target = min(max(sign * (vx - half if i < n else vx + half) / spec.radius,
+                                 -top), top)
+                speed = now + min(max(target - now, -step), step)
+                ramp = ramp or speed != target
+                values.append(speed)
+            self.speeds = np.array(values)
         else:  # planar joints: the slides' velocities that move the base at (vx, vy)
             base = model.jnt_bodyid[self.jids[2]]
             yaw = _body_yaw(data, base)
@@ -173,12 +179,12 @@ class Drive:
             wx, wy = c * vx - s * vy, s * vx + c * vy
             (a0, a1), (b0, b1) = data.xaxis[self.jids[0]][:2], data.xaxis[self.jids[1]][:2]
             det = a0 * b1 - b0 * a1  # the two slides' axes: not parallel (found so)
-            self.speeds = np.array([(wx * b1 - b0 * wy) / det, (a0 * wy - wx * a1) / det,
-                                    wz * math.copysign(1.0, data.xaxis[self.jids[2]][2])])
-            target = self.speeds
+            values = [(wx * b1 - b0 * wy) / det, (a0 * wy - wx * a1) / det,
+                      wz * math.copysign(1.0, data.xaxis[self.jids[2]][2])]
+            self.speeds, ramp = np.array(values), False
         changed = False
         for k, a, gear, limited, lo, hi in self._actuated:
-            want = gear * float(self.speeds[k])
+            want = gear * values[k]
             ctrl = min(max(want, lo), hi) if limited else want
             if abs(ctrl - want) > 1e-9:
                 self.saturated = True
@@ -187,9 +193,9 @@ class Drive:
                 changed = True
         self.changed = changed
         if self._all_actuated:
-            if spec.kind == DIFF_DRIVE and np.any(self.speeds != target):
+            if ramp:
                 return EVERY_STEP  # a ramp runs
-            return EVERY_BATCH if fresh or np.any(self.speeds) else None
+            return EVERY_BATCH if fresh or any(values) else None
         acts = self.act >= 0
         if (~acts).any():
             dof = self.out.dof
@@ -204,9 +210,9 @@ class Drive:
             limited = self.out.write(data, tau)
             self.integral = np.where(limited, self.integral,
                                      self.integral + err * model.opt.timestep)
-        if (~acts).any() or np.any(self.speeds != target):
+        if (~acts).any() or ramp:
             return EVERY_STEP  # a velocity loop holds the wheels, or a ramp runs
-        return EVERY_BATCH if fresh or np.any(self.speeds) else None
+        return EVERY_BATCH if fresh or any(values) else None
 
     def _track(self, model: mujoco.MjModel, data: mujoco.MjData, vx: float, vy: float,
                wz: float) -> tuple:
@@ -229,11 +235,10 @@ class Drive:
             self.trim = [0.0, 0.0, 0.0]
             self.saturated = False
             return 0.0, 0.0, 0.0
-        vel = self._vel  # [angular, linear] at the body's origin, world axes
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, self.body, vel, 0)
+        vx_world, vy_world, turn = planar_velocity(model, data, self.body)
         yaw = _body_yaw(data, self.body)
         c, s = math.cos(yaw), math.sin(yaw)
-        have = (c * vel[3] + s * vel[4], -s * vel[3] + c * vel[4], vel[2])
+        have = (c * vx_world + s * vy_world, -s * vx_world + c * vy_world, turn)
         out, trims, saturated = [], [], False
         for w, h, t in zip(want, have, self.trim):
             bound = TRACK_LIMIT * abs(w)
@@ -251,6 +256,24 @@ class Drive:
         if self.spec.kind != PLANAR_FREE and self._index is not None:
             self.out.release(data)
             data.ctrl[self.act[self.act >= 0]] = 0
+
+
+def planar_velocity(model: mujoco.MjModel, data: mujoco.MjData, body: int) -> tuple:
+    """
+    Return a body's (vx, vy, wz) at its centre of mass in world axes, from ``cvel``.
+
+    What ``mj_objectVelocity`` gives for the body (its linear x, y and angular z: at the
+    body's inertial frame, ``xipos``), without calling MuJoCo:
+    each call gives the GIL away, and the stepping loop, which runs the tracking loops
+    between its steps, waits to get it back from whichever thread took it (the mobile scene's
+    two bases at real_time_factor 0, ``make bench-bases``). ``cvel`` is the body's velocity
+    at its tree's centre of mass; moved to the body's own ``p``: ``v + w x (p - c)``.
+    """
+    w = data.cvel[body].tolist()  # [angular, linear]
+    p = data.xipos[body].tolist()
+    c = data.subtree_com[model.body_rootid[body]].tolist()
+    rx, ry, rz = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+    return (w[3] + w[1] * rz - w[2] * ry, w[4] + w[2] * rx - w[0] * rz, w[2])
 
 
 def _body_yaw(data: mujoco.MjData, body: int) -> float:
