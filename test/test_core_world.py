@@ -650,3 +650,35 @@ def test_generated_textures_keep_their_pixels_through_spawns_deletes_and_compact
     with world.locked() as (m, _):  # and after the compaction
         assert np.array_equal(pixels(m, 'sky'), pixels(sky, 'sky'))
         assert np.array_equal(pixels(m, 'tiles/grid'), pixels(grid, 'grid'))
+
+
+def test_the_model_and_its_info_are_read_while_another_thread_holds_the_world(world):
+    """What the perception thread asks with every scan waits for nobody, and is one pair."""
+    held, done = threading.Event(), threading.Event()
+
+    def hold():
+        with world.locked():
+            held.set()
+            done.wait(10)
+    holder = threading.Thread(target=hold)
+    holder.start()
+    try:
+        assert held.wait(10)
+        answers = []
+        reader = threading.Thread(target=lambda: answers.append(
+            (world.model_info, world.live_model())))
+        reader.start()
+        reader.join(2.0)
+        assert answers, 'model_info and live_model waited for the world lock'
+        info, (model, generation) = answers[0]
+        assert info.generation == generation and model.ngeom == len(info.geom_scoped)
+    finally:
+        done.set()
+        holder.join()
+    world.spawn('crate', box(), position=[0.2, 1.0, 0.5])
+    model, generation = world.live_model()
+    assert generation == world.model_info.generation == info.generation + 1
+    assert model.ngeom == len(world.model_info.geom_scoped) == len(info.geom_scoped) + 1
+    with pytest.raises(NameNotUniqueError):
+        world.spawn('crate', box(), position=[0.2, 2.0, 0.5])
+    assert world.live_model() == (model, generation)  # a refused spawn leaves the pair
