@@ -9,8 +9,9 @@ controllers, their tracking loops, odometry and the odom TF at 50 Hz, the laser)
 bare ``mj_step`` of the same scene file in this process, its actuators given the same
 speeds, measured side by side, and bare MuJoCo also casting the rover's laser at its rate of
 simulated time. Then the parts one at a time (issue 52): the same drive with the laser off, with
-``record`` (every topic but images into a bag), and with both; and at real_time_factor 1 the
-odometry rate held (messages per wall second over the 50 asked). Verdicts: the node with both
+``record`` (every topic but images into a bag), and with both; the scans in that bag per
+simulated second (none left out to keep the speed); and at real_time_factor 1 the odometry
+rate held (messages per wall second over the 50 asked). Verdicts: the node with both
 bases driven over bare MuJoCo with both driven >= 0.95 (issue 44), and the same with recording
 on (issue 52); the node idle over bare MuJoCo idle is printed too.
 
@@ -29,6 +30,7 @@ from clocked_node import ClockedNode  # noqa: E402, I100
 from verdict import verdict  # noqa: E402
 
 TARGET_RATIO = 0.95  # driven over idle, steps per second
+TARGET_SCANS = 0.99  # scans in the recording per simulated second, over LASER_HZ
 TARGET_ODOM = 0.9  # odometry messages per second over odom_rate_hz, at real_time_factor 1
 SECONDS = 6.0
 WHEELS = ((0.3 - 0.6 * 0.18) / 0.06, (0.3 + 0.6 * 0.18) / 0.06)  # rad/s, left and right
@@ -74,6 +76,20 @@ def bare_steps_per_second(scene: Path, driven: bool = True, laser: bool = False)
             mujoco.mj_step(m, d, 500)
             n += 500
     return n / (time.perf_counter() - t0)
+
+
+def recorded_scans(bag: Path) -> tuple:
+    """
+    Return (scans, simulated seconds) of the rover's laser in a closed bag.
+
+    The bag's messages are stamped with simulated time; its duration is theirs. A node that
+    left scans out to keep its speed would show fewer than its rate here.
+    """
+    import yaml
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    counts = {t['topic_metadata']['name']: t['message_count']
+              for t in info['topics_with_message_count']}
+    return counts.get('/lasers/rover_lidar/scan', 0), info['duration']['nanoseconds'] / 1e9
 
 
 class Node(ClockedNode):
@@ -148,6 +164,7 @@ def main() -> int:
             finally:
                 node.close()
         written = sum(f.stat().st_size for f in (Path(tmp) / 'a').rglob('*') if f.is_file())
+        scans, span = recorded_scans(Path(tmp) / 'a')
     timestep = 0.002
     bare = bare_steps_per_second(scene)
     bare_idle = bare_steps_per_second(scene, driven=False)
@@ -167,12 +184,17 @@ def main() -> int:
         print(f'node, both bases on cmd_vel, {label:20s}  {rate / timestep:10.0f} steps/s  '
               f'({rate / timestep / bare:.2f}x bare)'
               + (f'; {written / 1e6:.1f} MB written' if label == 'recording' else ''))
+    print(f'scans in the recording: {scans} over {span:.0f} simulated seconds, '
+          f'{scans / span:.2f} per simulated second ({LASER_HZ:g} asked)')
     recorded = runs['recording']
     verdict(driven / timestep / bare >= TARGET_RATIO, f'steps per second with both bases '
             f'driven over bare MuJoCo on the scene file {driven / timestep / bare:.2f} '
             f'(target >= {TARGET_RATIO})')
     verdict(recorded / timestep / bare >= TARGET_RATIO, f'the same with recording on '
             f'{recorded / timestep / bare:.2f} (target >= {TARGET_RATIO})')
+    verdict(scans / span >= TARGET_SCANS * LASER_HZ, f'every scan made at full speed: '
+            f'{scans / span:.2f} per simulated second in the bag (target >= '
+            f'{TARGET_SCANS * LASER_HZ:g})')
     # Idle and driven are different physics (moving contacts cost MuJoCo too): the node idle
     # is compared with bare MuJoCo idle, for information (issue 44's target is driven).
     node = Node(1.0)

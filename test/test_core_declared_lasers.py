@@ -334,32 +334,42 @@ SWEPT = """<mujoco><option gravity="0 0 0" timestep="0.002"/>
 </mujoco>"""
 
 
+@pytest.mark.parametrize('stepping', ['batch', 'every step'])
 @pytest.mark.parametrize('integrator', ['Euler', 'implicitfast', 'RK4'])
-def test_laser_poses_come_at_their_rate_and_cast_as_a_scan_of_that_instant(integrator):
+def test_laser_poses_come_at_their_rate_and_cast_as_a_scan_of_that_instant(
+        integrator, stepping):
     """
     The stepping side takes poses; cast later, off the lock, they read as a scan then.
 
-    With Euler and the implicit integrators the poses are those the step from the due time
-    computed; Runge-Kutta's leave those of its last stage, and the poses are computed anew.
+    A batch of steps is stepped by MuJoCo's rollout, which gives the state at each due time.
+    With a command applied before every step (a velocity held by a PD torque), the poses are
+    those the step from the due time computed (Euler, implicit), or computed anew after
+    Runge-Kutta's steps, whose passes leave those of its last stage.
     """
     swept = SWEPT.replace('timestep="0.002"', f'timestep="0.002" integrator="{integrator}"')
-    w = World.from_string(swept)
+
+    def world() -> World:
+        made = World.from_string(swept)
+        if stepping == 'every step':
+            made.command(['spin'], [2.0], 'velocity')
+        return made
+    w = world()
     w.scan_lasers({'lidar': 50.0})
-    # 0.502 s: the poses of 0, 0.02, ..., 0.5, each taken from the step that starts there
-    w.step(251)
+    w.step(251)  # 0.502 s: the poses of 0, 0.02, ..., 0.5
     poses = w.take_laser_poses()
     times = [p.time for p in poses]
-    # the first when the schedule starts: at 0 s, or at the first step's end with RK4
-    start = 0.002 if integrator == 'RK4' else 0.0
+    # the first when the schedule starts: at 0 s, or at the first step's end (RK4 stepped
+    # one step at a time: its poses are of the data's time)
+    start = 0.002 if (integrator, stepping) == ('RK4', 'every step') else 0.0
     np.testing.assert_allclose(times, [start] + list(np.arange(1, 26) * 0.02), atol=1e-9)
     assert w.take_laser_poses() == []  # taken once
     config = LaserConfig(samples=720, range_max=5.0)
     late = LaserScanner(w, config).cast(poses)  # the world is past 0.5 s: each as at its time
-    twin = World.from_string(swept)
+    twin = world()
     twin.step(250)  # the same world stopped at 0.5 s, scanned there
     (now,) = LaserScanner(twin, config).scan(['lidar'])
     np.testing.assert_allclose(late[-1].ranges, now.ranges, rtol=0, atol=1e-9)
-    twin = World.from_string(swept)
+    twin = world()
     if start:
         twin.step(1)
     (first,) = LaserScanner(twin, config).scan(['lidar'])
@@ -393,3 +403,28 @@ def test_laser_poses_of_a_past_timeline_or_model_are_not_cast_and_bad_rates_are_
     w.scan_lasers({'nope': 10.0})  # a site the model lacks waits for one that has it
     w.step(10)
     assert w.take_laser_poses() == []
+
+
+@pytest.mark.parametrize('integrator', ['Euler', 'implicitfast', 'RK4'])
+def test_a_scanned_world_steps_exactly_as_an_unscanned_one(integrator):
+    """Stepping by rollout to take lasers' states changes no bit of the physics."""
+    import mujoco
+    from conftest import SCENES
+
+    def world(scanned: bool) -> World:
+        made = World.from_file(str(SCENES / 'mobile.xml'))
+        with made.locked() as (m, _):
+            m.opt.integrator = getattr(mujoco.mjtIntegrator, f'mjINT_{integrator.upper()}')
+        made.drive('rover', 0.3, 0.0, 0.6, timeout=0.0)
+        made.drive('omni', 0.0, 0.1, 0.5, timeout=0.0)
+        if scanned:
+            made.scan_lasers({'rover_lidar': 30.0})  # between steps: 1 / 30 s is 16.7 steps
+        return made
+    plain, scanned = world(False), world(True)
+    for n in (1, 17, 250, 1000):
+        plain.step(n)
+        scanned.step(n)
+    assert scanned.take_laser_poses()
+    a, b = plain.get_state(), scanned.get_state()
+    assert a.step == b.step == 1268
+    np.testing.assert_array_equal(a.values, b.values)  # time, positions, warm start, ...

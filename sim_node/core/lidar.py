@@ -155,9 +155,10 @@ class LaserScanner:
         Return a :class:`LaserReading` per pose of the world's current model, in order.
 
         Each pose (:class:`~.stepping.sampling.LaserPose`) says where its laser and every geom
-        were at its time; the rays are cast there, holding no lock. A pose of another model
-        generation (a spawn or a delete came since) is left out, as is one from before a
-        reset when `resets` (the world's count now) is given.
+        were at its time, or gives the state then (worked out here: ``mj_kinematics`` on a
+        scratch data of the model); the rays are cast there, holding no lock. A pose of
+        another model generation (a spawn or a delete came since) is left out, as is one from
+        before a reset when `resets` (the world's count now) is given.
 
         :param sweeps: site -> its own :class:`Sweep` (declared); else the scanner's config.
         """
@@ -175,10 +176,18 @@ class LaserScanner:
             s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, pose.site)
             if s < 0:
                 continue
-            d.geom_xpos[:], d.geom_xmat[:] = pose.geom_xpos, pose.geom_xmat
-            d.xipos[:], d.ximat[:] = pose.xipos, pose.ximat
-            d.flexvert_xpos[:] = pose.flexvert_xpos
-            out.append(self._reading(m, d, pose.site, s, pose.origin, pose.frame, pose.time,
+            if pose.state is not None:  # a state: where everything was, worked out here
+                mujoco.mj_setState(m, d, pose.state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+                mujoco.mj_kinematics(m, d)
+                if m.nflex:
+                    mujoco.mj_flex(m, d)
+                origin, frame = d.site_xpos[s], d.site_xmat[s].reshape(3, 3)
+            else:
+                d.geom_xpos[:], d.geom_xmat[:] = pose.geom_xpos, pose.geom_xmat
+                d.xipos[:], d.ximat[:] = pose.xipos, pose.ximat
+                d.flexvert_xpos[:] = pose.flexvert_xpos
+                origin, frame = pose.origin, pose.frame
+            out.append(self._reading(m, d, pose.site, s, origin, frame, pose.time,
                                      sweeps.get(pose.site, self._default)))
         return out
 

@@ -289,8 +289,9 @@ class World:
         """
         Take the poses of these lasers at their rates (site name -> scans per simulated second).
 
-        Replaces the last request ({}: none). Each due time, the stepping side copies where the
-        laser and every geom are (:class:`~.stepping.sampling.LaserPose`), taken with
+        Replaces the last request ({}: none). Each due time, the stepping side keeps where the
+        laser and every geom are, or the state they follow from
+        (:class:`~.stepping.sampling.LaserPose`), taken with
         :meth:`take_laser_poses` and cast by :meth:`~.lidar.LaserScanner.cast` off the
         stepping thread. Takes no world lock, as :meth:`sample_joints`.
 

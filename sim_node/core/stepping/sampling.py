@@ -15,17 +15,18 @@ whose contacts were asked for, :class:`ContactRequest`) are sampled the same way
 P3D plugins' ground truth is too (:mod:`.odometers`), and magnetometers and NavSat receivers
 (:mod:`.geo`).
 
-Laser scanners are too (:func:`laser_requests`), in two halves: at each due time the loop
-copies where the laser and every geom are (a :class:`LaserPose`, some microseconds), and the
-perception side casts the rays later against those poses, off the stepping thread and without
-the world lock (:meth:`~..lidar.LaserScanner.cast`). A scan is then never left out when the
-perception side is late (a camera being drawn, cores short), and it is stamped with its own
-due time, at any real-time factor. The poses of a due time are those the step from it
-computed (``mj_step`` brings every pose up to date for the state it starts from, then
-integrates): the loop ends its batch one step after the due time and copies them, with no
-``mj_kinematics`` of its own. Each MuJoCo call gives the GIL away and the loop waits to get
-it back; at real_time_factor 0 a laser is due hundreds of times a wall second (see
-:func:`pose_lag`).
+Laser scanners are too (:func:`laser_requests`), in two halves: at each due time the stepping
+side keeps where the world was (a :class:`LaserPose`), and the perception side casts the rays
+later against it, off the stepping thread and without the world lock
+(:meth:`~..lidar.LaserScanner.cast`). A scan is then never left out when the perception side
+is late (a camera being drawn, cores short), and it is stamped with its own due time, at any
+real-time factor. A laser's due time ends no batch of steps: a batch with one inside is
+stepped by MuJoCo's rollout, which gives the state after every step, and the pose is the
+state then (:meth:`Sampler.roll`; the perception side works out where the geoms were). Each
+MuJoCo call gives the GIL away and the loop waits to get it back, and at real_time_factor 0 a
+laser is due hundreds of times a wall second. Stepped one step at a time (a command applied
+before every step), the loop copies the poses the step from the due time computed
+(:func:`pose_lag`).
 """
 
 from collections import deque
@@ -36,6 +37,7 @@ from typing import Callable, NamedTuple, Optional
 import zlib
 
 import mujoco
+from mujoco import rollout
 import numpy as np
 
 from . import geo, odometers
@@ -125,6 +127,9 @@ class LaserPose(NamedTuple):
     xipos: np.ndarray  # (nbody, 3)
     ximat: np.ndarray  # (nbody, 9)
     flexvert_xpos: np.ndarray  # (nflexvert, 3)
+    #: Or, for a pose taken within a batch stepped by rollout (:meth:`Sampler.roll`): the
+    #: state then (mjSTATE_FULLPHYSICS), the rest above None, worked out where it is cast.
+    state: Optional[np.ndarray] = None
 
 
 class _Laser:
@@ -213,12 +218,13 @@ class Sampler:
     def __bool__(self) -> bool:
         return bool(self._all)
 
-    def next_due(self, now: float, lag: float = 0.0) -> float:
+    def next_due(self, now: float, lag: float = 0.0, rolled: bool = False) -> float:
         """
         Return the earliest simulated time at or after `now` a sample is due.
 
         :param lag: :func:`pose_lag` of the model: a laser's poses of its due time are in the
             data one step later, and that is when it is due here.
+        :param rolled: the lasers' due times end no batch: :meth:`roll` takes them within.
         """
         if now < self._last:  # a reset: every schedule starts over
             for e in self._all:
@@ -228,15 +234,54 @@ class Sampler:
             if math.isnan(e.next):
                 e.next = now
         due = min((e.next for e in self._timed), default=math.inf)
-        for la in self._lasers:
+        for la in () if rolled else self._lasers:
             due = min(due, la.next + lag)
         return due
 
-    def collect(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    def lasers_due_by(self, end: float) -> bool:
+        """Whether a laser is due at or before simulated time `end`."""
+        return any(not end < la.next - DUE_TOLERANCE * la.period for la in self._lasers)
+
+    def roll(self, m: mujoco.MjModel, d: mujoco.MjData, k: int) -> None:
+        """
+        Step `k` times as ``mj_step`` does, taking the state at each laser's due time within.
+
+        MuJoCo's rollout steps the data and writes the state after every step, all in one
+        call that gives the GIL away once: at real_time_factor 0 a laser is due hundreds of
+        times a wall second, and a batch ended at each (:func:`pose_lag`) made the loop wait
+        for the GIL back each time from whichever thread took it (the mobile scene's laser:
+        0.92x bare MuJoCo, 0.81x recording, ``make bench-bases``). With the data's own state
+        and warm start the steps are the same bit for bit. A due time between two steps
+        takes the state at the first step at or after it, stamped with that state's time,
+        as a batch ended there would.
+        """
+        full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        start = np.empty((1, mujoco.mj_stateSize(m, full)))
+        mujoco.mj_getState(m, d, start[0], full)
+        states = np.empty((1, k, start.shape[1]))
+        rollout.rollout([m], [d], start, None, nstep=k, skip_checks=True,
+                        initial_warmstart=d.qacc_warmstart.reshape(1, -1).copy(),
+                        state=states, sensordata=np.empty((1, k, m.nsensordata)))
+        t0, dt = float(start[0, 0]), float(m.opt.timestep)
+        taken = []
+        for la in self._lasers:
+            while True:
+                j = max(0, math.ceil((la.next - t0) / dt - 1e-6))
+                if j > k:
+                    break
+                row = start[0] if j == 0 else states[0, j - 1]
+                t = float(row[0])
+                taken.append(LaserPose(la.name, t, self.generation, self.resets, None, None,
+                                       None, None, None, None, None, row.copy()))
+                la.next = (math.floor(t / la.period + DUE_TOLERANCE) + 1) * la.period
+        self._poses.extend(sorted(taken, key=lambda p: p.time))
+
+    def collect(self, m: mujoco.MjModel, d: mujoco.MjData, lasers: bool = True) -> None:
         """
         Take the samples due at the data's time (after a step ended there).
 
         A schedule not started yet (or started over by a reset: time went back) is due now.
+        :param lasers: False after :meth:`roll`, which took the lasers' already.
         """
         t = float(d.time)
         if t < self._last:
@@ -288,7 +333,7 @@ class Sampler:
         # lasers take them as they are, stamped with that time, before anything below brings
         # them up to date (once for all that are due: velocities too, for the odometers).
         lag = pose_lag(m)
-        if self._lasers:
+        if self._lasers and lasers:
             before = t - lag
             due = [la for la in self._lasers
                    if not before < la.next - DUE_TOLERANCE * la.period]

@@ -144,21 +144,25 @@ class Stepping:
             self._step_each(m, d, n, sampler)
         elif control.batched or sampler:
             # stop the batch where a base's command times out or a declared sensor samples
+            # A laser's due times end no batch: the batch is stepped by rollout, which takes
+            # the state at each (Sampler.roll).
             left = n
-            lag = sampling.pose_lag(m)
             while left > 0:
                 k = left
                 due = control.batch_deadline(d.time) if control.batched else math.inf
                 if due != math.inf:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep + 1e-9)))
-                due = sampler.next_due(float(d.time), lag) if sampler else math.inf
+                due = sampler.next_due(float(d.time), rolled=True) if sampler else math.inf
                 if due != math.inf:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep - 1e-6)))
-                mujoco.mj_step(m, d, k)
+                if sampler and sampler.lasers_due_by(float(d.time) + k * m.opt.timestep):
+                    sampler.roll(m, d, k)
+                else:
+                    mujoco.mj_step(m, d, k)
                 left -= k
                 ticked = False
                 if sampler:
-                    sampler.collect(m, d)
+                    sampler.collect(m, d, lasers=False)
                     ticked = self._apply_ticks(sampler)
                 if left and ((control.batched and control.before_batch(m, d)) or ticked) \
                         and control.per_step:
