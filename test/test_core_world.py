@@ -596,6 +596,21 @@ def test_the_loops_numpy_state_copy_is_mj_getState_bit_for_bit():
     assert got.tobytes() == expected.tobytes()
 
 
+def test_a_state_part_the_data_has_no_array_for_leaves_the_copy_to_mujoco():
+    """An actuator's delay keeps a history in the state: no numpy copy, and none wrong."""
+    from sim_node.core.compiled.index import STATE_SPEC
+    from sim_node.core.compiled.state import state_copier
+    delayed = ('<mujoco><worldbody><body><joint name="j"/><geom size=".1"/></body>'
+               '</worldbody><actuator><motor joint="j" nsample="3" delay="0.01"/></actuator>'
+               '</mujoco>')
+    m = mujoco.MjModel.from_xml_string(delayed)
+    assert mujoco.mj_stateSize(m, int(mujoco.mjtState.mjSTATE_HISTORY)) > 0
+    assert state_copier(m, mujoco.MjData(m), STATE_SPEC) is None
+    w = World.from_string(delayed)
+    w.step(10)  # with mj_getState
+    assert w.get_state().step == 10
+
+
 _COASTING = """<mujoco><option gravity="0 0 0"/><worldbody><body name="slider">
   <joint name="j" type="slide" axis="1 0 0"/>
   <geom type="sphere" size=".1" mass="1" contype="0" conaffinity="0"/></body></worldbody>

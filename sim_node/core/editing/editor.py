@@ -195,7 +195,7 @@ def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str],
 
 
 def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,
-                 tolerance: float) -> Optional[tuple]:
+                 tolerance: float, forwarded: bool = False) -> Optional[tuple]:
     """
     Where entity `name`, new in `model` (whose `data` holds the state).
 
@@ -203,19 +203,35 @@ def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,
 
     Only pairs MuJoCo would make contact forces for count (geoms that can collide: contype
     and conaffinity, not excluded, not both welded to the world), since only those explode.
+
+    :param forwarded: the data's poses and contacts are already those of its state (the
+        caller ran ``mj_fwdPosition``): not again. A spawn's commit checks with the world lock
+        held, and each MuJoCo call gives the GIL away; under a storm of spawns the committing
+        thread then waited for it back, the world lock held, for up to 70 ms of the 13 ms
+        its commit took (``make bench-storm``).
     """
-    mujoco.mj_fwdPosition(model, data)
-    root = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-    new = set(range(root, model.nbody)) if root >= 0 else set()
-    for c in data.contact[:data.ncon]:
-        b1, b2 = model.geom_bodyid[c.geom[0]], model.geom_bodyid[c.geom[1]]
-        if (b1 in new) != (b2 in new) and c.dist < -tolerance:
-            other = c.geom[1] if b1 in new else c.geom[0]
-            other_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, other)
-                          or mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY,
-                                               model.geom_bodyid[other]) or 'world')
-            return other_name, float(-c.dist)
-    return None
+    if not forwarded:
+        mujoco.mj_fwdPosition(model, data)
+    try:
+        root = model.body(name).id  # an accessor: keeps the GIL, as mj_name2id does not
+    except KeyError:
+        root = -1
+    if root < 0 or not data.ncon:
+        return None
+    # All contacts at once (a world of 400 resting boxes has some 1,600, and each spawn of a
+    # group is checked): the new entity's bodies are root.. (it was attached last).
+    geoms = data.contact.geom[:data.ncon]
+    dist = data.contact.dist[:data.ncon]
+    mine = model.geom_bodyid[geoms] >= root
+    hits = np.flatnonzero((mine[:, 0] != mine[:, 1]) & (dist < -tolerance))
+    if not hits.size:
+        return None
+    first = int(hits[0])
+    other = int(geoms[first, 1] if mine[first, 0] else geoms[first, 0])
+    other_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, other)
+                  or mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY,
+                                       int(model.geom_bodyid[other])) or 'world')
+    return other_name, float(-dist[first])
 
 
 def add_child(spec: mujoco.MjSpec, parent: str, full: str, shape: str, size: list,

@@ -211,8 +211,9 @@ class Edits:
                            systems_not_run=not_run)
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
-            hit = editor.find_overlap(model, data, name,
-                                      self.live.config.interpenetration_tolerance)
+            hit = editor.find_overlap(model, data, name,  # the commit ran mj_fwdPosition
+                                      self.live.config.interpenetration_tolerance,
+                                      forwarded=True)
             if hit is not None:
                 raise InvalidPoseError(ERR_INTERPENETRATION.format(
                     name=name, other=hit[0], depth=hit[1]))

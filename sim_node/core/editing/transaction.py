@@ -198,7 +198,11 @@ class Transaction:
             index, matching, data = prepared
             transfer.carry(matching, live.data, data)
         if check is not None:
-            mujoco.mj_forward(model, data)  # the check sees the new world's poses
+            # The checks see the new world's poses and contacts, all they read: the position
+            # stage once for them all (a group of spawns checks each), not mj_forward, which
+            # the switch runs anyway once the commands are bound. Each MuJoCo call gives the
+            # GIL away, and the world lock is held (see editor.find_overlap).
+            mujoco.mj_fwdPosition(model, data)
             check(model, data, nxt.spec)
         live.switch_locked(nxt, model, data, index)
 
