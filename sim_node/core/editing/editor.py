@@ -195,7 +195,7 @@ def remove(spec: mujoco.MjSpec, name: str, frame: str, assets: Sequence[str],
 
 
 def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,
-                 tolerance: float, forwarded: bool = False) -> Optional[tuple]:
+                 tolerance: float) -> Optional[tuple]:
     """
     Where entity `name`, new in `model` (whose `data` holds the state).
 
@@ -204,14 +204,12 @@ def find_overlap(model: mujoco.MjModel, data: mujoco.MjData, name: str,
     Only pairs MuJoCo would make contact forces for count (geoms that can collide: contype
     and conaffinity, not excluded, not both welded to the world), since only those explode.
 
-    :param forwarded: the data's poses and contacts are already those of its state (the
-        caller ran ``mj_fwdPosition``): not again. A spawn's commit checks with the world lock
-        held, and each MuJoCo call gives the GIL away; under a storm of spawns the committing
-        thread then waited for it back, the world lock held, for up to 70 ms of the 13 ms
-        its commit took (``make bench-storm``).
+    The data's poses and contacts must be computed (``mj_fwdPosition`` or more): the caller
+    computes them once for all it checks (a group of spawns). A spawn's commit
+    checks with the world lock held, and each MuJoCo call gives the GIL away; under a storm
+    of spawns the committing thread then waited for it back, the world lock held, for up to
+    70 ms of a commit whose own work was 13 ms (``make bench-storm``).
     """
-    if not forwarded:
-        mujoco.mj_fwdPosition(model, data)
     try:
         root = model.body(name).id  # an accessor: keeps the GIL, as mj_name2id does not
     except KeyError:

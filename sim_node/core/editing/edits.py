@@ -212,8 +212,7 @@ class Edits:
 
         def check(model: mujoco.MjModel, data: mujoco.MjData, keep: mujoco.MjSpec) -> None:
             hit = editor.find_overlap(model, data, name,  # the commit ran mj_fwdPosition
-                                      self.live.config.interpenetration_tolerance,
-                                      forwarded=True)
+                                      self.live.config.interpenetration_tolerance)
             if hit is not None:
                 raise InvalidPoseError(ERR_INTERPENETRATION.format(
                     name=name, other=hit[0], depth=hit[1]))

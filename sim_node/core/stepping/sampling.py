@@ -218,13 +218,11 @@ class Sampler:
     def __bool__(self) -> bool:
         return bool(self._all)
 
-    def next_due(self, now: float, lag: float = 0.0, rolled: bool = False) -> float:
+    def next_due(self, now: float) -> float:
         """
         Return the earliest simulated time at or after `now` a sample is due.
 
-        :param lag: :func:`pose_lag` of the model: a laser's poses of its due time are in the
-            data one step later, and that is when it is due here.
-        :param rolled: the lasers' due times end no batch: :meth:`roll` takes them within.
+        A laser's due time is not one: it ends no batch, :meth:`roll` takes it within.
         """
         if now < self._last:  # a reset: every schedule starts over
             for e in self._all:
@@ -233,10 +231,7 @@ class Sampler:
         for e in self._all:
             if math.isnan(e.next):
                 e.next = now
-        due = min((e.next for e in self._timed), default=math.inf)
-        for la in () if rolled else self._lasers:
-            due = min(due, la.next + lag)
-        return due
+        return min((e.next for e in self._timed), default=math.inf)
 
     def lasers_due_by(self, end: float) -> bool:
         """Whether a laser is due at or before simulated time `end`."""
@@ -332,8 +327,8 @@ class Sampler:
         # After a step, the data's poses are those of the state before it (pose_lag): the
         # lasers take them as they are, stamped with that time, before anything below brings
         # them up to date (once for all that are due: velocities too, for the odometers).
-        lag = pose_lag(m)
         if self._lasers and lasers:
+            lag = pose_lag(m)
             before = t - lag
             due = [la for la in self._lasers
                    if not before < la.next - DUE_TOLERANCE * la.period]

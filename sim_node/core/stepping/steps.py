@@ -152,7 +152,7 @@ class Stepping:
                 due = control.batch_deadline(d.time) if control.batched else math.inf
                 if due != math.inf:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep + 1e-9)))
-                due = sampler.next_due(float(d.time), rolled=True) if sampler else math.inf
+                due = sampler.next_due(float(d.time)) if sampler else math.inf
                 if due != math.inf:
                     k = min(k, max(1, math.ceil((due - d.time) / m.opt.timestep - 1e-6)))
                 if sampler and sampler.lasers_due_by(float(d.time) + k * m.opt.timestep):
