@@ -97,6 +97,19 @@ def test_sigterm_during_a_long_spawn_ends_the_node_cleanly(start_node, client, t
     assert 'Traceback' not in node.output()
 
 
+def test_a_crash_in_native_code_prints_where_each_thread_was(start_node, watcher):
+    """A segmentation fault (MuJoCo, the middleware, OpenGL) leaves the threads' stacks."""
+    import signal
+    node = start_node(namespace='/crasher')
+    wait_for(lambda: (watcher.latest_clock() or 0) > 0.2, timeout=20)
+    node.proc.send_signal(signal.SIGSEGV)  # as a fault in native code would raise it
+    assert node.proc.wait(10) == -signal.SIGSEGV
+    out = node.output()
+    assert 'Fatal Python error: Segmentation fault' in out, out
+    # the stepping thread's stack is among them
+    assert 'sim_node/core/loop.py' in out, out
+
+
 def _ignore(call) -> None:
     try:
         call()

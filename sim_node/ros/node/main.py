@@ -1,8 +1,10 @@
 """Entry point of `ros2 run sim node`: start the node and its loop; stop cleanly on SIGINT."""
 
+import faulthandler
 import os
 import sys
 import threading
+import time
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -20,9 +22,21 @@ from ...core.models import asset_store
 #: Python per callback. With both mobile bases of the mobile scene driven, the loop stepped at
 #: 55,000-82,000 steps/s with the default and 81,000-85,000 with this (``make bench-bases``).
 SWITCH_INTERVAL_SEC = 0.001
+#: How long main waits, after the node's shutdown, for its threads to end (s; see
+#: :func:`_join_own_threads`).
+OWN_THREADS_SEC = 3.0
+#: The node's threads waited for at exit (by name; ``sim-listen`` and ``sim-publisher`` stand
+#: for every thread whose name begins so): those that touch ROS once started. Not the ones
+#: that live as long as the process (the replies' resender, the mesh converters' reaper), nor
+#: a spawn's helpers (mesh conversion, xacro), which the exit abandons with their spawn.
+ROS_THREADS = ('sim-listen', 'sim-perception', 'sim-publisher', 'sim-clock', 'sim-commands',
+               'sim-loop', 'sim-session', 'sim-viewer', 'sim-web-view', 'sim-recorder')
 
 
 def main(args=None) -> int:
+    # A crash in native code (MuJoCo, the middleware, OpenGL) prints every thread's Python
+    # stack before the process dies: a node that ends on a signal says where it was.
+    faulthandler.enable()
     middleware.configure()  # before rclpy reads the environment
     sys.setswitchinterval(SWITCH_INTERVAL_SEC)
     rclpy.init(args=args)  # returns None on Jazzy: no `with` block
@@ -53,6 +67,7 @@ def main(args=None) -> int:
         # Order matters: the loop first, then the executor, then the node.
         if node is not None:
             node.shutdown()
+            _join_own_threads(OWN_THREADS_SEC)
         if executor is not None:
             executor.shutdown(timeout_sec=0.5)
         if node is not None:
@@ -61,6 +76,21 @@ def main(args=None) -> int:
     code = code or getattr(node, 'exit_code', 0)  # 2: another simulator had this name
     _exit_if_busy(code)
     return code
+
+
+def _join_own_threads(timeout: float) -> None:
+    """
+    Wait (at most `timeout` s in all) for the node's threads to end before ROS is torn down.
+
+    Each was told to stop by the node's shutdown, and joined there for a while; one that was
+    still in a listener's hook (publishers and servers of a new model) or a first render when
+    that wait ran out would otherwise meet its node or the middleware destroyed under it
+    (:data:`ROS_THREADS`). One still alive at the end is left to the exit.
+    """
+    end = time.monotonic() + timeout
+    for thread in threading.enumerate():
+        if thread is not threading.current_thread() and thread.name.startswith(ROS_THREADS):
+            thread.join(max(0.0, end - time.monotonic()))
 
 
 def _exit_if_busy(code: int) -> None:

@@ -92,6 +92,11 @@ class SimNode(Node):
         self.web_view: Optional[web.WebView] = None
         self.session = Session()
         self.exit_code = 0  # main's exit status; 2 when another simulator had this name
+        # One shutdown: QUITTING's, then main's. The first caller claims it (a leaf lock,
+        # held only to claim); a later one waits until it is done.
+        self._shutdown_claim = threading.Lock()
+        self._shutdown_claimed = False
+        self._shut_down = threading.Event()
         self._events = MutuallyExclusiveCallbackGroup()
         self.status = Status(self, self.session)
         self.perception = Perception(
@@ -266,7 +271,23 @@ class SimNode(Node):
             node.destroy_node()
 
     def shutdown(self) -> None:
-        """Stop the loop, the session's thread and the publishers (before the executor)."""
+        """
+        Stop the loop, the session's thread and the publishers (before the executor).
+
+        Once: QUITTING (and a second simulator's exit) stop the node from a thread of their
+        own, then main calls it again; that call waits for the first and does nothing more.
+        """
+        with self._shutdown_claim:
+            first, self._shutdown_claimed = not self._shutdown_claimed, True
+        if not first:
+            self._shut_down.wait()
+            return
+        try:
+            self._shutdown_once()
+        finally:
+            self._shut_down.set()
+
+    def _shutdown_once(self) -> None:
         for view in (self.window, self.web_view):
             if view is not None:
                 view.close()

@@ -115,9 +115,9 @@ class Perception:
         # Held while images and scans are checked against the world's resets and published:
         # settle() waits for it, so a reset's reply comes after whatever was checked before it.
         self._publishing = threading.Lock()
-        self.scans = Scans(node, config, frame_prefix, self._create_publisher, self._publishing,
-                           self._resets)
         self._running = threading.Event()
+        self.scans = Scans(node, config, frame_prefix, self._create_publisher, self._publishing,
+                           self._resets, self._running)
         self._thread: Optional[threading.Thread] = None
         self._cameras_failed = ''
 
@@ -129,7 +129,17 @@ class Perception:
         self._thread.start()
 
     def stop(self) -> None:
+        """
+        Stop the thread; from then on it makes, destroys and publishes nothing.
+
+        A first render under load (the process's first GL context, Mesa's shaders) can outlast
+        the join: the thread then goes on drawing, but every step of it that touches ROS is
+        taken under ``_publishing`` and only while running, so once this returns nothing of
+        it meets the node or the middleware being torn down.
+        """
         self._running.clear()
+        with self._publishing:  # a publication under way ends; none begins after
+            pass
         if self._thread is not None:
             self._thread.join(2.0)
             self._thread = None
@@ -366,8 +376,11 @@ class Perception:
             return
         st.seen = seq
         if snap.info.generation != st.generation:
+            with self._publishing:
+                if not self._running.is_set():
+                    return
+                st.cams, st.sites = self._sync_device_publishers(snap.info)
             st.generation = snap.info.generation
-            st.cams, st.sites = self._sync_device_publishers(snap.info)
             declared = {n: d for n, d in snap.info.lasers.items() if n in st.sites}
             st.sweeps = {n: sweep_of(d, self.scans.laser_config) for n, d in declared.items()}
             st.scan_rates = {n: d.rate_hz for n, d in declared.items() if d.rate_hz}
@@ -455,6 +468,8 @@ class Perception:
     def _publish_checked(self, frames: list, info: Optional[ModelInfo]) -> None:
         """Publish the frames still of the world's model and timeline (under _publishing)."""
         resets = self._resets()
+        if not self._running.is_set():
+            return  # stopped (see stop)
         for f in frames:
             pubs = self._camera_pubs.get(f.camera.name)
             if pubs is None or info is None or info.generation != f.generation:

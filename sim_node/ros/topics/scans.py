@@ -31,11 +31,13 @@ class Scans:
     :param publishing: held while scans are checked against the world's resets and published
         (the perception's, shared with its cameras: see ``Perception.settle``).
     :param resets: the world's resets of state so far, read without the world lock.
+    :param running: the perception's; cleared, no scan is published any more (checked under
+        `publishing`: ``Perception.stop``).
     """
 
     def __init__(self, node: Node, config: PerceptionConfig, frame_prefix: str,
                  create_publisher: Callable, publishing: threading.Lock,
-                 resets: Callable[[], int]):
+                 resets: Callable[[], int], running: threading.Event):
         self._node = node
         self.config = config
         self.laser_config = LaserConfig(
@@ -46,6 +48,7 @@ class Scans:
         self._create_publisher = create_publisher
         self._publishing = publishing
         self._resets = resets
+        self._running = running
         self.pubs: dict = {}  # site name -> publisher
         self._decl: dict = {}  # site name -> its DeclaredLaser (None: the node's)
 
@@ -94,6 +97,8 @@ class Scans:
         readings = st.scanner.cast(poses, st.sweeps, resets)
         info = info_now()
         with self._publishing:
+            if not self._running.is_set():
+                return  # perception stopped: the node may be going (Perception.stop)
             if self._resets() != resets or info is None:
                 return  # a reset came while the rays were cast: those are of a past time
             for reading in readings:
