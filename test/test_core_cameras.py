@@ -428,3 +428,33 @@ def test_uploading_a_spawned_meshs_graphics_lets_every_other_thread_run(tmp_path
     assert held < 0.05, f'held up {held * 1000:.0f} ms of a {spent * 1000:.0f} ms capture'
     assert frames[0].rgb.shape == ((96, 128, 3) if grow else (48, 64, 3))
     assert (frames[0].rgb != frames[0].rgb[0, 0]).any()  # drawn
+
+
+def test_the_processs_first_camera_lets_every_other_thread_run():
+    """
+    A node's first camera holds no other thread up while its GL context is made.
+
+    The bindings hold the GIL while they make a context; the process's first was made by
+    them (to raise what MuJoCo finds wrong) and held every thread of a starting node (the
+    stepping loop, /clock, the services) 262 ms for the default scene's 640-pixel camera, and
+    490 ms at 2048. A fresh process (the first context is once per process) with a thread
+    ticking every millisecond: never held up 50 ms while a 2048-pixel renderer takes the
+    default scene. (Starting the GL backend, before, loads its libraries once per process, with
+    the GIL held by the loader: 30 to 80 ms here.)
+    """
+    code = '\n'.join([
+        'import sys, time; sys.path.insert(0, "test")',
+        'import mujoco',
+        'from conftest import Ticker',
+        'from sim_node.core.devices.rendering import Renderer',
+        'model = mujoco.MjModel.from_xml_path("scenes/default.xml")',
+        'renderer = Renderer(2048, 2048)',
+        'with Ticker() as ticker:',
+        '    renderer.use_model(model)',
+        'renderer.close()',
+        'print(ticker.held, ticker.spent)'])
+    out = _python(code)
+    assert out.returncode == 0, out.stderr
+    held, spent = map(float, out.stdout.split()[-2:])
+    assert spent > 0.1  # the context is long enough to matter
+    assert held < 0.05, f'held up {held * 1000:.0f} ms of {spent * 1000:.0f} ms'
