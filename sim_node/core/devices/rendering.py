@@ -254,7 +254,7 @@ class Renderer:
         if self._con is not None and same_gl_assets(self._model, model):
             # Making a context takes 75 ms of this thread (the default scene, Mesa); made by
             # the bindings it held the GIL, and with it every other thread (the stepping loop:
-            # a stalled /clock at every spawn), as the process's first one still does.
+            # a stalled /clock at every spawn); only the process's probe is made so now.
             # What it uploads did not change; only the numbers it copies from the model may.
             _copy_visual_settings(model, self._con)
             self._model = model

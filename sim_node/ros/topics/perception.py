@@ -132,7 +132,7 @@ class Perception:
         """
         Stop the thread; from then on it makes, destroys and publishes nothing.
 
-        A first render under load (the process's first GL context, Mesa's shaders) can outlast
+        A first render under load (a large camera's context, Mesa's shaders) can outlast
         the join: the thread then goes on drawing, but every step of it that touches ROS is
         taken under ``_publishing`` and only while running, so once this returns nothing of
         it meets the node or the middleware being torn down.
