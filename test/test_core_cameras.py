@@ -438,9 +438,12 @@ def test_the_processs_first_camera_lets_every_other_thread_run():
     them (to raise what MuJoCo finds wrong) and held every thread of a starting node (the
     stepping loop, /clock, the services) 262 ms for the default scene's 640-pixel camera, and
     490 ms at 2048. A fresh process (the first context is once per process) with a thread
-    ticking every millisecond: never held up 50 ms while a 2048-pixel renderer takes the
-    default scene. (Starting the GL backend, before, loads its libraries once per process, with
-    the GIL held by the loader: 30 to 80 ms here.)
+    ticking every millisecond while a 2048-pixel renderer takes the default scene: held up for
+    less than a quarter of the time the context takes (with the bindings it was held all of
+    it, 766 of 765 ms; with the probe about 10 of 700 ms). A ratio, not a wall-clock bound, so
+    that a busy machine, which slows the ticks and the context alike, does not decide it; the
+    figures are in docs/benchmarks.md. (Starting the GL backend, before, loads its libraries
+    once per process, with the GIL held by the loader: 30 to 80 ms here.)
     """
     code = '\n'.join([
         'import sys, time; sys.path.insert(0, "test")',
@@ -457,4 +460,4 @@ def test_the_processs_first_camera_lets_every_other_thread_run():
     assert out.returncode == 0, out.stderr
     held, spent = map(float, out.stdout.split()[-2:])
     assert spent > 0.1  # the context is long enough to matter
-    assert held < 0.05, f'held up {held * 1000:.0f} ms of {spent * 1000:.0f} ms'
+    assert held < spent / 4, f'held up {held * 1000:.0f} ms of {spent * 1000:.0f} ms'
