@@ -158,10 +158,13 @@ def test_a_tracking_camera_keeps_its_target_on_the_optical_axis():
     assert tf.transforms[0].header.frame_id == 'world'
 
 
+DRONE = """<mujoco><worldbody><body name="drone" pos="0 0 10">
+  <freejoint/><geom type="box" size="0.1 0.1 0.1"/>
+  <camera name="belly" pos="0 0 -0.2"/></body></worldbody></mujoco>"""
+
+
 def test_a_camera_on_a_falling_body_is_where_its_body_is_at_the_image_time():
-    world = World.from_string("""<mujoco><worldbody><body name="drone" pos="0 0 10">
-      <freejoint/><geom type="box" size="0.1 0.1 0.1"/>
-      <camera name="belly" pos="0 0 -0.2"/></body></worldbody></mujoco>""")
+    world = World.from_string(DRONE)
     world.step(500)  # 1 s of free fall: 9.8 m/s, 2 cm a step
     (frame,) = CameraRig(world, 32, 24).capture()
     state = world.get_entity_state('drone')
@@ -461,3 +464,30 @@ def test_the_processs_first_camera_lets_every_other_thread_run():
     held, spent = map(float, out.stdout.split()[-2:])
     assert spent > 0.1  # the context is long enough to matter
     assert held < spent / 4, f'held up {held * 1000:.0f} ms of {spent * 1000:.0f} ms'
+
+
+def test_a_capture_holds_the_world_lock_for_one_copy_of_the_data():
+    # Under a storm of requests each MuJoCo call gives the GIL away and waits for it back: a
+    # capture that brought poses up to date and filled its scenes under the world lock held
+    # the stepping loop off for up to 157 ms. What it calls under the lock is watched here.
+    world = World.from_string(DRONE)
+    rig = CameraRig(world, 32, 24)
+    under_lock, seen = [], []
+
+    def watch(frame, event, func):
+        if event == 'c_call' and getattr(func, '__module__', '') == 'mujoco._functions':
+            seen.append(func.__name__)
+            if world.holds_lock():
+                under_lock.append(func.__name__)
+
+    world.step(500)  # falling 2 cm a step: a pose a step behind would show
+    sys.setprofile(watch)
+    try:
+        (frame,) = rig.capture()
+    finally:
+        sys.setprofile(None)
+    assert 'mjv_updateScene' in seen  # the watch sees MuJoCo's calls
+    assert under_lock == ['mj_copyData']
+    state = world.get_entity_state('drone')  # drawn from the copy: the state now
+    assert frame.time == state.time
+    np.testing.assert_allclose(frame.pos, state.position + [0, 0, -0.2], atol=1e-9)

@@ -1,10 +1,11 @@
 """
 Camera images of a running world: colour and depth from every selected camera, off the loop.
 
-:class:`CameraRig` fills one :class:`mujoco.MjvScene` per camera under the world lock (a copy
-of geom poses: tens of microseconds), then draws them with the lock released, so the stepping
-loop never waits for OpenGL. The renderer starts on the first capture that has a camera to
-draw: a world without cameras costs nothing. Use a rig from one thread only.
+:class:`CameraRig` copies the world's data under the world lock (one MuJoCo call: 0.1 ms with
+400 boxes), then fills one :class:`mujoco.MjvScene` per camera from the copy and draws them
+with the lock released, so the stepping loop never waits for the scenes nor for OpenGL. The
+renderer starts on the first capture that has a camera to draw: a world without cameras costs
+nothing. Use a rig from one thread only.
 
 Intrinsics are read off the frustum MuJoCo itself renders with (:func:`frustum_intrinsics`),
 so cameras given by ``sensorsize``/``focal``/``principal`` come out as right as those given by
@@ -37,6 +38,9 @@ OPTICAL_FROM_MUJOCO_WXYZ = (0.0, 1.0, 0.0, 0.0)
 
 #: Room in a scene for MuJoCo's own decorations beyond the model's geoms.
 DECOR_GEOMS = 1000
+
+#: Tries at copying the world's data for one capture when new models keep coming meanwhile.
+COPY_TRIES = 3
 
 
 def _view_option() -> mujoco.MjvOption:
@@ -125,6 +129,7 @@ class CameraRig:
         self._generation: Optional[int] = None
         self._cameras: tuple = ()
         self._scenes: list = []
+        self._data: Optional[mujoco.MjData] = None  # the world's data copied, for the scenes
         self._model: Optional[mujoco.MjModel] = None
         self._last_model: Optional[mujoco.MjModel] = None  # to upload again to a new renderer
         self._sizes: dict = {}
@@ -157,7 +162,7 @@ class CameraRig:
             cameras).
         """
         self._sizes = dict(sizes or {})
-        frames = self.world.observe(self._fill_scenes)
+        frames = self._fill_scenes()
         picked = [(f, s) for f, s in zip(frames, self._scenes)
                   if only is None or f[0].name in only]
         if not picked:
@@ -183,27 +188,35 @@ class CameraRig:
                                    resets=resets))
         return out
 
-    def _fill_scenes(self, m: mujoco.MjModel, d: mujoco.MjData, generation: int) -> list:
-        """Under the world lock: copy what each camera sees into its scene."""
-        if generation != self._generation:
-            self._generation = generation
-            # Index the live model: the published model info may lag a recompile.
-            self._cameras = select(catalog.cameras(m), self.patterns)
-            if self._cameras:
-                # The renderer uploads it outside the lock; models are replaced, never changed
-                # in place, by edits (a copy held the lock 33 ms with a humanoid spawned).
-                self._model = self._last_model = m
-                self._scenes = [_new_scene(m) for _ in self._cameras]
-                for scene in self._scenes:
-                    # The skybox is drawn as a surface some 50 m away: depth would read it as
-                    # one. Without it, nothing there reads +inf (and the sky is black).
-                    scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 0
-                    if self.shadow_size <= 0:
-                        scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-            else:
-                self._scenes = []
+    def _fill_scenes(self) -> list:
+        """
+        Copy what each camera sees into its scene: one MuJoCo call under the world lock.
+
+        Under a storm of requests every MuJoCo call gives the GIL away and waits for it back,
+        so filling the scenes under the lock (poses brought up to date, then a scene update
+        per camera) held the loop off for up to 157 ms (docs/benchmarks.md). The world's data
+        is copied instead, and the poses and scenes are worked out on the copy, holding no
+        lock; a new model's scenes and copy are made before the lock is taken.
+        """
+        for _ in range(COPY_TRIES):
+            m, generation = self.world.live_model()
+            if generation != self._generation:
+                self._new_model(m, generation)
+            if not self._cameras:
+                return []
+            copied = self.world.copy_data(m, self._data)
+            if copied is not None:
+                break
+        else:  # models came faster than a copy could be made: no frame this time
+            return []
+        generation, resets = copied
+        d = self._data
+        mujoco.mj_kinematics(m, d)  # the copy's poses were a step behind its state
+        mujoco.mj_comPos(m, d)  # cameras that track a centre of mass need it
+        if m.nflex:
+            mujoco.mj_flex(m, d)
+        mujoco.mj_camlight(m, d)
         out = []
-        resets = self.world.resets
         for cam, scene in zip(self._cameras, self._scenes):
             view = mujoco.MjvCamera()
             view.type = mujoco.mjtCamera.mjCAMERA_FIXED
@@ -216,6 +229,26 @@ class CameraRig:
                                    *self._sizes.get(cam.name, (self.width, self.height)))
             out.append((cam, float(d.time), generation, pos, q, k, resets))
         return out
+
+    def _new_model(self, m: mujoco.MjModel, generation: int) -> None:
+        """Index a new model's cameras; make their scenes and the data to copy into."""
+        self._generation = generation
+        # Index the live model: the published model info may lag a recompile.
+        self._cameras = select(catalog.cameras(m), self.patterns)
+        if not self._cameras:
+            self._scenes, self._data = [], None
+            return
+        # The renderer uploads it on its next frame; models are replaced, never changed in
+        # place, by edits (a copy held the lock 33 ms with a humanoid spawned).
+        self._model = self._last_model = m
+        self._data = mujoco.MjData(m)
+        self._scenes = [_new_scene(m) for _ in self._cameras]
+        for scene in self._scenes:
+            # The skybox is drawn as a surface some 50 m away: depth would read it as one.
+            # Without it, nothing there reads +inf (and the sky is black).
+            scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = 0
+            if self.shadow_size <= 0:
+                scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
 
     def close(self) -> None:
         """Free the renderer (call from the thread that captured)."""

@@ -211,6 +211,26 @@ class World:
             mujoco.mj_camlight(live.model, live.data)
             return read(live.model, live.data, live.index.generation)
 
+    def copy_data(self, model: mujoco.MjModel, into: mujoco.MjData) -> Optional[tuple]:
+        """
+        Copy the world's data into `into`, made for `model`; return (generation, resets).
+
+        None, copying nothing, when `model` is no longer the world's (a spawn or a delete came
+        since :meth:`live_model`). The lock is held for one MuJoCo call (0.1 ms with 400 boxes
+        resting on the floor), so a reader that works on the copy (a camera updating its
+        scenes, which takes several calls, each giving the GIL away and waiting for it back
+        under a storm of requests) never holds the loop off longer than that. The copy's
+        poses are those the data had: a step behind its state after a step (see
+        :meth:`Live.kinematics_locked <.stepping.live.Live.kinematics_locked>`), so a reader
+        works them out again on the copy.
+        """
+        live = self._live
+        with live.lock:
+            if live.model is not model:
+                return None
+            mujoco.mj_copyData(into, model, live.data)
+            return live.index.generation, live.resets
+
     def wait_new_model(self, after: int, timeout: float) -> int:
         """Block until the model generation is no longer `after` (or `timeout` s); return it."""
         return self._live.wait_new_model(after, timeout)
