@@ -25,6 +25,15 @@ SWITCH_INTERVAL_SEC = 0.001
 #: How long main waits, after the node's shutdown, for its threads to end (s; see
 #: :func:`_join_own_threads`).
 OWN_THREADS_SEC = 3.0
+#: How long destroying the node and shutting rclpy down may take before the process leaves
+#: with every thread's stack printed and exit code 1 (s). Fast DDS 2.14, as the PyPI wheels
+#: build it, deletes the node's participant by waiting, with the participant's listener
+#: mutex held, for any discovery callback in flight to end; the wait never lets the mutex
+#: go, so a callback that came just then (another process leaving) blocks on it for ever and
+#: the process spins on a core, the GIL held, until it is killed (seen with gdb in a client
+#: of ``make bench-storm``: 10 minutes in ``DomainParticipant::set_listener`` under
+#: ``rmw_destroy_node``). ``faulthandler``'s timer needs no GIL, so it still ends it.
+TEARDOWN_SEC = 10.0
 #: The node's threads waited for at exit (by name; ``sim-listen`` and ``sim-publisher`` stand
 #: for every thread whose name begins so): those that touch ROS once started. Not the ones
 #: that live as long as the process (the replies' resender, the mesh converters' reaper), nor
@@ -70,9 +79,11 @@ def main(args=None) -> int:
             _join_own_threads(OWN_THREADS_SEC)
         if executor is not None:
             executor.shutdown(timeout_sec=0.5)
+        faulthandler.dump_traceback_later(TEARDOWN_SEC, exit=True)  # see TEARDOWN_SEC
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        faulthandler.cancel_dump_traceback_later()
     code = code or getattr(node, 'exit_code', 0)  # 2: another simulator had this name
     _exit_if_busy(code)
     return code
