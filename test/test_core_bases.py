@@ -255,3 +255,38 @@ def test_the_tracking_loops_velocity_is_mujocos_own():
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, want, 0)
         assert drives.planar_velocity(m, d, body) == pytest.approx(
             (want[3], want[4], want[2]), abs=1e-12)
+
+
+#: A puck that only a Gazebo planar-move plugin makes a base: no joint of its own but the free
+#: one its spawn gives it.
+PUCK = """<robot name="puck">
+  <link name="base_link">
+    <inertial><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><cylinder radius="0.1" length="0.05"/></geometry></collision>
+  </link>
+  <gazebo><plugin name="move" filename="libgazebo_ros_planar_move.so">
+    <odometry_frame>odom</odometry_frame><robot_base_frame>base_link</robot_base_frame>
+  </plugin></gazebo>
+</robot>"""
+
+
+def test_among_many_boxes_a_base_without_hinges_is_found_by_its_plugin(world, tmp_path):
+    # Entities without hinges are passed over unless a plugin names them a base: a storm of
+    # boxes is not looked at one by one, and the plugin's base must not be passed over with
+    # them.
+    urdf = tmp_path / 'puck.urdf'
+    urdf.write_text(PUCK)
+    box = SCENES / 'objects' / 'box.xml'
+    for k in range(40):
+        world.spawn(f'box_{k}', sources.from_file(str(box), allowed_roots=[str(SCENES)]),
+                    position=(3 + 0.3 * (k % 8), -2 + 0.3 * (k // 8), 0.2))
+    world.spawn('puck', sources.from_file(str(urdf), allowed_roots=[str(tmp_path)]),
+                position=[-2.0, 1.5, 0.1])
+    world.step(200)
+    found = world.bases()
+    assert not any(name.startswith('box_') for name in found)
+    assert (found['puck'].kind, found['puck'].found_by) == (bases.PLANAR_FREE, 'gazebo plugin')
+    x0 = planar(world, 'puck')[0][0]
+    drive(world, 'puck', 0.3, 0, 0, 1.0)
+    assert planar(world, 'puck')[0][0] - x0 == pytest.approx(0.3, rel=0.2)
