@@ -11,13 +11,14 @@ The first test makes a client the middleware never matches: a reply reader askin
 transient-local durability, which the services' volatile reply writers cannot serve, while
 its volatile-compatible request still reaches them. The second is the stress of the issue:
 fresh clients asking at once, spawns and deletes, a robot's controller manager coming and
-going, /diagnostics listened to, over 1,000 calls; none may be lost.
+going, arms' trajectory servers coming and going with a goal each (its response and its
+result), /diagnostics listened to, over 1,000 calls; none may be lost.
 """
 
 import threading
 import time
 
-from conftest import NodeProcess, wait_for
+from conftest import NodeProcess, TWO_JOINT_ARM, wait_for
 import controllers_corpus as corpus
 import pytest
 
@@ -72,12 +73,18 @@ class Caller:
 
     def call(self, client, request):
         """Ask once, at once; a reply not there after LOST_AFTER_SEC is lost."""
-        self.calls += 1
         future = client.call_async(request)
+        result = self.wait(future, client.srv_name)
+        if result is None:
+            client.remove_pending_request(future)
+        return result
+
+    def wait(self, future, what: str):
+        """Count one call; return its future's result, or None if `what` never came."""
+        self.calls += 1
         self.spin_until(future.done, LOST_AFTER_SEC)
         if not future.done():
-            self.lost.append(client.srv_name)
-            client.remove_pending_request(future)
+            self.lost.append(what)
             return None
         return future.result()
 
@@ -270,6 +277,44 @@ def _managers(stop, callers: list, errors: list, folder) -> None:
     _rounds(stop, callers, errors, 'managers', one_round)
 
 
+def _trajectories(stop, callers: list, errors: list) -> None:
+    """
+    Spawn an arm, send its trajectory server a goal, wait for the result, delete the arm.
+
+    A fresh action client on a fresh server each round: the goal's response and its result
+    are two more replies that must come (two calls each round).
+    """
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionClient
+    from simulation_interfaces.srv import DeleteEntity, SpawnEntity
+    from trajectory_msgs.msg import JointTrajectoryPoint
+
+    def one_round(caller, spawn, delete, i):
+        name = f'arm_{i}'
+        request = SpawnEntity.Request(name=name, resource_string=TWO_JOINT_ARM)
+        request.initial_pose.pose.position.x = -3.0
+        request.initial_pose.pose.position.z = 1.0
+        caller.call(spawn, request)
+        client = ActionClient(caller.node, FollowJointTrajectory,
+                              f'{name}/follow_joint_trajectory')
+        try:
+            deadline = time.monotonic() + 20
+            while not client.server_is_ready():
+                assert time.monotonic() < deadline, f'{name} has no trajectory server'
+                caller.spin_until(lambda: False, 0.05)
+            goal = FollowJointTrajectory.Goal()
+            goal.trajectory.joint_names = [f'{name}/j1', f'{name}/j2']
+            goal.trajectory.points = [JointTrajectoryPoint(positions=[0.1, 0.0])]
+            goal.trajectory.points[0].time_from_start.nanosec = 200_000_000
+            handle = caller.wait(client.send_goal_async(goal), f'{name} goal response')
+            if handle is not None and handle.accepted:
+                caller.wait(handle.get_result_async(), f'{name} goal result')
+        finally:
+            client.destroy()
+        caller.call(delete, DeleteEntity.Request(entity=name))
+    _rounds(stop, callers, errors, 'trajectories', one_round)
+
+
 def test_over_a_thousand_calls_under_spawns_deletes_and_managers_none_is_lost(
         rclpy_context, tmp_path):
     node = NodeProcess(f'resource_paths:=["{tmp_path}"]')
@@ -284,7 +329,8 @@ def test_over_a_thousand_calls_under_spawns_deletes_and_managers_none_is_lost(
         threads = [threading.Thread(target=_readers, args=(stop, callers, errors, i))
                    for i in range(3)]
         threads += [threading.Thread(target=_editor, args=(stop, callers, errors)),
-                    threading.Thread(target=_managers, args=(stop, callers, errors, tmp_path))]
+                    threading.Thread(target=_managers, args=(stop, callers, errors, tmp_path)),
+                    threading.Thread(target=_trajectories, args=(stop, callers, errors))]
         for t in threads:
             t.start()
         deadline = time.monotonic() + 120
@@ -305,6 +351,9 @@ def test_over_a_thousand_calls_under_spawns_deletes_and_managers_none_is_lost(
         assert values['replies_given_up'] == '0'
         manager_calls = next(c.calls for c in callers if c.node.get_name() == 'managers')
         assert manager_calls >= 24  # two robots came and went at least
+        goals = next(c.calls for c in callers if c.node.get_name() == 'trajectories')
+        print(f'{goals} goal responses and results')
+        assert goals >= 8  # two arms came and went, each answering a goal and its result
         # /diagnostics kept coming all along: once a second, and at once with each change
         times = [t for t, _ in diagnostics.heard]
         assert max(b - a for a, b in zip(times, times[1:])) < 3.0
