@@ -22,6 +22,7 @@ import time
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / 'benchmarks'))
+from leave import leave  # noqa: E402, I100
 from verdict import summary, verdict  # noqa: E402, I100
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -75,8 +76,7 @@ def client(seconds: float, with_state: bool, namespace: str) -> None:
         next_due += period
         time.sleep(max(0.0, next_due - time.perf_counter()))
     print(json.dumps(out), flush=True)
-    c.close()
-    rclpy.shutdown()
+    leave()  # both clients leave at once: see leave.py
 
 
 def measure(seconds: float, namespace: str = NAMESPACE) -> dict:

@@ -24,6 +24,7 @@ import time
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from clocked_node import longest_still  # noqa: E402, I100
+from leave import leave  # noqa: E402, I100
 from verdict import summary, verdict  # noqa: E402, I100
 
 CLIENTS = 8
@@ -66,15 +67,7 @@ def client(k: int, go: str) -> None:
         c.delete(name)
         lat.append(time.perf_counter() - t)
     print(json.dumps(lat), flush=True)
-    # Leave without tearing the middleware down. Fast DDS 2.14 (the PyPI wheels') deletes a
-    # participant by waiting, with the participant's listener mutex held, for any discovery
-    # callback in flight to end: the wait never lets the mutex go, so a callback that came
-    # as another client left (eight leave at once here) waits for it for ever, at 100% of a
-    # core (found with gdb: a client spun 10 minutes in `DomainParticipant::set_listener`
-    # under `rmw_destroy_node`, its discovery thread blocked on that mutex). Those cores are
-    # the node's: the storm's longest /clock gaps came as the clients tore down. The node
-    # sees these participants go when their leases run out.
-    os._exit(0)
+    leave()  # the storm's clients leave at once: see leave.py
 
 
 class ClockWatch:
