@@ -70,6 +70,26 @@ def test_a_split_adds_a_file_to_the_one_bag_and_readers_read_it_whole(tmp_path):
     assert independent == times  # mcap's own reader, file by file as listed
 
 
+def test_a_writer_that_falls_behind_drops_what_its_queue_cannot_hold_and_counts_it(
+        tmp_path, monkeypatch):
+    """The sender never waits for the disk: past the queue's bound a message is dropped."""
+    from rosbags.rosbag2 import Reader
+    from sim_node.record import bag as bag_module
+    monkeypatch.setattr(bag_module, 'QUEUE_LENGTH', 50)
+    bag = tmp_path / 'behind'
+    writer = BagWriter(str(bag))
+    sent = 20_000  # far faster than a writer can write them, one after another
+    for i in range(sent):
+        writer.put('/clock', CLOCK, clock(i // 1000, (i % 1000) * 10 ** 6), i * 10 ** 6)
+    writer.close()
+    assert writer.dropped > 0
+    assert writer.written + writer.dropped == sent
+    assert metadata(bag)['message_count'] == writer.written
+    with Reader(bag) as reader:
+        times = [t for _, t, _ in reader.messages()]
+    assert len(times) == writer.written and times == sorted(set(times))  # in order, no twice
+
+
 @pytest.mark.slow  # waits for the flushes
 def test_what_was_written_a_second_ago_survives_a_kill(tmp_path):
     """The bag as kill -9 leaves it (copied while the writer still runs) reads back."""
