@@ -8,12 +8,11 @@ touches MjData: the world validates, applies and recompiles.
 
 import logging
 from typing import Optional, Sequence
-import warnings
 
 import mujoco
 import numpy as np
 
-from ..base import native, quat
+from ..base import native, quat, thread_warnings
 from ..base.errors import ResourceParseError
 from ..base.records import EntityRecord
 from ..base.surfaces import restitution_to_solref
@@ -155,12 +154,11 @@ def attach(spec: mujoco.MjSpec, name: str, source: sources.SpawnSource, pos: np.
         raise ResourceParseError(ERR_NO_BODY)  # code must do that itself
     frame = spec.worldbody.add_frame(pos=pos.tolist(), quat=quat_wxyz.tolist())
     frame.name = f'{name}/{SPAWN_FRAME}'
-    with warnings.catch_warnings(record=True) as conflicts:
-        warnings.simplefilter('always')
+    with thread_warnings.caught(design.ATTACH_CONFLICT) as conflicts:  # this thread's own
         spec.attach(child, prefix=f'{name}/', frame=frame)
-    for w in conflicts:  # "Attach conflict ... keeping parent value", one per setting
+    for text in conflicts:  # "Attach conflict ... keeping parent value", one per setting
         log.info('spawning %r: the world keeps its own settings: %s', name,
-                 ' '.join(str(w.message).split()))
+                 ' '.join(text.split()))
     old_root = f'{name}/{tops[0]}'
     spec.body(old_root).name = name
     _rename_body_references(spec, old_root, name)

@@ -19,11 +19,11 @@ import logging
 import time
 from types import MappingProxyType
 from typing import Any, Callable, Mapping, NamedTuple, Optional, Sequence, Tuple
-import warnings
 
 import mujoco
 import numpy as np
 
+from ..base import thread_warnings
 from ..base.errors import ResourceParseError
 from ..models import asset_store
 
@@ -35,6 +35,9 @@ log = logging.getLogger(__name__)
 OWN_CONTACT_PRIORITY = 1
 
 ERR_COMPILE = 'the model does not compile: {err}'
+#: How MuJoCo's warning of a setting an attached part has other than the world begins: the world
+#: keeps its own (MuJoCo's attach policy 'warning').
+ATTACH_CONFLICT = 'Attach conflict'
 #: Compact the spec (:meth:`Design.compacted`) after this many spawned entities were removed.
 COMPACT_AFTER_REMOVALS = 32
 #: ... or once the removed entities' meshes held this much of the model: the spec keeps every
@@ -284,14 +287,14 @@ class Design:
         trial.compiler.usethread = False
         keep = trial.copy()  # uncompiled: cheap to copy for the next edit
         cached = asset_store.mesh_cache_bytes()
-        with warnings.catch_warnings(record=True) as conflicts:
-            warnings.simplefilter('always')
+        # This thread's own: the services' threads warn meanwhile too (thread_warnings).
+        with thread_warnings.caught(ATTACH_CONFLICT) as conflicts:
             try:
                 model = trial.compile()
             except ValueError as exc:
                 raise ResourceParseError(ERR_COMPILE.format(err=exc)) from None
-        for w in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
-            log.info('the world keeps its own settings: %s', ' '.join(str(w.message).split()))
+        for text in conflicts:  # "Attach conflict ... keeping parent value": the documented rule
+            log.info('the world keeps its own settings: %s', ' '.join(text.split()))
         nxt = replace(self, spec=keep, baked=_bake_textures(keep, model, self.baked))
         if edit.redesign is not None:
             nxt = edit.redesign(nxt, applied)
