@@ -7,19 +7,27 @@ waits in vain (`sim_node.ros.settings.replies`). The node keeps such a reply and
 again until the client can hear it, the client is gone, or the bound passes; what it gave up
 is on /diagnostics and in its log.
 
-The first test makes a client the middleware never matches: a reply reader asking for
+The first tests make a client the middleware never matches: a reply reader asking for
 transient-local durability, which the services' volatile reply writers cannot serve, while
-its volatile-compatible request still reaches them. The second is the stress of the issue:
+its volatile-compatible request still reaches them. The last is the stress of the issue:
 fresh clients asking at once, spawns and deletes, a robot's controller manager coming and
 going, arms' trajectory servers coming and going with a goal each (its response and its
-result), /diagnostics listened to, over 1,000 calls; none may be lost.
+result), /diagnostics listened to, over 1,000 calls; none may be lost. Its discovery loses
+announcements (`lossy_discovery`), which is what lost replies: without it no stress here made
+the middleware fail a single reply (thousands of calls, with both cores kept busy). With it the
+node's resender sends some replies again each run, 0.1 to 1.8 s after they failed, and it
+found two more losses of the node's own: actions' replies went unsent again (now they are,
+`ResendingActionServer`), and a spawn's compile took the services' failure warnings on another
+thread (`sim_node.core.base.thread_warnings`).
 """
 
+import os
 import threading
 import time
 
 from conftest import NodeProcess, TWO_JOINT_ARM, wait_for
 import controllers_corpus as corpus
+import lossy_discovery
 import pytest
 
 pytestmark = pytest.mark.slow
@@ -27,6 +35,16 @@ pytestmark = pytest.mark.slow
 #: How long a call may go unanswered before it counts as lost (s): the node answers these in
 #: milliseconds, and re-sent replies go out within a second of the client's match.
 LOST_AFTER_SEC = 10.0
+#: Calls of the stress that may be asked again. Under lossy discovery a fresh client's first
+#: request is now and then lost before it reaches the node: the node matched the client's
+#: request writer only after it wrote the request, and Fast DDS's volatile reader takes what
+#: its writer wrote before they were matched for history it must not deliver (the gap of
+#: Fast-DDS issue 2641; seen here as no reply ever tried, once in about four runs, most often a
+#: fresh robot's first list_controllers). Only the client can mend that, by asking again
+#: (SimClient does, for reads). The node's own losses are many more: a node without its
+#: resender had 6 calls of 1,288 asked again (and lost 23 and 36 in two runs of 150 s), and one
+#: whose spawn's compile took the services' warnings (thread_warnings) lost one or two a run.
+ASKED_AGAIN_AT_MOST = 2
 
 
 class Diagnostics:
@@ -47,7 +65,7 @@ class Diagnostics:
 
 
 class Caller:
-    """A node of its own, spun by whoever calls: raw rclpy clients, no retries."""
+    """A node of its own, spun by whoever calls: raw rclpy clients, one retry (`ask`)."""
 
     def __init__(self, name: str):
         import rclpy
@@ -57,6 +75,7 @@ class Caller:
         self.executor.add_node(self.node)
         self.calls = 0
         self.lost: list = []
+        self.asked_again: list = []
 
     def client(self, srv_type, name: str, qos=None):
         from sim_node.ros.settings.qos import SERVICE_QOS
@@ -72,21 +91,28 @@ class Caller:
             self.executor.spin_once(timeout_sec=0.05)
 
     def call(self, client, request):
-        """Ask once, at once; a reply not there after LOST_AFTER_SEC is lost."""
-        future = client.call_async(request)
-        result = self.wait(future, client.srv_name)
-        if result is None:
-            client.remove_pending_request(future)
-        return result
+        """Ask at once; see `ask`."""
+        return self.ask(lambda: client.call_async(request), client.srv_name,
+                        client.remove_pending_request)
 
-    def wait(self, future, what: str):
-        """Count one call; return its future's result, or None if `what` never came."""
+    def ask(self, send, what: str, forget=lambda future: None):
+        """
+        Send (`send()` returns a future) and count one call; return its result, or None if lost.
+
+        A call not answered after LOST_AFTER_SEC is asked once more, and lost only if that is
+        not answered either: a first request of a fresh client can be lost before it reaches
+        the node (ASKED_AGAIN_AT_MOST says why), which the node cannot see nor answer. What was
+        asked again is kept in `asked_again`.
+        """
         self.calls += 1
-        self.spin_until(future.done, LOST_AFTER_SEC)
-        if not future.done():
-            self.lost.append(what)
-            return None
-        return future.result()
+        for attempt in range(2):
+            future = send()
+            self.spin_until(future.done, LOST_AFTER_SEC)
+            if future.done():
+                return future.result()
+            forget(future)
+            (self.asked_again if attempt == 0 else self.lost).append(what)
+        return None
 
     def close(self) -> None:
         self.executor.shutdown()
@@ -206,6 +232,68 @@ def test_a_reply_nobody_hears_is_tried_again_a_bounded_few_times(rclpy_context):
         node.destroy_node()
 
 
+def test_an_action_servers_goal_response_no_client_can_hear_is_kept_and_sent_again(
+        rclpy_context):
+    """
+    A goal's response goes through the resender, as a service's reply does.
+
+    A trajectory server and two action clients in this process: one whose goal service's reply
+    reader the server's volatile writer can never match (transient-local), one that hears. The
+    deaf client's goal response is kept while the other's goal is answered; when the deaf client
+    goes, the middleware takes the kept response as done (sent again, nothing given up).
+    """
+    import rclpy
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionClient
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from sim_node.ros.commands.trajectories import LeavableActionServer
+    from sim_node.ros.settings import replies
+
+    def execute(goal_handle):
+        goal_handle.succeed()
+        return FollowJointTrajectory.Result()
+    node = rclpy.create_node('replies_action_server')
+    server = LeavableActionServer(node, FollowJointTrajectory, 'replies_probe', execute)
+    caller = Caller('replies_action_clients')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    resender = replies.resender()
+    before = (resender.sent_again, resender.given_up)
+
+    def spin(done, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while not done() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+            caller.executor.spin_once(timeout_sec=0.02)
+    try:
+        deaf = ActionClient(caller.node, FollowJointTrajectory, 'replies_probe',
+                            goal_service_qos_profile=QoSProfile(
+                                depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        hearing = ActionClient(caller.node, FollowJointTrajectory, 'replies_probe')
+        spin(lambda: False, 2.0)  # discovered both ways
+        unheard = deaf.send_goal_async(FollowJointTrajectory.Goal())
+        spin(lambda: resender.waiting == 1, 5)
+        assert resender.waiting == 1  # the deaf client's goal response, kept
+        heard = hearing.send_goal_async(FollowJointTrajectory.Goal())
+        spin(heard.done, 5)
+        assert heard.done() and heard.result().accepted
+        result = heard.result().get_result_async()
+        spin(result.done, 5)
+        assert result.done()
+        assert not unheard.done()
+        deaf.destroy()  # the deaf client goes: the kept response is let go
+        spin(lambda: resender.waiting == 0, replies.GIVE_UP_SEC / 2)
+        assert resender.waiting == 0
+        assert (resender.sent_again - before[0], resender.given_up - before[1]) == (1, 0)
+    finally:
+        hearing.destroy()
+        server.destroy()
+        caller.close()
+        executor.shutdown()
+        node.destroy_node()
+
+
 def _readers(stop, callers: list, errors: list, index: int) -> None:
     """Fresh clients asking at once, with no settling: the race the middleware loses."""
     from simulation_interfaces.srv import GetEntities, GetEntityState, GetSimulationState
@@ -306,26 +394,29 @@ def _trajectories(stop, callers: list, errors: list) -> None:
             goal.trajectory.joint_names = [f'{name}/j1', f'{name}/j2']
             goal.trajectory.points = [JointTrajectoryPoint(positions=[0.1, 0.0])]
             goal.trajectory.points[0].time_from_start.nanosec = 200_000_000
-            handle = caller.wait(client.send_goal_async(goal), f'{name} goal response')
+            handle = caller.ask(lambda: client.send_goal_async(goal), f'{name} goal response')
             if handle is not None and handle.accepted:
-                caller.wait(handle.get_result_async(), f'{name} goal result')
+                caller.ask(handle.get_result_async, f'{name} goal result')
         finally:
             client.destroy()
         caller.call(delete, DeleteEntity.Request(entity=name))
     _rounds(stop, callers, errors, 'trajectories', one_round)
 
 
-def test_over_a_thousand_calls_under_spawns_deletes_and_managers_none_is_lost(
+def test_over_a_thousand_calls_under_spawns_deletes_managers_and_lossy_discovery_none_is_lost(
         rclpy_context, tmp_path):
     node = NodeProcess(f'resource_paths:=["{tmp_path}"]')
     listener = Caller('diagnostics_listener')
     stop, callers, errors = threading.Event(), [], []
+    flood = None
     try:
         diagnostics = Diagnostics(listener.node)
         listener.spin_until(lambda: diagnostics.heard, 20)
         from simulation_interfaces.srv import SpawnEntity
         listener.call(listener.client(SpawnEntity, 'spawn_entity'),
                       SpawnEntity.Request(name='box', uri='box'))
+        port = lossy_discovery.discovery_port(node.proc.pid, int(os.environ['ROS_DOMAIN_ID']))
+        flood = lossy_discovery.Flood(tmp_path / 'flood.stop', node.proc.pid, port)
         threads = [threading.Thread(target=_readers, args=(stop, callers, errors, i))
                    for i in range(3)]
         threads += [threading.Thread(target=_editor, args=(stop, callers, errors)),
@@ -333,33 +424,48 @@ def test_over_a_thousand_calls_under_spawns_deletes_and_managers_none_is_lost(
                     threading.Thread(target=_trajectories, args=(stop, callers, errors))]
         for t in threads:
             t.start()
-        deadline = time.monotonic() + 120
-        while sum(c.calls for c in callers) < 1200 and time.monotonic() < deadline \
-                and not errors:
+
+        def sent_again() -> int:
+            return int(diagnostics.latest().get('replies_sent_again', '0'))
+        # Until the calls are made and the lossy discovery made one reply wait for its client.
+        deadline = time.monotonic() + 150
+        while (sum(c.calls for c in callers) < 1200
+               or (sent_again() < 1 and not any(c.asked_again for c in callers))) \
+                and time.monotonic() < deadline and not errors:
             listener.spin_until(lambda: False, 0.5)
         stop.set()
         for t in threads:
-            t.join(LOST_AFTER_SEC + 20)
+            t.join(2 * LOST_AFTER_SEC + 20)
+        flooded = flood.stop()
         listener.spin_until(lambda: False, 1.5)  # the next once-a-second report
         assert not errors, errors
         calls = sum(c.calls for c in callers)
         lost = [name for c in callers for name in c.lost]
+        again = [name for c in callers for name in c.asked_again]
         values = diagnostics.latest()
-        print(f'{calls} calls, {len(lost)} lost; the node sent {values["replies_sent_again"]} '
-              f'replies again and gave up {values["replies_given_up"]}')
+        print(f'{calls} calls, {len(again)} asked again {again}, {len(lost)} lost; the node '
+              f'sent {values["replies_sent_again"]} replies again and gave up '
+              f'{values["replies_given_up"]}; its discovery port dropped {flooded["dropped"]} '
+              f'of {flooded["sent"]} junk datagrams and the announcements among them')
         assert calls >= 1000 and not lost, lost
+        assert len(again) <= ASKED_AGAIN_AT_MOST, again
         assert values['replies_given_up'] == '0'
+        # The race happened, and its reply came: else this run did not test the fix.
+        assert sent_again() >= 1, f'no reply had to wait for its client: {flooded}'
         manager_calls = next(c.calls for c in callers if c.node.get_name() == 'managers')
         assert manager_calls >= 24  # two robots came and went at least
         # Four calls a round: the spawn, the goal's response, its result and the delete.
         arm_calls = next(c.calls for c in callers if c.node.get_name() == 'trajectories')
         print(f"{arm_calls} calls of the arms' rounds ({arm_calls // 4} goals)")
         assert arm_calls >= 8  # two arms came and went, each answering a goal and its result
-        # /diagnostics kept coming all along: once a second, and at once with each change
+        # /diagnostics kept coming all along: once a second, and at once with each change.
+        # Heard here up to 3.6 s apart while the flood took one of two cores (3.0 s before it).
         times = [t for t, _ in diagnostics.heard]
-        assert max(b - a for a, b in zip(times, times[1:])) < 3.0
+        assert max(b - a for a, b in zip(times, times[1:])) < 5.0
     finally:
         stop.set()
+        if flood is not None:
+            flood.kill()
         for c in callers:
             c.close()
         listener.close()

@@ -21,12 +21,13 @@ from control_msgs.msg import JointTrajectoryControllerState
 from msg_adapters import convert
 from msg_adapters.perception import interface_base
 from rclpy._rclpy_pybind11 import RCLError
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import CancelResponse, GoalResponse
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import InvalidHandle
 from rclpy.waitable import NumberOfEntities
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from ..settings import replies
 from ...core.base.errors import SimError
 from ...core.base.records import ModelInfo, Snapshot
 from ...core.control import trajectory
@@ -36,9 +37,11 @@ ERR_MULTI_DOF = 'multi-DOF trajectories are not supported: send joint trajectori
 ERR_GONE = 'entity {entity!r} is not in the world (any more)'
 
 
-class LeavableActionServer(ActionServer):
+class LeavableActionServer(replies.ResendingActionServer):
     """
     An action server that may be destroyed while an executor waits on the node.
+
+    Its replies go through the resender (`sim_node.ros.settings.replies`).
 
     rclpy's executor keeps a waitable whose context it could not enter in its list and still
     adds it to the wait set and asks it whether it is ready: for a destroyed server that raised

@@ -13,7 +13,7 @@ import traceback
 from typing import Callable
 
 from msg_adapters import convert
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from simulation_interfaces import srv as si_srv
@@ -110,7 +110,7 @@ class Services:
             # a reply the middleware could not send at once is sent again (replies)
             replies.deliver(node.create_service(srv_type, name, self._guard(srv_type, handler),
                                                 qos_profile=SERVICE_QOS, callback_group=group))
-        self.action = ActionServer(
+        self.action = replies.ResendingActionServer(
             node, SimulateSteps, 'simulate_steps', execute_callback=self._simulate,
             goal_callback=lambda goal: GoalResponse.ACCEPT,
             cancel_callback=lambda handle: CancelResponse.ACCEPT, callback_group=group,

@@ -23,23 +23,31 @@ still kept are counted on /diagnostics (``replies_sent_again``, ``replies_given_
 ``replies_waiting``) and each reply given up is logged with its service: a call that hangs
 says why.
 
-Action servers are not covered: rclpy's raises RCLError on the same timeout inside its own
-coroutines (logged "Failed to send goal response") where no caller can catch it.
+Action servers' three replies (a goal's response, a cancel's, a result) fail alike, with the
+same warning, inside rclpy's own coroutines, which send them through the server's handle. A
+:class:`ResendingActionServer` has its handle made of a subclass whose three sends go through
+the resender (see :func:`_resending_handles`: the handle is a pybind object whose class cannot
+be changed once it is made).
 
-The warning is caught where it is raised, on the sending thread only (a thread-local flag read
-by a ``warnings.showwarning`` hook): no other thread's warnings are touched, and the warnings
-filters are not changed while the node runs (one filter, set once, lets every such warning
-through, where Python's default shows only the first of each place).
+The warning is caught where it is raised, on the sending thread only
+(`sim_node.core.base.thread_warnings`): no other thread's warnings are touched. The node's own
+code catches warnings that way everywhere: a ``warnings.catch_warnings`` on another thread takes
+every thread's warnings while it lasts (a spawn's compile did: the failure went unheard, and the
+reply unsent).
 """
 
+import contextlib
 import functools
 import logging
 import threading
 import time
 from typing import Optional
-import warnings
 
+from rclpy.action import ActionServer
+from rclpy.action import server as _action_module
 from rclpy.exceptions import InvalidHandle
+
+from ...core.base import thread_warnings
 
 #: From a reply's failure to its first try again (s); each wait after is twice the one before.
 #: Each try that fails holds the GIL for the middleware's 100 ms wait (see the module).
@@ -52,39 +60,13 @@ MAX_PENDING = 256
 FAILED = 'failed to send response'
 
 _log = logging.getLogger('sim_node.replies')
-_sending = threading.local()  # .failed: the warning's text, on the thread that sends
-_hook_lock = threading.Lock()
-_hook_installed = False
-
-
-def _install_hook() -> None:
-    """Catch rclpy's warning where a reply is sent (see the module); once per process."""
-    global _hook_installed
-    with _hook_lock:
-        if _hook_installed:
-            return
-        previous = warnings.showwarning
-
-        def show(message, category, filename, lineno, file=None, line=None):
-            if getattr(_sending, 'active', False) and issubclass(category, RuntimeWarning) \
-                    and str(message).startswith(FAILED):
-                _sending.failed = str(message)
-                return
-            previous(message, category, filename, lineno, file, line)
-
-        warnings.showwarning = show
-        warnings.filterwarnings('always', message=FAILED, category=RuntimeWarning)
-        _hook_installed = True
 
 
 def _send_once(send, response, header) -> Optional[str]:
     """Send a reply once; return None if the middleware took it, else what it said."""
-    _sending.active, _sending.failed = True, None
-    try:
+    with thread_warnings.caught(FAILED) as heard:
         send(response, header)
-    finally:
-        _sending.active = False
-    return _sending.failed
+    return heard[0] if heard else None
 
 
 class Resender:
@@ -92,7 +74,6 @@ class Resender:
 
     def __init__(self, first_retry_sec: float = FIRST_RETRY_SEC,
                  give_up_sec: float = GIVE_UP_SEC, max_pending: int = MAX_PENDING):
-        _install_hook()
         self.first_retry_sec, self.give_up_sec = first_retry_sec, give_up_sec
         self.max_pending = max_pending
         #: Oldest first: [next try at, wait before it, given up at, name, send, response, header]
@@ -202,3 +183,76 @@ def deliver(service):
     """Send `service`'s replies through the process's resender; return the service."""
     resender().watch(service)
     return service
+
+
+#: The action-server handle types made by :func:`_resending_handle_type`, by rclpy's own type.
+_handle_types: dict = {}
+#: Held while rclpy's action module makes its handles of a resending type (one server at once).
+_making_lock = threading.Lock()
+
+
+def _resending_handle_type(base: type) -> type:
+    """Return a subclass of rclpy's action-server handle `base` whose replies resend."""
+    if base not in _handle_types:
+        def reply(send_name: str):
+            send = getattr(base, send_name)
+
+            def resend(self, header, response) -> None:
+                resender()._send(self.reply_name, lambda r, h: send(self, h, r), response, header)
+            resend.__name__ = send_name
+            return resend
+
+        _handle_types[base] = type('ResendingActionServerHandle', (base,), {
+            'reply_name': 'an action server',  # its own, once made (_WithResendingHandles)
+            **{name: reply(name) for name in ('send_goal_response', 'send_cancel_response',
+                                              'send_result_response')}})
+    return _handle_types[base]
+
+
+class _WithResendingHandles:
+    """rclpy's implementation module, but for the action-server handles it makes (`name`'s)."""
+
+    def __init__(self, implementation, name: str):
+        self._implementation, self._name = implementation, name
+        self._handle_type = _resending_handle_type(implementation.ActionServer)
+
+    def ActionServer(self, *args, **kwargs):  # noqa: N802 (stands for rclpy's type)
+        handle = self._handle_type(*args, **kwargs)
+        handle.reply_name = self._name
+        return handle
+
+    def __getattr__(self, name: str):
+        return getattr(self._implementation, name)
+
+
+@contextlib.contextmanager
+def _resending_handles(name: str):
+    """
+    While an action server is made, rclpy's action module makes its handle resend.
+
+    rclpy's ActionServer makes its handle from the implementation module it names ``_rclpy``;
+    here that name stands for a stand-in that makes the handle of the resending subclass and
+    passes every other name through, so a thread of rclpy's action module that looks a name
+    up meanwhile gets the very same thing. An rclpy without that name leaves the handle as
+    made: its action replies are then not sent again.
+    """
+    implementation = getattr(_action_module, '_rclpy', None)
+    if implementation is None or not hasattr(implementation, 'ActionServer'):
+        yield
+        return
+    with _making_lock:
+        _action_module._rclpy = _WithResendingHandles(implementation, name)
+        try:
+            yield
+        finally:
+            _action_module._rclpy = implementation
+
+
+class ResendingActionServer(ActionServer):
+    """An action server whose goal, cancel and result replies go through the resender."""
+
+    def __init__(self, node, action_type, action_name: str, *args, **kwargs):
+        ns = node.get_namespace().rstrip('/')
+        name = action_name if action_name.startswith('/') else f'{ns}/{action_name}'
+        with _resending_handles(name):
+            super().__init__(node, action_type, action_name, *args, **kwargs)
